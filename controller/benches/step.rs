@@ -1,0 +1,156 @@
+//! One full control step (bank predict + update of every filter, constraint rows, policy,
+//! QP solves) for m = 2 (the paper's study: 2 single-drop filters, 1 pair filter, baseline)
+//! and m = 3 (3 + 3 pair filters + baseline).
+//!
+//! Two scenarios per m, both with the paper's constant attack (+1 on y4):
+//! * `static`: readings of a robot at rest at (0.5, 0); Step 1 decides (1 QP solve).
+//! * `closed_loop`: the paper's study — the truth follows eq. 6.2 with process noise 1e-3·I
+//!   (Euler–Maruyama, one step per control period) under the controller's input from
+//!   x0 = (1, 0, 0, 0), measurements with variance 1e-3 (seeded ChaCha8), restarted every
+//!   30 s; the stage mix (Step 1 / Step 2 / CLF relaxation: 1–3 QP solves per step) is
+//!   printed before measuring. The time includes the simulation of truth and readings
+//!   (a few hundred ns).
+
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ftcbf_controller::barrier::HalfPlane;
+use ftcbf_controller::{
+    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
+    QuadraticClf, State, StateMatrix,
+};
+use nalgebra::Matrix2;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+const DT: f64 = 0.01;
+
+fn controller(patterns: Vec<Vec<usize>>) -> Controller {
+    let m = patterns.len();
+    let model = LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model");
+    // V̄ as in tests/paper_study.rs: the largest level set inside the ball of radius d/2.
+    let probe = QuadraticClf::new(
+        &model.f,
+        &model.g,
+        State::zeros(),
+        0.05,
+        &ClfConfig::paper(0.0),
+    )
+    .expect("clf");
+    Controller::new(ControllerConfig {
+        kind: ControllerKind::FtCbfClf,
+        model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
+        fault_patterns: patterns,
+        barriers: vec![Arc::new(HalfPlane::new(
+            "h",
+            State::new(0.0, 1.0, 0.0, 0.2),
+            -0.05,
+        ))],
+        goal: State::zeros(),
+        goal_radius: 0.05,
+        gamma: vec![0.001; m],
+        gamma_baseline: 0.001,
+        theta: vec![0.045],
+        delta: 1.0,
+        cbf_gain: 1.0,
+        clf: ClfConfig::paper(probe.v_bar_inside_ball(0.025)),
+        input_cost: Matrix2::identity(),
+        input_limit: Some(Input::new(2.0, 2.0)),
+        x0: State::new(1.0, 0.0, 0.0, 0.0),
+        p0: StateMatrix::identity() * 1e-3,
+        max_abs_reading: 1e6,
+    })
+    .expect("config")
+}
+
+/// Closed loop: truth + controller, restarted every 3000 steps.
+struct ClosedLoop {
+    model: LinearModel,
+    patterns: Vec<Vec<usize>>,
+    ctrl: Controller,
+    x: State,
+    k: usize,
+    rng: ChaCha8Rng,
+}
+
+impl ClosedLoop {
+    fn new(patterns: Vec<Vec<usize>>) -> Self {
+        Self {
+            model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
+            ctrl: controller(patterns.clone()),
+            patterns,
+            x: State::new(1.0, 0.0, 0.0, 0.0),
+            k: 0,
+            rng: ChaCha8Rng::seed_from_u64(5),
+        }
+    }
+    fn readings(&mut self) -> [f64; 6] {
+        let mut y = [0.0; 6];
+        for (c, yc) in y.iter_mut().enumerate() {
+            let v: f64 = StandardNormal.sample(&mut self.rng);
+            *yc = self.model.measure(c, &self.x) + 1e-3f64.sqrt() * v;
+        }
+        y[3] += 1.0;
+        y
+    }
+    fn step(&mut self) -> (Input, QpOutcome, u32) {
+        self.k += 1;
+        if self.k.is_multiple_of(3000) {
+            self.ctrl = controller(self.patterns.clone());
+            self.x = State::new(1.0, 0.0, 0.0, 0.0);
+        }
+        let y = self.readings();
+        let out = self.ctrl.step(&y, &[true; 6], DT);
+        let (u, qp, solves) = (out.u, out.qp, out.decision.qp_solves);
+        self.x = self
+            .model
+            .euler_maruyama_step(&self.x, &u, DT, &State::zeros());
+        (u, qp, solves)
+    }
+}
+
+fn bench_step(c: &mut Criterion) {
+    for (m, patterns) in [
+        (2, vec![vec![1], vec![3]]),
+        (3, vec![vec![1], vec![3], vec![5]]),
+    ] {
+        let mut ctrl = controller(patterns.clone());
+        let y = [0.5, 0.5, 0.0, 1.0, 0.0, 0.0];
+        for _ in 0..300 {
+            ctrl.step(&y, &[true; 6], DT);
+        }
+        c.bench_function(&format!("step_m{m}_static"), |b| {
+            b.iter(|| black_box(ctrl.step(black_box(&y), &[true; 6], DT).u))
+        });
+
+        let mut cl = ClosedLoop::new(patterns);
+        let mut mix = [0usize; 5];
+        let mut solves = 0u64;
+        for _ in 0..3000 {
+            let (_, qp, s) = cl.step();
+            solves += s as u64;
+            let i = match qp {
+                QpOutcome::Feasible { stage, .. } => stage as usize,
+                QpOutcome::InfeasibleAfterStep3 { .. } => 4,
+            };
+            mix[i] += 1;
+        }
+        eprintln!(
+            "m = {m} closed loop, 3000 steps: stages [Step1, Step2, ClfRelaxation, Step3, Fallback] = {mix:?}, {:.2} QP solves/step",
+            solves as f64 / 3000.0
+        );
+        c.bench_function(&format!("step_m{m}_closed_loop"), |b| {
+            b.iter(|| black_box(cl.step().0))
+        });
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
+    targets = bench_step
+}
+criterion_main!(benches);

@@ -1,0 +1,273 @@
+//! Barrier functions h(x) with value, gradient and Hessian (safe set C = {x : h(x) ≥ 0}, eq. 3.3).
+
+use crate::types::{State, StateMatrix};
+
+/// h, ∂h/∂x and ∂²h/∂x² evaluated at one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BarrierEval {
+    /// h(x); the safe set is h ≥ 0.
+    pub value: f64,
+    /// ∂h/∂x (as a column vector).
+    pub gradient: State,
+    /// ∂²h/∂x².
+    pub hessian: StateMatrix,
+}
+
+/// A barrier function over the planar state. Implemented in closed form here (half-plane,
+/// ellipsoid inside/outside, the relative-degree-2 lift of §4.2.1) and from obstacle geometry
+/// in the simulator (signed distance to a parry shape).
+pub trait Barrier: Send + Sync + std::fmt::Debug {
+    /// A stable, human-readable name (used in logs and decision records).
+    fn name(&self) -> &str;
+    /// Value, gradient and Hessian at `x`.
+    fn eval(&self, x: &State) -> BarrierEval;
+    /// h̄_γ of Theorem 2/3: sup { h(x) : ‖x − x⁰‖₂ ≤ γ for some x⁰ with h(x⁰) = 0 }.
+    /// Closed form where known (γ‖a‖ for a half-plane, Prop. 3 for an ellipsoid); an upper
+    /// bound (γ times a Lipschitz constant of h) otherwise — an upper bound is conservative.
+    fn h_bar(&self, gamma: f64) -> f64;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Closed-form barriers (added by the controller crate; the trait above is unchanged).
+// ---------------------------------------------------------------------------------------------
+
+/// Largest eigenvalue of a symmetric 4×4 matrix (0 for the zero matrix).
+fn lambda_max_sym(m: &StateMatrix) -> f64 {
+    let sym = (m + m.transpose()) * 0.5;
+    sym.symmetric_eigenvalues().max()
+}
+
+/// Half-plane safe set `h(x) = aᵀx − b ≥ 0` (§4.2.1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HalfPlane {
+    name: String,
+    /// Normal `a` (the gradient of h).
+    pub a: State,
+    /// Offset `b`.
+    pub b: f64,
+}
+
+impl HalfPlane {
+    /// `h(x) = aᵀx − b`.
+    pub fn new(name: impl Into<String>, a: State, b: f64) -> Self {
+        Self {
+            name: name.into(),
+            a,
+            b,
+        }
+    }
+}
+
+impl Barrier for HalfPlane {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn eval(&self, x: &State) -> BarrierEval {
+        BarrierEval {
+            value: self.a.dot(x) - self.b,
+            gradient: self.a,
+            hessian: StateMatrix::zeros(),
+        }
+    }
+    /// Exact: `h̄_γ = γ‖a‖₂` (h grows fastest along `a`).
+    fn h_bar(&self, gamma: f64) -> f64 {
+        gamma * self.a.norm()
+    }
+}
+
+/// Ellipsoidal safe set, inside: `h(x) = 1 − (x − x')ᵀΦ(x − x') ≥ 0` (§4.2.2).
+/// Φ must be symmetric positive semidefinite (positive definite in the paper; a PSD Φ
+/// gives an elliptic cylinder, which is handled by the same formulas).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EllipsoidInside {
+    name: String,
+    /// Centre x'.
+    pub center: State,
+    /// Shape matrix Φ (symmetric PSD).
+    pub phi: StateMatrix,
+    lambda_max: f64,
+}
+
+impl EllipsoidInside {
+    /// `h(x) = 1 − (x − center)ᵀ Φ (x − center)`; Φ is symmetrised.
+    pub fn new(name: impl Into<String>, center: State, phi: StateMatrix) -> Self {
+        let phi = (phi + phi.transpose()) * 0.5;
+        let lambda_max = lambda_max_sym(&phi);
+        Self {
+            name: name.into(),
+            center,
+            phi,
+            lambda_max,
+        }
+    }
+}
+
+impl Barrier for EllipsoidInside {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn eval(&self, x: &State) -> BarrierEval {
+        let e = x - self.center;
+        let pe = self.phi * e;
+        BarrierEval {
+            value: 1.0 - e.dot(&pe),
+            gradient: -2.0 * pe,
+            hessian: -2.0 * self.phi,
+        }
+    }
+    /// Exact, Proposition 3: `1` if `γ ≥ 1/√λ̄(Φ)`, else `1 − (1 − γ√λ̄(Φ))²`.
+    fn h_bar(&self, gamma: f64) -> f64 {
+        let s = gamma * self.lambda_max.max(0.0).sqrt();
+        if s >= 1.0 {
+            1.0
+        } else {
+            1.0 - (1.0 - s) * (1.0 - s)
+        }
+    }
+}
+
+/// Ellipsoidal obstacle, safe outside: `h(x) = (x − x')ᵀΦ(x − x') − 1 ≥ 0`.
+///
+/// For a round obstacle of radius r at position c, use `Φ = diag(1/r², 1/r², 0, 0)`: a PSD
+/// matrix of rank 2 acting on position only (the set is a cylinder in state space).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EllipsoidOutside {
+    name: String,
+    /// Centre x'.
+    pub center: State,
+    /// Shape matrix Φ (symmetric PSD; rank 2 on position is the usual case).
+    pub phi: StateMatrix,
+    lambda_max: f64,
+}
+
+impl EllipsoidOutside {
+    /// `h(x) = (x − center)ᵀ Φ (x − center) − 1`; Φ is symmetrised.
+    pub fn new(name: impl Into<String>, center: State, phi: StateMatrix) -> Self {
+        let phi = (phi + phi.transpose()) * 0.5;
+        let lambda_max = lambda_max_sym(&phi);
+        Self {
+            name: name.into(),
+            center,
+            phi,
+            lambda_max,
+        }
+    }
+
+    /// A disc obstacle of `radius` (m) centred at `(px, py)` in the world frame.
+    pub fn disc(name: impl Into<String>, px: f64, py: f64, radius: f64) -> Self {
+        let k = 1.0 / (radius * radius);
+        Self::new(
+            name,
+            State::new(px, py, 0.0, 0.0),
+            StateMatrix::from_diagonal(&State::new(k, k, 0.0, 0.0)),
+        )
+    }
+}
+
+impl Barrier for EllipsoidOutside {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn eval(&self, x: &State) -> BarrierEval {
+        let e = x - self.center;
+        let pe = self.phi * e;
+        BarrierEval {
+            value: e.dot(&pe) - 1.0,
+            gradient: 2.0 * pe,
+            hessian: 2.0 * self.phi,
+        }
+    }
+    /// Exact for the outside case: `h̄_γ = (1 + γ√λ̄(Φ))² − 1`.
+    ///
+    /// Upper bound: with z = Φ^½(x − x'), ‖z‖ ≤ ‖Φ^½(x⁰ − x')‖ + ‖Φ^½(x − x⁰)‖ ≤ 1 + γ√λ̄.
+    /// Attained by x⁰ = x' + v/√λ̄ and x = x⁰ + γv with v the unit eigenvector of λ̄.
+    /// Unlike the inside case there is no saturation: h is unbounded outside.
+    fn h_bar(&self, gamma: f64) -> f64 {
+        let s = gamma * self.lambda_max.max(0.0).sqrt();
+        (1.0 + s) * (1.0 + s) - 1.0
+    }
+}
+
+/// The relative-degree lift of §4.2.1 for a half-plane `h₀ = aᵀx − b` with `aᵀG = 0`:
+///
+/// `h₁(x) = ∂h₀/∂x F x + ½tr(σᵀ∇²h₀σ) − γ‖∂h₀/∂x K c‖ + h₀(x)
+///        = (Fᵀa + a)ᵀx − b − γ‖aᵀ K c‖`   (∇²h₀ = 0 for a half-plane).
+///
+/// `K c` is the continuous-time-equivalent gain product of the filter whose estimate the
+/// constraint uses; this crate uses the **steady-state** value `P∞⁺ c̄ᵀ R⁻¹ c̄ / dt` (see
+/// [`crate::params::steady_state_gain_product`]), so h₁ is again a half-plane and its
+/// h̄_γ is exact (γ‖Fᵀa + a‖). By Theorem 4, imposing the CBF condition on h₁ keeps
+/// `h₀ ≥ 0` provided `x₀ ∈ C₀ ∩ C₁`; [`HigherOrderHalfPlane::base`] gives h₀ for logging.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HigherOrderHalfPlane {
+    base: HalfPlane,
+    lifted: HalfPlane,
+}
+
+impl HigherOrderHalfPlane {
+    /// Build h₁ from h₀ = `base`, the drift matrix `f`, the gain product `kc` (n×n) and γ.
+    pub fn new(base: HalfPlane, f: &StateMatrix, kc: &StateMatrix, gamma: f64) -> Self {
+        let a1 = f.transpose() * base.a + base.a;
+        let b1 = base.b + gamma * (kc.transpose() * base.a).norm();
+        let lifted = HalfPlane::new(format!("{}-lift1", base.name), a1, b1);
+        Self { base, lifted }
+    }
+    /// The original barrier h₀.
+    pub fn base(&self) -> &HalfPlane {
+        &self.base
+    }
+    /// The lifted barrier h₁ as a half-plane.
+    pub fn lifted(&self) -> &HalfPlane {
+        &self.lifted
+    }
+}
+
+impl Barrier for HigherOrderHalfPlane {
+    fn name(&self) -> &str {
+        self.lifted.name()
+    }
+    fn eval(&self, x: &State) -> BarrierEval {
+        self.lifted.eval(x)
+    }
+    /// Exact for the lifted half-plane: γ‖Fᵀa + a‖.
+    fn h_bar(&self, gamma: f64) -> f64 {
+        self.lifted.h_bar(gamma)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::types::InputMatrix;
+
+    #[test]
+    fn higher_order_lift_of_a_position_half_plane() {
+        // h₀ = y − 0.3 has aᵀG = 0 for the double integrator; h₁ = y + ẏ − 0.3 − γ‖aᵀKc‖.
+        let f = crate::model::LinearModel::double_integrator_f();
+        let g: InputMatrix = crate::model::LinearModel::double_integrator_g();
+        let base = HalfPlane::new("y>=0.3", State::new(0.0, 1.0, 0.0, 0.0), 0.3);
+        let mut kc = StateMatrix::zeros();
+        kc[(1, 1)] = 4.0;
+        let lift = HigherOrderHalfPlane::new(base, &f, &kc, 0.01);
+        assert_eq!(lift.lifted().a, State::new(0.0, 1.0, 0.0, 1.0));
+        assert!((lift.lifted().b - (0.3 + 0.04)).abs() < 1e-15);
+        let lambda = g.transpose() * lift.eval(&State::zeros()).gradient;
+        assert_eq!(lambda, crate::types::Input::new(0.0, 1.0));
+        assert!((lift.h_bar(0.1) - 0.1 * 2f64.sqrt()).abs() < 1e-15);
+        assert_eq!(lift.base().a, State::new(0.0, 1.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn ellipsoid_values_gradients_and_disc() {
+        let d = EllipsoidOutside::disc("disc", 1.0, 2.0, 0.5);
+        let x = State::new(1.5, 2.0, 3.0, -1.0);
+        let e = d.eval(&x);
+        assert!(e.value.abs() < 1e-15); // on the boundary; velocities do not matter
+        assert_eq!(e.gradient, State::new(4.0, 0.0, 0.0, 0.0));
+        // rank-2 Φ: λ̄ = 4, h̄ = (1 + 2γ)² − 1
+        assert!((d.h_bar(0.1) - (1.2f64 * 1.2 - 1.0)).abs() < 1e-14);
+        let inside = EllipsoidInside::new("in", State::zeros(), StateMatrix::identity() * 4.0);
+        assert!((inside.h_bar(0.1) - (1.0 - 0.8 * 0.8)).abs() < 1e-14);
+        assert_eq!(inside.h_bar(0.5), 1.0);
+    }
+}

@@ -1,0 +1,518 @@
+//! The top-level controller the simulator's runner calls: FT-CBF-CLF, the all-channel
+//! baseline (the paper's comparison, same CBF-CLF QP over one filter) and a nominal
+//! CLF-only controller (all-channel filter, no barriers).
+
+use std::sync::Arc;
+
+use nalgebra::Matrix2;
+use thiserror::Error;
+
+use crate::barrier::Barrier;
+use crate::constraints::{cbf_row, clf_row};
+use crate::estimator::EstimatorBank;
+use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
+use crate::model::{validate_fault_patterns, LinearModel, ModelError};
+use crate::policy::{resolve, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
+use crate::qp::QpSolver;
+use crate::types::{Input, State, StateMatrix};
+
+/// Weight of the shared slack in the QP cost (input cost R is O(1)): soft rows are violated
+/// only as little as the other constraints force.
+pub const SLACK_WEIGHT: f64 = 1e4;
+
+/// Which controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ControllerKind {
+    /// Fault-tolerant CBF-CLF (m single-drop filters, pair filters, Steps 1–3).
+    FtCbfClf,
+    /// The same CBF-CLF QP over the all-channel filter only.
+    Baseline,
+    /// CLF only over the all-channel filter (no barriers).
+    Nominal,
+}
+
+/// Configuration of a [`Controller`].
+#[derive(Debug, Clone)]
+pub struct ControllerConfig {
+    /// Which controller.
+    pub kind: ControllerKind,
+    /// The linear model.
+    pub model: LinearModel,
+    /// Fault patterns F(r_i) as channel indices (disjoint, non-empty, in range).
+    pub fault_patterns: Vec<Vec<usize>>,
+    /// Safe sets; one Ω per (filter, barrier).
+    pub barriers: Vec<Arc<dyn Barrier>>,
+    /// Goal state x_g.
+    pub goal: State,
+    /// Goal radius d (state norm) (also the d of eq. 6.6).
+    pub goal_radius: f64,
+    /// γ_i per pattern.
+    pub gamma: Vec<f64>,
+    /// γ of the all-channel filter (baseline and nominal).
+    pub gamma_baseline: f64,
+    /// θ_ij: one value for all pairs, or C(m,2) values in the order (0,1), (0,2), …, (1,2), …
+    pub theta: Vec<f64>,
+    /// δ of X_t(δ): Ω is imposed when ĥ(x̂) < δ (may be +∞: always).
+    pub delta: f64,
+    /// Class-K gain κ of the CBF condition (`… ≥ −κ ĥ`); the paper uses 1.
+    pub cbf_gain: f64,
+    /// CLF configuration.
+    pub clf: ClfConfig,
+    /// Input cost R of (5.3) (symmetric positive definite).
+    pub input_cost: Matrix2<f64>,
+    /// Symmetric box |a_k| ≤ limit_k (m/s²), if any.
+    pub input_limit: Option<Input>,
+    /// Initial estimate.
+    pub x0: State,
+    /// Initial covariance.
+    pub p0: StateMatrix,
+    /// Readings with |y| above this, or non-finite, are rejected.
+    pub max_abs_reading: f64,
+}
+
+/// Configuration errors.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ConfigError {
+    /// Model or fault patterns.
+    #[error("invalid model or fault patterns: {0}")]
+    Model(#[from] ModelError),
+    /// CLF.
+    #[error("invalid CLF: {0}")]
+    Lyapunov(#[from] LyapunovError),
+    /// A scalar out of range.
+    #[error("controller config key `{key}` = {value}: expected {expected}")]
+    BadValue {
+        /// Key.
+        key: &'static str,
+        /// Value.
+        value: f64,
+        /// Expectation.
+        expected: &'static str,
+    },
+    /// A list of the wrong length.
+    #[error("controller config key `{key}` has {got} entries, expected {expected}")]
+    Length {
+        /// Key.
+        key: &'static str,
+        /// Expected.
+        expected: String,
+        /// Got.
+        got: usize,
+    },
+}
+
+/// Readings thrown out in one step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RejectedReadings {
+    /// Fresh readings rejected (non-finite or |y| > max_abs_reading).
+    pub count: usize,
+    /// Per channel.
+    pub channels: Vec<bool>,
+    /// Per fault pattern: a channel of it was rejected.
+    pub patterns: Vec<bool>,
+    /// `y`/`fresh` did not have q entries (missing entries treated as not fresh).
+    pub length_mismatch: bool,
+    /// `dt` was not finite and positive: the filters were not advanced.
+    pub invalid_dt: bool,
+}
+
+/// Output of one step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlOutput {
+    /// Input to apply (planar acceleration, world frame) (m/s²).
+    pub u: Input,
+    /// QP / policy outcome.
+    pub qp: QpOutcome,
+    /// Every constraint and what happened to it.
+    pub decision: DecisionRecord,
+    /// Rejected readings.
+    pub rejected: RejectedReadings,
+    /// h(x̂) per filter of the bank and barrier, index `filter * barriers + barrier`.
+    pub h_values: Vec<f64>,
+    /// V(x̂) per filter of the bank.
+    pub v_values: Vec<f64>,
+}
+
+/// The controller. `Send`; one per trial.
+#[derive(Debug)]
+pub struct Controller {
+    kind: ControllerKind,
+    barriers: Vec<Arc<dyn Barrier>>,
+    gamma: Vec<f64>,
+    gamma_baseline: f64,
+    h_bar: Vec<f64>,
+    h_bar_baseline: Vec<f64>,
+    delta: f64,
+    cbf_gain: f64,
+    max_abs_reading: f64,
+    bank: EstimatorBank,
+    clf: QuadraticClf,
+    qp: QpSolver,
+    problem: PolicyProblem,
+    scratch: PolicyScratch,
+    valid: Vec<bool>,
+    rejected_buf: Vec<bool>,
+    pattern_of_channel: Vec<Option<usize>>,
+    u: Input,
+    output: ControlOutput,
+}
+
+fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::BadValue {
+            key,
+            value: v,
+            expected: "a finite number > 0",
+        })
+    }
+}
+
+fn nonneg(key: &'static str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::BadValue {
+            key,
+            value: v,
+            expected: "a finite number ≥ 0",
+        })
+    }
+}
+
+impl Controller {
+    /// Validate the configuration and build the controller.
+    pub fn new(cfg: ControllerConfig) -> Result<Self, ConfigError> {
+        let q = cfg.model.channels();
+        validate_fault_patterns(&cfg.fault_patterns, q)?;
+        let m = cfg.fault_patterns.len();
+        if cfg.gamma.len() != m {
+            return Err(ConfigError::Length {
+                key: "gamma",
+                expected: format!("{m} (one per fault pattern)"),
+                got: cfg.gamma.len(),
+            });
+        }
+        for &g in &cfg.gamma {
+            nonneg("gamma", g)?;
+        }
+        nonneg("gamma_baseline", cfg.gamma_baseline)?;
+        let pairs = m * m.saturating_sub(1) / 2;
+        if !(cfg.theta.len() == 1 || cfg.theta.len() == pairs) {
+            return Err(ConfigError::Length {
+                key: "theta",
+                expected: format!("1 or C(m,2) = {pairs}"),
+                got: cfg.theta.len(),
+            });
+        }
+        for &t in &cfg.theta {
+            positive("theta", t)?;
+        }
+        if cfg.delta.is_nan() || cfg.delta <= 0.0 {
+            return Err(ConfigError::BadValue {
+                key: "delta",
+                value: cfg.delta,
+                expected: "> 0 (may be +inf)",
+            });
+        }
+        positive("cbf_gain", cfg.cbf_gain)?;
+        positive("max_abs_reading", cfg.max_abs_reading)?;
+        if let Some(l) = cfg.input_limit {
+            positive("input_limit[0]", l[0])?;
+            positive("input_limit[1]", l[1])?;
+        }
+        let r = cfg.input_cost;
+        if r.iter().any(|v| !v.is_finite()) || r[(0, 0)] <= 0.0 || r.determinant() <= 0.0 {
+            return Err(ConfigError::BadValue {
+                key: "input_cost",
+                value: r.determinant(),
+                expected: "a symmetric positive definite 2×2 matrix",
+            });
+        }
+        if cfg.x0.iter().any(|v| !v.is_finite()) {
+            return Err(ConfigError::BadValue {
+                key: "x0",
+                value: f64::NAN,
+                expected: "finite entries",
+            });
+        }
+        let p0min = ((cfg.p0 + cfg.p0.transpose()) * 0.5)
+            .symmetric_eigenvalues()
+            .min();
+        if cfg.p0.iter().any(|v| !v.is_finite()) || p0min < 0.0 {
+            return Err(ConfigError::BadValue {
+                key: "p0",
+                value: p0min,
+                expected: "a symmetric PSD matrix (min eigenvalue ≥ 0)",
+            });
+        }
+        let clf = QuadraticClf::new(
+            &cfg.model.f,
+            &cfg.model.g,
+            cfg.goal,
+            cfg.goal_radius,
+            &cfg.clf,
+        )?;
+
+        let nb = cfg.barriers.len();
+        let units = match cfg.kind {
+            ControllerKind::FtCbfClf => m,
+            _ => 1,
+        };
+        let barriers_used = if cfg.kind == ControllerKind::Nominal {
+            0
+        } else {
+            nb
+        };
+        let h_bar: Vec<f64> = cfg
+            .gamma
+            .iter()
+            .flat_map(|&g| cfg.barriers.iter().map(move |b| b.h_bar(g)))
+            .collect();
+        let h_bar_baseline: Vec<f64> = cfg
+            .barriers
+            .iter()
+            .map(|b| b.h_bar(cfg.gamma_baseline))
+            .collect();
+
+        let mut problem = PolicyProblem::new(units, barriers_used);
+        problem.use_clf = true;
+        problem.delta = cfg.delta;
+        problem.v_bar = cfg.clf.v_bar;
+        for i in 0..units {
+            for j in 0..units {
+                if i == j {
+                    continue;
+                }
+                let (a, b) = (i.min(j), i.max(j));
+                let idx = a * (2 * m - a - 1) / 2 + (b - a - 1);
+                problem.theta[i * units + j] = if cfg.theta.len() == 1 {
+                    cfg.theta[0]
+                } else {
+                    cfg.theta[idx]
+                };
+            }
+        }
+        let bank = EstimatorBank::new(cfg.model.clone(), &cfg.fault_patterns, cfg.x0, cfg.p0);
+        let qp = QpSolver::new(
+            units * barriers_used,
+            units,
+            cfg.input_cost,
+            SLACK_WEIGHT,
+            cfg.input_limit,
+        );
+        let mut pattern_of_channel = vec![None; q];
+        for (p, pat) in cfg.fault_patterns.iter().enumerate() {
+            for &c in pat {
+                pattern_of_channel[c] = Some(p);
+            }
+        }
+        let nf = bank.filters().len();
+        let output = ControlOutput {
+            u: Input::zeros(),
+            qp: QpOutcome::Feasible {
+                stage: crate::policy::Stage::Step1,
+                clf_relaxed: false,
+                clf_slack: 0.0,
+                iterations: 0,
+            },
+            decision: DecisionRecord::with_capacity(units * (barriers_used + 1)),
+            rejected: RejectedReadings {
+                count: 0,
+                channels: vec![false; q],
+                patterns: vec![false; m],
+                length_mismatch: false,
+                invalid_dt: false,
+            },
+            h_values: vec![0.0; nf * nb],
+            v_values: vec![0.0; nf],
+        };
+        Ok(Self {
+            kind: cfg.kind,
+            scratch: PolicyScratch::new(units, barriers_used),
+            barriers: cfg.barriers,
+            gamma: cfg.gamma,
+            gamma_baseline: cfg.gamma_baseline,
+            h_bar,
+            h_bar_baseline,
+            delta: cfg.delta,
+            cbf_gain: cfg.cbf_gain,
+            max_abs_reading: cfg.max_abs_reading,
+            bank,
+            clf,
+            qp,
+            problem,
+            valid: vec![false; q],
+            rejected_buf: vec![false; q],
+            pattern_of_channel,
+            u: Input::zeros(),
+            output,
+        })
+    }
+
+    /// Which controller this is.
+    pub fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+    /// The estimator bank (estimates, covariances, residues, labels).
+    pub fn bank(&self) -> &EstimatorBank {
+        &self.bank
+    }
+    /// The CLF.
+    pub fn clf(&self) -> &QuadraticClf {
+        &self.clf
+    }
+    /// The barriers.
+    pub fn barriers(&self) -> &[Arc<dyn Barrier>] {
+        &self.barriers
+    }
+    /// The last output.
+    pub fn output(&self) -> &ControlOutput {
+        &self.output
+    }
+    /// The input currently held.
+    pub fn input(&self) -> Input {
+        self.u
+    }
+    /// h(x̂) of bank filter `filter` for barrier `barrier` (as of the last step).
+    pub fn barrier_value(&self, filter: usize, barrier: usize) -> Option<f64> {
+        if barrier >= self.barriers.len() {
+            return None;
+        }
+        self.output
+            .h_values
+            .get(filter * self.barriers.len() + barrier)
+            .copied()
+    }
+    /// V(x̂) of bank filter `filter` (as of the last step).
+    pub fn clf_value(&self, filter: usize) -> Option<f64> {
+        self.output.v_values.get(filter).copied()
+    }
+
+    /// One control step: predict over `dt` with the previous input, update with the fresh and
+    /// valid readings, then solve the policy. `y.len() == fresh.len() == q` is expected;
+    /// missing entries count as not fresh (and `length_mismatch` is reported). Non-finite
+    /// readings and readings with |y| > `max_abs_reading` are never used: they are counted,
+    /// and the filters using that channel are flagged (largest residue in Step 3).
+    pub fn step(&mut self, y: &[f64], fresh: &[bool], dt: f64) -> &ControlOutput {
+        let q = self.valid.len();
+        let rej = &mut self.output.rejected;
+        rej.count = 0;
+        rej.length_mismatch = y.len() != q || fresh.len() != q;
+        rej.patterns.iter_mut().for_each(|p| *p = false);
+        for k in 0..q {
+            let is_fresh = fresh.get(k).copied().unwrap_or(false) && k < y.len();
+            let v = y.get(k).copied().unwrap_or(f64::NAN);
+            let ok = v.is_finite() && v.abs() <= self.max_abs_reading;
+            self.valid[k] = is_fresh && ok;
+            self.rejected_buf[k] = is_fresh && !ok;
+            rej.channels[k] = self.rejected_buf[k];
+            if self.rejected_buf[k] {
+                rej.count += 1;
+                if let Some(p) = self.pattern_of_channel[k] {
+                    rej.patterns[p] = true;
+                }
+            }
+        }
+        rej.invalid_dt = !(dt.is_finite() && dt > 0.0);
+        if !rej.invalid_dt {
+            // valid[k] implies k < y.len(): the filters only read valid channels.
+            self.bank
+                .step(&self.u, dt, y, &self.valid, &self.rejected_buf);
+        }
+        self.fill_problem();
+        let (u, outcome) = resolve(
+            &self.problem,
+            &mut self.qp,
+            &mut self.scratch,
+            &mut self.output.decision,
+        );
+        self.u = u;
+        self.bank.set_last_input(u);
+        self.output.u = u;
+        self.output.qp = outcome;
+        // logging values
+        let nb = self.barriers.len();
+        for (fi, f) in self.bank.filters().iter().enumerate() {
+            for (bi, b) in self.barriers.iter().enumerate() {
+                self.output.h_values[fi * nb + bi] = b.eval(f.estimate()).value;
+            }
+            self.output.v_values[fi] = self.clf.value(f.estimate());
+        }
+        &self.output
+    }
+
+    fn fill_problem(&mut self) {
+        let model = self.bank.model();
+        let nbu = self.problem.barriers();
+        let units = self.problem.units();
+        let m = self.bank.patterns();
+        for i in 0..units {
+            let (fi, gamma, hbars): (usize, f64, &[f64]) = match self.kind {
+                ControllerKind::FtCbfClf => (
+                    i,
+                    self.gamma[i],
+                    &self.h_bar[i * self.barriers.len()..(i + 1) * self.barriers.len()],
+                ),
+                _ => (
+                    self.bank.baseline_index(),
+                    self.gamma_baseline,
+                    &self.h_bar_baseline,
+                ),
+            };
+            let f = &self.bank.filters()[fi];
+            let x = f.estimate();
+            for (b, &hb) in hbars.iter().enumerate().take(nbu) {
+                let eval = self.barriers[b].eval(x);
+                let row = cbf_row(
+                    model,
+                    &eval,
+                    x,
+                    f.gain_drift(),
+                    f.gain_diffusion(),
+                    gamma,
+                    hb,
+                    self.cbf_gain,
+                );
+                let k = i * nbu + b;
+                self.problem.cbf_active[k] = row.h_hat < self.delta;
+                self.problem.cbf[k] = row;
+            }
+            let crow = clf_row(
+                model,
+                &self.clf,
+                x,
+                f.gain_drift(),
+                f.gain_diffusion(),
+                gamma,
+            );
+            self.problem.clf_active[i] = crow.v > self.clf.v_bar;
+            self.problem.clf[i] = crow;
+            self.problem.estimates[i] = *x;
+            self.problem.residue_key[i] = f.residue_rank_key();
+            self.problem.flagged[i] = f.flagged();
+        }
+        if self.kind == ControllerKind::FtCbfClf {
+            for i in 0..m {
+                for j in 0..m {
+                    if let Some(p) = self.bank.pair(i, j) {
+                        self.problem.pair_estimates[i * m + j] = *p.estimate();
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_send<T: Send>() {}
+
+    #[test]
+    fn controller_is_send() {
+        assert_send::<Controller>();
+    }
+}

@@ -1,0 +1,573 @@
+//! Conflict resolution, Steps 1–3 of §4.1/§5.1, as a deterministic function of its inputs
+//! ([`resolve`]) that returns the input and a record of every constraint kept or dropped,
+//! at which stage and why.
+//!
+//! A *unit* is one estimator whose constraints are decided together: the m filters x̂_i for
+//! FT-CBF-CLF, or the single all-channel filter for the baseline/nominal controllers.
+//!
+//! Stages (in order; the first feasible one decides):
+//! 1. **Step 1** — all Ω_i (units with ĥ_i < δ, per barrier) and all Υ_i (V(x̂_i) > V̄), hard.
+//! 2. **Step 2** — for each pair with ‖x̂_i − x̂_j‖ > θ_ij, drop unit i (resp. j), i.e. both
+//!    its Ω and Υ, if ‖x̂_i − x̂_ij‖ > θ_ij/2 (resp. for j). Resolve, hard. (Skipped for a
+//!    single unit; not re-solved when nothing was dropped.)
+//! 3. **CLF relaxation** (design decision, not in the paper) — the CLF rows become soft:
+//!    they share one slack that is minimised with a large weight, so the input still makes
+//!    the most progress the CBF rows allow. Its feasibility is that of the CBF rows alone.
+//!    It comes *before* Step 3 because Step 3 may drop the constraints of an honest filter:
+//!    trading safety for progress is never done. It comes *after* Step 2 because Step 2 only
+//!    drops unit i when x̂_i has moved more than θ_ij/2 from x̂_ij; under the event (4.5) of
+//!    Theorem 3 that never happens to the fault-free filter, so Step 2 keeps the paper's
+//!    guarantee, and it is what removes the faulty filter's CLF (whose pull is the usual
+//!    reason Step 1 is infeasible under an attack).
+//! 4. **Step 3** — drop the unit with the largest residue (flagged units, i.e. with a
+//!    rejected reading, rank as +∞) among those that still have CBF rows, and resolve, until
+//!    feasible. The last unit with CBF rows is never dropped: dropping it would leave no
+//!    barrier at all.
+//! 5. **Fallback** (typed, reported, never silent) — if the CBF rows are still infeasible
+//!    (possible with an input box), the input minimises the largest violation of the
+//!    remaining CBF rows inside the box (soft CBF rows; CLF ignored). If even that fails
+//!    (solver failure), the input is maximum braking: `u = −v̂/τ_b` (τ_b = 0.5 s), clipped
+//!    to the box, with v̂ from the unit with the smallest residue.
+
+use clarabel::solver::SolverStatus;
+
+use crate::constraints::{CbfRow, ClfRow, HalfSpace};
+use crate::qp::{QpResult, QpSolver, RowMode};
+use crate::types::{Input, State};
+
+/// Braking time constant of the last-resort action (s).
+pub const BRAKE_TIME_CONSTANT: f64 = 0.5;
+
+/// The stage that decided the input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Step 1: all constraints.
+    Step1,
+    /// Step 2: pairwise-deviation pruning.
+    Step2,
+    /// CLF rows made soft.
+    ClfRelaxation,
+    /// Step 3: largest-residue pruning.
+    Step3,
+    /// No feasible CBF set: safe action.
+    Fallback,
+}
+
+/// Why a constraint is not imposed at all this step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InactiveReason {
+    /// ĥ(x̂) ≥ δ: not in X_t(δ).
+    FarFromBoundary {
+        /// ĥ(x̂).
+        h_hat: f64,
+        /// δ.
+        delta: f64,
+    },
+    /// V(x̂) ≤ V̄: not in Y_t(V̄).
+    InsideGoalLevel {
+        /// V(x̂).
+        v: f64,
+        /// V̄.
+        v_bar: f64,
+    },
+}
+
+/// Why a unit was dropped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DropReason {
+    /// Step 2: ‖x̂_i − x̂_j‖ > θ_ij and ‖x̂_i − x̂_ij‖ > θ_ij/2.
+    PairwiseDeviation {
+        /// The other unit j.
+        other: usize,
+        /// ‖x̂_i − x̂_j‖.
+        distance: f64,
+        /// θ_ij.
+        theta: f64,
+        /// ‖x̂_i − x̂_ij‖ (compared with θ_ij/2).
+        deviation_from_pair: f64,
+    },
+    /// Step 3: the largest residue among the units with CBF rows.
+    LargestResidue {
+        /// Its ranking key (+∞ when flagged).
+        residue: f64,
+        /// A reading of a channel it uses was rejected this step.
+        flagged: bool,
+    },
+}
+
+/// What happened to one constraint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Verdict {
+    /// Not imposed (outside X_t(δ) or Y_t(V̄)).
+    Inactive(InactiveReason),
+    /// Imposed (hard) in the deciding stage.
+    Kept,
+    /// A CLF row imposed softly (CLF relaxation / Step 3), or a CBF row imposed softly in
+    /// the fallback.
+    Relaxed,
+    /// Removed with its unit.
+    Dropped {
+        /// Stage that dropped it.
+        stage: Stage,
+        /// Why.
+        reason: DropReason,
+    },
+}
+
+/// Which constraint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConstraintKind {
+    /// Ω of barrier `barrier`.
+    Cbf {
+        /// Barrier index.
+        barrier: usize,
+    },
+    /// Υ.
+    Clf,
+}
+
+/// One constraint's fate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConstraintDecision {
+    /// Unit index (filter i for FT; 0 = the all-channel filter for the baseline).
+    pub unit: usize,
+    /// Which constraint.
+    pub kind: ConstraintKind,
+    /// Its fate.
+    pub verdict: Verdict,
+}
+
+/// The record of one policy evaluation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecisionRecord {
+    /// Deciding stage.
+    pub stage: Stage,
+    /// One entry per (unit, barrier) Ω and per unit Υ (when the CLF is used).
+    pub decisions: Vec<ConstraintDecision>,
+    /// QP solves this step.
+    pub qp_solves: u32,
+    /// Solves that ended in a solver failure (treated as "not shown feasible").
+    pub solver_failures: u32,
+}
+
+impl DecisionRecord {
+    /// An empty record with room for `capacity` decisions.
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self {
+            stage: Stage::Step1,
+            decisions: Vec::with_capacity(capacity),
+            qp_solves: 0,
+            solver_failures: 0,
+        }
+    }
+    /// Decisions about Ω rows of `unit`.
+    pub fn cbf_verdicts(&self, unit: usize) -> impl Iterator<Item = &ConstraintDecision> {
+        self.decisions
+            .iter()
+            .filter(move |d| d.unit == unit && matches!(d.kind, ConstraintKind::Cbf { .. }))
+    }
+    /// True when any constraint of `unit` was dropped.
+    pub fn unit_dropped(&self, unit: usize) -> bool {
+        self.decisions
+            .iter()
+            .any(|d| d.unit == unit && matches!(d.verdict, Verdict::Dropped { .. }))
+    }
+}
+
+/// The safe action of the fallback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SafeAction {
+    /// The input in the box minimising the largest violation of the remaining CBF rows.
+    MinimiseMaxViolation,
+    /// Maximum braking (the soft problem failed in the solver).
+    Brake {
+        /// The solver's status of the failed soft solve, if it ran.
+        solver_status: Option<SolverStatus>,
+    },
+}
+
+/// Result of the policy.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum QpOutcome {
+    /// A feasible problem (all imposed CBF rows hold).
+    Feasible {
+        /// Deciding stage.
+        stage: Stage,
+        /// Whether the CLF rows were soft.
+        clf_relaxed: bool,
+        /// Largest CLF violation (scaled row units, m/s²); 0 when hard.
+        clf_slack: f64,
+        /// Solver iterations of the deciding solve.
+        iterations: u32,
+    },
+    /// Infeasible after Step 3: the safe action was applied.
+    InfeasibleAfterStep3 {
+        /// What was done.
+        action: SafeAction,
+        /// Largest violation `max(ω̄ − Λu)/‖Λ‖` of the remaining CBF rows at the applied input
+        /// (m/s²) (0 when they all hold).
+        max_cbf_violation: f64,
+    },
+}
+
+/// The inputs of one policy evaluation (preallocated; the controller refills it each step).
+#[derive(Debug, Clone)]
+pub struct PolicyProblem {
+    units: usize,
+    barriers: usize,
+    /// Ω rows, index `unit * barriers + barrier`.
+    pub cbf: Vec<CbfRow>,
+    /// Whether each Ω is in X_t(δ) (ĥ < δ).
+    pub cbf_active: Vec<bool>,
+    /// Υ rows per unit.
+    pub clf: Vec<ClfRow>,
+    /// Whether each Υ is in Y_t(V̄).
+    pub clf_active: Vec<bool>,
+    /// Whether the CLF is part of the problem at all.
+    pub use_clf: bool,
+    /// Estimates x̂_i per unit.
+    pub estimates: Vec<State>,
+    /// Pair estimates x̂_ij, index `i * units + j` (symmetric).
+    pub pair_estimates: Vec<State>,
+    /// θ_ij, index `i * units + j` (symmetric).
+    pub theta: Vec<f64>,
+    /// Step-3 ranking keys (+∞ when flagged).
+    pub residue_key: Vec<f64>,
+    /// Flagged units.
+    pub flagged: Vec<bool>,
+    /// δ (for the record).
+    pub delta: f64,
+    /// V̄ (for the record).
+    pub v_bar: f64,
+}
+
+impl PolicyProblem {
+    /// Room for `units` units and `barriers` barriers.
+    pub fn new(units: usize, barriers: usize) -> Self {
+        let zero_cbf = CbfRow {
+            lambda: Input::zeros(),
+            omega_bar: 0.0,
+            h: 0.0,
+            h_hat: 0.0,
+        };
+        let zero_clf = ClfRow {
+            gamma_row: Input::zeros(),
+            tau_bar: 0.0,
+            v: 0.0,
+        };
+        Self {
+            units,
+            barriers,
+            cbf: vec![zero_cbf; units * barriers],
+            cbf_active: vec![false; units * barriers],
+            clf: vec![zero_clf; units],
+            clf_active: vec![false; units],
+            use_clf: true,
+            estimates: vec![State::zeros(); units],
+            pair_estimates: vec![State::zeros(); units * units],
+            theta: vec![f64::INFINITY; units * units],
+            residue_key: vec![0.0; units],
+            flagged: vec![false; units],
+            delta: f64::INFINITY,
+            v_bar: 0.0,
+        }
+    }
+    /// Number of units.
+    pub fn units(&self) -> usize {
+        self.units
+    }
+    /// Number of barriers.
+    pub fn barriers(&self) -> usize {
+        self.barriers
+    }
+}
+
+/// Reusable buffers of [`resolve`].
+#[derive(Debug, Clone, Default)]
+pub struct PolicyScratch {
+    alive: Vec<bool>,
+    cbf_rows: Vec<HalfSpace>,
+    clf_rows: Vec<HalfSpace>,
+    drop_reason: Vec<Option<(Stage, DropReason)>>,
+}
+
+impl PolicyScratch {
+    /// Buffers for `units` units and `barriers` barriers.
+    pub fn new(units: usize, barriers: usize) -> Self {
+        Self {
+            alive: Vec::with_capacity(units),
+            cbf_rows: Vec::with_capacity(units * barriers),
+            clf_rows: Vec::with_capacity(units),
+            drop_reason: Vec::with_capacity(units),
+        }
+    }
+}
+
+fn collect(p: &PolicyProblem, s: &mut PolicyScratch) {
+    s.cbf_rows.clear();
+    s.clf_rows.clear();
+    for i in 0..p.units {
+        if !s.alive[i] {
+            continue;
+        }
+        for b in 0..p.barriers {
+            let k = i * p.barriers + b;
+            if p.cbf_active[k] {
+                s.cbf_rows.push(p.cbf[k].half_space());
+            }
+        }
+        if p.use_clf && p.clf_active[i] {
+            s.clf_rows.push(p.clf[i].half_space());
+        }
+    }
+}
+
+fn unit_has_cbf(p: &PolicyProblem, i: usize) -> bool {
+    (0..p.barriers).any(|b| p.cbf_active[i * p.barriers + b])
+}
+
+fn solve(
+    qp: &mut QpSolver,
+    s: &PolicyScratch,
+    cbf: RowMode,
+    clf: RowMode,
+    rec: &mut DecisionRecord,
+) -> QpResult {
+    rec.qp_solves += 1;
+    let r = qp.solve(&s.cbf_rows, cbf, &s.clf_rows, clf);
+    if matches!(
+        r,
+        QpResult::SolverFailure { .. } | QpResult::TooManyRows { .. }
+    ) {
+        rec.solver_failures += 1;
+    }
+    r
+}
+
+/// Run Steps 1–3 (see the module docs). Fills `record` and returns the input and outcome.
+pub fn resolve(
+    p: &PolicyProblem,
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+) -> (Input, QpOutcome) {
+    record.decisions.clear();
+    record.qp_solves = 0;
+    record.solver_failures = 0;
+    s.alive.clear();
+    s.alive.resize(p.units, true);
+    s.drop_reason.clear();
+    s.drop_reason.resize(p.units, None);
+
+    // Step 1
+    collect(p, s);
+    let mut clf_relaxed = false;
+    let mut stage = Stage::Step1;
+    let mut result = solve(qp, s, RowMode::Hard, RowMode::Hard, record);
+
+    // Step 2
+    if !matches!(result, QpResult::Feasible { .. }) && p.units > 1 {
+        stage = Stage::Step2;
+        let mut dropped_any = false;
+        for i in 0..p.units {
+            for j in (i + 1)..p.units {
+                let theta = p.theta[i * p.units + j];
+                let distance = (p.estimates[i] - p.estimates[j]).norm();
+                if distance.is_nan() || distance <= theta {
+                    continue;
+                }
+                let pair = p.pair_estimates[i * p.units + j];
+                for (a, other) in [(i, j), (j, i)] {
+                    let dev = (p.estimates[a] - pair).norm();
+                    if dev > theta / 2.0 && s.alive[a] {
+                        s.alive[a] = false;
+                        dropped_any = true;
+                        s.drop_reason[a] = Some((
+                            Stage::Step2,
+                            DropReason::PairwiseDeviation {
+                                other,
+                                distance,
+                                theta,
+                                deviation_from_pair: dev,
+                            },
+                        ));
+                    }
+                }
+            }
+        }
+        if dropped_any {
+            collect(p, s);
+            result = solve(qp, s, RowMode::Hard, RowMode::Hard, record);
+        }
+    }
+
+    // CLF relaxation
+    if !matches!(result, QpResult::Feasible { .. }) && !s.clf_rows.is_empty() {
+        stage = Stage::ClfRelaxation;
+        clf_relaxed = true;
+        result = solve(qp, s, RowMode::Hard, RowMode::Soft, record);
+    }
+
+    // Step 3
+    if !matches!(result, QpResult::Feasible { .. }) && p.units > 1 {
+        loop {
+            let mut candidates = 0;
+            let mut worst: Option<usize> = None;
+            for i in 0..p.units {
+                if s.alive[i] && unit_has_cbf(p, i) {
+                    candidates += 1;
+                    match worst {
+                        Some(w) if p.residue_key[i] <= p.residue_key[w] => {}
+                        _ => worst = Some(i),
+                    }
+                }
+            }
+            let Some(w) = worst else { break };
+            if candidates <= 1 {
+                break;
+            }
+            stage = Stage::Step3;
+            s.alive[w] = false;
+            s.drop_reason[w] = Some((
+                Stage::Step3,
+                DropReason::LargestResidue {
+                    residue: p.residue_key[w],
+                    flagged: p.flagged[w],
+                },
+            ));
+            collect(p, s);
+            clf_relaxed = !s.clf_rows.is_empty();
+            result = solve(qp, s, RowMode::Hard, RowMode::Soft, record);
+            if matches!(result, QpResult::Feasible { .. }) {
+                break;
+            }
+        }
+    }
+
+    let (u, outcome) = match result {
+        QpResult::Feasible {
+            u,
+            slack,
+            iterations,
+        } => (
+            u,
+            QpOutcome::Feasible {
+                stage,
+                clf_relaxed,
+                clf_slack: if clf_relaxed { slack } else { 0.0 },
+                iterations,
+            },
+        ),
+        _ => {
+            // Fallback: soft CBF rows of the surviving units, no CLF.
+            stage = Stage::Fallback;
+            s.clf_rows.clear();
+            let soft = solve(qp, s, RowMode::Soft, RowMode::Hard, record);
+            let (u, action) = match soft {
+                QpResult::Feasible { u, .. } => (u, SafeAction::MinimiseMaxViolation),
+                other => {
+                    let status = match other {
+                        QpResult::SolverFailure { status } => Some(status),
+                        _ => None,
+                    };
+                    (
+                        brake(p, s, qp.input_limit()),
+                        SafeAction::Brake {
+                            solver_status: status,
+                        },
+                    )
+                }
+            };
+            let max_v = s
+                .cbf_rows
+                .iter()
+                .map(|h| {
+                    let n = h.normal.norm();
+                    if n > 1e-12 {
+                        h.violation(&u) / n
+                    } else {
+                        -h.offset
+                    }
+                })
+                .fold(0.0_f64, f64::max);
+            (
+                u,
+                QpOutcome::InfeasibleAfterStep3 {
+                    action,
+                    max_cbf_violation: max_v,
+                },
+            )
+        }
+    };
+    record.stage = stage;
+
+    // The record.
+    for i in 0..p.units {
+        for b in 0..p.barriers {
+            let k = i * p.barriers + b;
+            let verdict = if !p.cbf_active[k] {
+                Verdict::Inactive(InactiveReason::FarFromBoundary {
+                    h_hat: p.cbf[k].h_hat,
+                    delta: p.delta,
+                })
+            } else if let Some((st, reason)) = s.drop_reason[i] {
+                Verdict::Dropped { stage: st, reason }
+            } else if stage == Stage::Fallback {
+                Verdict::Relaxed
+            } else {
+                Verdict::Kept
+            };
+            record.decisions.push(ConstraintDecision {
+                unit: i,
+                kind: ConstraintKind::Cbf { barrier: b },
+                verdict,
+            });
+        }
+        if p.use_clf {
+            let verdict = if !p.clf_active[i] {
+                Verdict::Inactive(InactiveReason::InsideGoalLevel {
+                    v: p.clf[i].v,
+                    v_bar: p.v_bar,
+                })
+            } else if let Some((st, reason)) = s.drop_reason[i] {
+                Verdict::Dropped { stage: st, reason }
+            } else if clf_relaxed || stage == Stage::Fallback {
+                Verdict::Relaxed
+            } else {
+                Verdict::Kept
+            };
+            record.decisions.push(ConstraintDecision {
+                unit: i,
+                kind: ConstraintKind::Clf,
+                verdict,
+            });
+        }
+    }
+    (u, outcome)
+}
+
+fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> Input {
+    let mut best: Option<usize> = None;
+    for i in 0..p.units {
+        if !s.alive[i] {
+            continue;
+        }
+        match best {
+            Some(b) if p.residue_key[i] >= p.residue_key[b] => {}
+            _ => best = Some(i),
+        }
+    }
+    let v = match best {
+        Some(b) => Input::new(p.estimates[b][2], p.estimates[b][3]),
+        None => Input::zeros(),
+    };
+    let mut u = -v / BRAKE_TIME_CONSTANT;
+    if let Some(l) = limit {
+        u[0] = u[0].clamp(-l[0], l[0]);
+        u[1] = u[1].clamp(-l[1], l[1]);
+    }
+    if u.iter().any(|x| !x.is_finite()) {
+        u = Input::zeros();
+    }
+    u
+}
