@@ -1,0 +1,773 @@
+//! Obstacles: world-file specs (serde) → validated parry shapes with a world pose, which the
+//! physics inserts as fixed rapier colliders, and → barrier functions for the controller.
+//!
+//! World-file conventions (TOML):
+//! ```toml
+//! [[obstacles]]
+//! name = "pillar"
+//! position = [1.0, 0.5, 0.0]   # m, world frame (default [0, 0, 0])
+//! rpy = [0.0, 0.0, 0.3]        # rad, roll-pitch-yaw of the obstacle frame (default 0)
+//! shape = { kind = "cylinder", radius = 0.1, half_height = 0.3 }
+//! ```
+//! - `cylinder`, `capsule` and `cone` stand along the obstacle frame's **z** axis (centred on
+//!   `position`; a cone's apex is at +z); parry's shapes stand along y and are rotated here.
+//! - `half_space { normal }`: the solid fills everything *behind* the plane through `position`
+//!   with outward `normal` (obstacle frame); the normal points into free space.
+//! - `convex_hull { points }`, `tri_mesh { vertices, indices }` are in the obstacle frame;
+//!   `tri_mesh { file = "x.stl", scale = 1.0 }` reads an STL (relative to the world file's
+//!   directory). A closed, consistently oriented mesh has an inside (signed distance); an open
+//!   mesh is a surface and its distance is never negative.
+//!
+//! # Barriers
+//! Over the planar state x = (p_x, p_y, v_x, v_y), with the robot a disc of radius r (its
+//! footprint radius) centred on p at the height z_c of its geometry:
+//! d(p) = sd((p, z_c)) − r, where sd is the signed distance from the point to the solid
+//! shape (parry point projection; negative inside), and
+//! H(x) = d(p) − margin + k·∇d(p)·v           (the relative-degree-2 lift of §4.2.1).
+//! ∇H = (∇d + k∇²d·v, k∇d); ∇²H = [[∇²d + k·D(∇²d·v), k∇²d], [k∇²d, 0]].
+//! - Closed forms: half-space (∇d = n_xy, ∇²d = 0, so H is the controller's half-plane
+//!   h = aᵀx − b with a = (n_xy, k·n_xy)); round obstacles — ball, vertical cylinder at
+//!   heights within its length, vertical capsule — where sd = √(|p − c|² + δz²) − R.
+//! - Otherwise ∇d is parry's projection direction and ∇²d, D(∇²d·v) are central differences
+//!   with step [`BarrierConfig::fd_step`] (default 2 mm: f32 projections are accurate to
+//!   ~1e-6 m, giving curvature errors ~1e-3 1/m). The derivatives are exact where d is
+//!   smooth (faces, edges, vertices away from Voronoi-region boundaries).
+//! - h̄(γ) = γ·L with L = √((1 + k·v_max·κ)² + k²) an upper bound of ‖∇H‖ near H = 0:
+//!   |∇d| ≤ 1 and ‖∇²d‖ ≤ κ = 1/r (distance to a convex set has curvature ≤ 1/distance, and the
+//!   robot centre stays ≥ r from the obstacle while the disc is clear). κ = 0 for half-spaces,
+//!   so h̄ = γ·‖a‖, the controller's closed form. For non-convex meshes L is not a proven bound.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use ftcbf_controller::{Barrier, BarrierEval, State, StateMatrix};
+use nalgebra::{Isometry3, Matrix2, Translation3, UnitQuaternion, Vector2, Vector3};
+use parry3d::math::{Pose, Vector};
+use parry3d::shape::{SharedShape, TriMeshFlags};
+use serde::{Deserialize, Serialize};
+
+use crate::robot::RobotDescription;
+
+/// Errors of obstacle validation; each names the obstacle and the key.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ObstacleError {
+    /// A value is out of range.
+    #[error("obstacle `{name}`: `{key}` must be {expected}, got {got}")]
+    Invalid {
+        /// Obstacle name.
+        name: String,
+        /// The offending key.
+        key: String,
+        /// What is expected.
+        expected: String,
+        /// What was given.
+        got: String,
+    },
+    /// A convex hull that does not enclose a volume.
+    #[error(
+        "obstacle `{name}`: convex_hull `points` are degenerate ({count} points): need at least \
+         4 points that are not all on one plane"
+    )]
+    DegenerateHull {
+        /// Obstacle name.
+        name: String,
+        /// Number of points given.
+        count: usize,
+    },
+    /// A triangle mesh that cannot be built or read.
+    #[error("obstacle `{name}`: tri_mesh: {message}")]
+    Mesh {
+        /// Obstacle name.
+        name: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// One obstacle as written in a world file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// Name used in logs, collision reports and barrier names.
+    pub name: String,
+    /// Position of the obstacle frame, world frame [m].
+    #[serde(default)]
+    pub position: [f64; 3],
+    /// Roll, pitch, yaw of the obstacle frame [rad].
+    #[serde(default)]
+    pub rpy: [f64; 3],
+    /// The shape in the obstacle frame.
+    pub shape: ShapeSpec,
+}
+
+/// Obstacle shapes. Cylinders, capsules and cones stand along the obstacle frame's z axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Box.
+    Cuboid {
+        /// Half extents along x, y, z [m].
+        half_extents: [f64; 3],
+    },
+    /// Sphere.
+    Ball {
+        /// [m]
+        radius: f64,
+    },
+    /// Cylinder along z.
+    Cylinder {
+        /// [m]
+        radius: f64,
+        /// Half of the height [m].
+        half_height: f64,
+    },
+    /// Capsule along z (`half_height` of the cylindrical part).
+    Capsule {
+        /// [m]
+        radius: f64,
+        /// [m]
+        half_height: f64,
+    },
+    /// Cone along z, apex at +half_height.
+    Cone {
+        /// Base radius [m].
+        radius: f64,
+        /// [m]
+        half_height: f64,
+    },
+    /// Convex hull of points (obstacle frame) [m].
+    ConvexHull {
+        /// At least 4 non-coplanar points.
+        points: Vec<[f64; 3]>,
+    },
+    /// Solid half-space behind the plane through `position` with outward `normal`.
+    HalfSpace {
+        /// Outward normal (obstacle frame), any non-zero length.
+        normal: [f64; 3],
+    },
+    /// Triangle mesh given inline or as an STL file.
+    TriMesh {
+        /// Vertices (obstacle frame) [m].
+        #[serde(default)]
+        vertices: Vec<[f64; 3]>,
+        /// Triangles as vertex indices.
+        #[serde(default)]
+        indices: Vec<[u32; 3]>,
+        /// STL file (instead of vertices/indices), relative to the world file's directory.
+        #[serde(default)]
+        file: Option<PathBuf>,
+        /// Uniform scale applied to the file's vertices (default 1).
+        #[serde(default)]
+        scale: Option<f64>,
+    },
+}
+
+impl ShapeSpec {
+    /// The `kind` tag as written in a world file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ShapeSpec::Cuboid { .. } => "cuboid",
+            ShapeSpec::Ball { .. } => "ball",
+            ShapeSpec::Cylinder { .. } => "cylinder",
+            ShapeSpec::Capsule { .. } => "capsule",
+            ShapeSpec::Cone { .. } => "cone",
+            ShapeSpec::ConvexHull { .. } => "convex_hull",
+            ShapeSpec::HalfSpace { .. } => "half_space",
+            ShapeSpec::TriMesh { .. } => "tri_mesh",
+        }
+    }
+}
+
+/// Closed-form geometry used by the barriers where it exists.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Closed {
+    /// Solid behind the plane {x : n·(x − p0) = 0}, |n| = 1 (world frame).
+    HalfSpace { n: Vector3<f64>, p0: Vector3<f64> },
+    /// Points within `radius` of the vertical segment (x, y) = c, z ∈ [z_lo, z_hi]
+    /// (ball: z_lo = z_hi; capsule).
+    RoundSegment {
+        c: Vector2<f64>,
+        z_lo: f64,
+        z_hi: f64,
+        radius: f64,
+    },
+    /// A vertical cylinder: round only at heights within [z_lo, z_hi].
+    VerticalCylinder {
+        c: Vector2<f64>,
+        z_lo: f64,
+        z_hi: f64,
+        radius: f64,
+    },
+}
+
+/// A validated obstacle: a parry shape with its world pose.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// Name from the spec.
+    pub name: String,
+    /// The spec it was built from.
+    pub spec: ObstacleSpec,
+    shape: SharedShape,
+    /// Pose of the parry shape in the world (includes the z→y axis change of round shapes).
+    shape_pose: Pose,
+    closed: Option<Closed>,
+}
+
+fn iso(position: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(position[0], position[1], position[2]),
+        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+    )
+}
+
+/// nalgebra f64 isometry → parry pose (f32).
+pub(crate) fn to_pose(i: &Isometry3<f64>) -> Pose {
+    Pose::from(i.cast::<f32>())
+}
+
+fn v3(p: [f64; 3]) -> Vector {
+    Vector::new(p[0] as f32, p[1] as f32, p[2] as f32)
+}
+
+impl Obstacle {
+    /// Validates a spec. `base_dir` resolves relative `tri_mesh.file` paths.
+    pub fn from_spec(spec: &ObstacleSpec, base_dir: Option<&Path>) -> Result<Self, ObstacleError> {
+        let name = spec.name.clone();
+        let invalid = |key: &str, expected: &str, got: String| ObstacleError::Invalid {
+            name: name.clone(),
+            key: key.to_string(),
+            expected: expected.to_string(),
+            got,
+        };
+        if spec.name.trim().is_empty() {
+            return Err(invalid(
+                "name",
+                "a non-empty string",
+                format!("{:?}", spec.name),
+            ));
+        }
+        if !spec.position.iter().all(|v| v.is_finite()) {
+            return Err(invalid(
+                "position",
+                "three finite numbers [m]",
+                format!("{:?}", spec.position),
+            ));
+        }
+        if !spec.rpy.iter().all(|v| v.is_finite()) {
+            return Err(invalid(
+                "rpy",
+                "three finite angles [rad]",
+                format!("{:?}", spec.rpy),
+            ));
+        }
+        let positive = |key: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(
+                    &format!("shape.{key}"),
+                    "a positive finite number [m]",
+                    format!("{v}"),
+                ))
+            }
+        };
+        let nonneg = |key: &str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(
+                    &format!("shape.{key}"),
+                    "a finite number ≥ 0 [m]",
+                    format!("{v}"),
+                ))
+            }
+        };
+        let world = iso(spec.position, spec.rpy);
+        // Rotation taking parry's y axis to the obstacle frame's z axis.
+        let y_to_z = Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+        );
+        let axis_world = world.rotation * Vector3::z();
+        let vertical = axis_world.z.abs() > 1.0 - 1e-9;
+        let centre = world.translation.vector;
+        let (shape, pose, closed) = match &spec.shape {
+            ShapeSpec::Cuboid { half_extents: h } => {
+                for (i, v) in h.iter().enumerate() {
+                    positive(&format!("half_extents[{i}]"), *v)?;
+                }
+                (
+                    SharedShape::cuboid(h[0] as f32, h[1] as f32, h[2] as f32),
+                    world,
+                    None,
+                )
+            }
+            ShapeSpec::Ball { radius } => {
+                positive("radius", *radius)?;
+                (
+                    SharedShape::ball(*radius as f32),
+                    world,
+                    Some(Closed::RoundSegment {
+                        c: centre.xy(),
+                        z_lo: centre.z,
+                        z_hi: centre.z,
+                        radius: *radius,
+                    }),
+                )
+            }
+            ShapeSpec::Cylinder {
+                radius,
+                half_height,
+            } => {
+                positive("radius", *radius)?;
+                positive("half_height", *half_height)?;
+                (
+                    SharedShape::cylinder(*half_height as f32, *radius as f32),
+                    world * y_to_z,
+                    vertical.then_some(Closed::VerticalCylinder {
+                        c: centre.xy(),
+                        z_lo: centre.z - half_height,
+                        z_hi: centre.z + half_height,
+                        radius: *radius,
+                    }),
+                )
+            }
+            ShapeSpec::Capsule {
+                radius,
+                half_height,
+            } => {
+                positive("radius", *radius)?;
+                nonneg("half_height", *half_height)?;
+                (
+                    SharedShape::capsule_y(*half_height as f32, *radius as f32),
+                    world * y_to_z,
+                    vertical.then_some(Closed::RoundSegment {
+                        c: centre.xy(),
+                        z_lo: centre.z - half_height,
+                        z_hi: centre.z + half_height,
+                        radius: *radius,
+                    }),
+                )
+            }
+            ShapeSpec::Cone {
+                radius,
+                half_height,
+            } => {
+                positive("radius", *radius)?;
+                positive("half_height", *half_height)?;
+                (
+                    SharedShape::cone(*half_height as f32, *radius as f32),
+                    world * y_to_z,
+                    None,
+                )
+            }
+            ShapeSpec::ConvexHull { points } => {
+                if points.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+                    return Err(invalid(
+                        "shape.points",
+                        "finite coordinates [m]",
+                        "a non-finite value".into(),
+                    ));
+                }
+                let pts: Vec<Vector> = points.iter().map(|p| v3(*p)).collect();
+                let hull = (pts.len() >= 4 && !coplanar(points))
+                    .then(|| SharedShape::convex_hull(&pts))
+                    .flatten()
+                    .ok_or_else(|| ObstacleError::DegenerateHull {
+                        name: name.clone(),
+                        count: points.len(),
+                    })?;
+                (hull, world, None)
+            }
+            ShapeSpec::HalfSpace { normal } => {
+                let n = Vector3::from(*normal);
+                let norm = n.norm();
+                if !(norm.is_finite() && norm > 1e-12) {
+                    return Err(invalid(
+                        "shape.normal",
+                        "a non-zero finite vector",
+                        format!("{normal:?}"),
+                    ));
+                }
+                let n_local = n / norm;
+                let n_world = world.rotation * n_local;
+                (
+                    SharedShape::halfspace(v3([n_local.x, n_local.y, n_local.z]).normalize()),
+                    world,
+                    Some(Closed::HalfSpace {
+                        n: n_world,
+                        p0: centre,
+                    }),
+                )
+            }
+            ShapeSpec::TriMesh {
+                vertices,
+                indices,
+                file,
+                scale,
+            } => {
+                let mesh_err = |message: String| ObstacleError::Mesh {
+                    name: name.clone(),
+                    message,
+                };
+                let (verts, idx) = match file {
+                    Some(f) => {
+                        if !vertices.is_empty() || !indices.is_empty() {
+                            return Err(mesh_err(
+                                "give either `file` or `vertices`/`indices`, not both".into(),
+                            ));
+                        }
+                        let s = scale.unwrap_or(1.0);
+                        positive("scale", s)?;
+                        let path = match base_dir {
+                            Some(d) if f.is_relative() => d.join(f),
+                            _ => f.clone(),
+                        };
+                        let (v, i) = crate::robot::read_stl(&path)
+                            .map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
+                        (v.into_iter().map(|p| p.map(|c| c * s)).collect(), i)
+                    }
+                    None => {
+                        if scale.is_some() {
+                            return Err(mesh_err("`scale` applies only to `file`".into()));
+                        }
+                        (vertices.clone(), indices.clone())
+                    }
+                };
+                if idx.is_empty() {
+                    return Err(mesh_err("no triangles".into()));
+                }
+                if verts.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+                    return Err(mesh_err("non-finite vertex coordinates".into()));
+                }
+                if let Some(bad) = idx.iter().flatten().find(|&&i| i as usize >= verts.len()) {
+                    return Err(mesh_err(format!(
+                        "index {bad} out of range ({} vertices)",
+                        verts.len()
+                    )));
+                }
+                let pts: Vec<Vector> = verts.iter().map(|p| v3(*p)).collect();
+                let oriented = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
+                let shape = SharedShape::trimesh_with_flags(pts.clone(), idx.clone(), oriented)
+                    .or_else(|_| SharedShape::trimesh(pts, idx))
+                    .map_err(|e| mesh_err(format!("{e:?}")))?;
+                (shape, world, None)
+            }
+        };
+        Ok(Self {
+            name: spec.name.clone(),
+            spec: spec.clone(),
+            shape,
+            shape_pose: to_pose(&pose),
+            closed,
+        })
+    }
+
+    /// Validates a list of specs; names must be unique.
+    pub fn from_specs(
+        specs: &[ObstacleSpec],
+        base_dir: Option<&Path>,
+    ) -> Result<Vec<Self>, ObstacleError> {
+        let mut out: Vec<Self> = Vec::with_capacity(specs.len());
+        for s in specs {
+            if out.iter().any(|o| o.name == s.name) {
+                return Err(ObstacleError::Invalid {
+                    name: s.name.clone(),
+                    key: "name".into(),
+                    expected: "a name no other obstacle uses".into(),
+                    got: format!("{:?} (duplicate)", s.name),
+                });
+            }
+            out.push(Self::from_spec(s, base_dir)?);
+        }
+        Ok(out)
+    }
+
+    /// The parry shape (in parry's conventions).
+    pub fn shape(&self) -> &SharedShape {
+        &self.shape
+    }
+
+    /// World pose of the parry shape.
+    pub fn shape_pose(&self) -> &Pose {
+        &self.shape_pose
+    }
+
+    /// True for half-spaces (unbounded).
+    pub fn is_half_space(&self) -> bool {
+        matches!(self.spec.shape, ShapeSpec::HalfSpace { .. })
+    }
+
+    /// Signed distance from a world point to the solid shape [m] (negative inside).
+    pub fn signed_distance(&self, p: Vector3<f64>) -> f64 {
+        self.sd_and_grad(p).0
+    }
+
+    /// Signed distance and its gradient (world frame) at p.
+    fn sd_and_grad(&self, p: Vector3<f64>) -> (f64, Vector3<f64>) {
+        match self.closed {
+            Some(Closed::HalfSpace { n, p0 }) => return (n.dot(&(p - p0)), n),
+            Some(Closed::RoundSegment {
+                c,
+                z_lo,
+                z_hi,
+                radius,
+            }) => return round_sd(p, c, p.z.clamp(z_lo, z_hi), radius),
+            Some(Closed::VerticalCylinder {
+                c,
+                z_lo,
+                z_hi,
+                radius,
+            }) if p.z >= z_lo && p.z <= z_hi => return round_sd(p, c, p.z, radius),
+            _ => {}
+        }
+        let q = Vector::new(p.x as f32, p.y as f32, p.z as f32);
+        let proj = self.shape.project_point(&self.shape_pose, q, false);
+        let diff = p - Vector3::new(
+            proj.point.x as f64,
+            proj.point.y as f64,
+            proj.point.z as f64,
+        );
+        let dist = diff.norm();
+        let sign = if proj.is_inside { -1.0 } else { 1.0 };
+        if dist > 1e-6 {
+            (sign * dist, sign * diff / dist)
+        } else {
+            // On the surface: the direction is undefined; use a central difference of sd.
+            let h = 1e-4;
+            let sd = |d: Vector3<f64>| {
+                let q = d.map(|c| c as f32);
+                let pr =
+                    self.shape
+                        .project_point(&self.shape_pose, Vector::new(q.x, q.y, q.z), false);
+                let dd =
+                    (d - Vector3::new(pr.point.x as f64, pr.point.y as f64, pr.point.z as f64))
+                        .norm();
+                if pr.is_inside {
+                    -dd
+                } else {
+                    dd
+                }
+            };
+            let mut g = Vector3::zeros();
+            for k in 0..3 {
+                let mut e = Vector3::zeros();
+                e[k] = h;
+                g[k] = (sd(p + e) - sd(p - e)) / (2.0 * h);
+            }
+            (sign * dist, g)
+        }
+    }
+
+    /// A barrier for this obstacle (see the module docs).
+    pub fn barrier(&self, cfg: &BarrierConfig) -> ObstacleBarrier {
+        ObstacleBarrier {
+            name: format!("obstacle:{}", self.name),
+            obstacle: Arc::new(self.clone()),
+            cfg: *cfg,
+        }
+    }
+}
+
+/// Signed distance to the points within `radius` of (c, cz), and its gradient.
+fn round_sd(p: Vector3<f64>, c: Vector2<f64>, cz: f64, radius: f64) -> (f64, Vector3<f64>) {
+    let e = Vector3::new(p.x - c.x, p.y - c.y, p.z - cz);
+    let rho = e.norm();
+    if rho > 0.0 {
+        (rho - radius, e / rho)
+    } else {
+        (-radius, Vector3::x())
+    }
+}
+
+fn coplanar(points: &[[f64; 3]]) -> bool {
+    let p: Vec<Vector3<f64>> = points.iter().map(|q| Vector3::from(*q)).collect();
+    let scale = p
+        .iter()
+        .map(|q| (q - p[0]).norm())
+        .fold(0.0_f64, f64::max)
+        .max(1e-12);
+    // Find two independent directions, then test every point against their plane.
+    let Some(a) = p.iter().map(|q| q - p[0]).find(|d| d.norm() > 1e-9 * scale) else {
+        return true;
+    };
+    let Some(n) = p
+        .iter()
+        .map(|q| a.cross(&(q - p[0])))
+        .find(|c| c.norm() > 1e-9 * scale * scale)
+    else {
+        return true;
+    };
+    let n = n.normalize();
+    p.iter().all(|q| n.dot(&(q - p[0])).abs() <= 1e-9 * scale)
+}
+
+/// Parameters shared by all obstacle barriers of one robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BarrierConfig {
+    /// Robot footprint radius r [m].
+    pub robot_radius: f64,
+    /// Height z_c at which distances are evaluated [m].
+    pub centre_height: f64,
+    /// Safety margin subtracted from the clearance [m].
+    pub margin: f64,
+    /// Gain k of the lift H = d − margin + k∇d·v [s].
+    pub k: f64,
+    /// Speed bound used in the Lipschitz bound of h̄ [m/s].
+    pub v_max: f64,
+    /// Step of the numerical derivatives [m]. Default 2e-3.
+    pub fd_step: f64,
+}
+
+impl BarrierConfig {
+    /// Footprint radius, centre height and v_max from a robot; `margin` [m] and `k` [s] given.
+    pub fn for_robot(robot: &RobotDescription, margin: f64, k: f64) -> Self {
+        Self {
+            robot_radius: robot.footprint_radius,
+            centre_height: robot.centre_height,
+            margin,
+            k,
+            v_max: robot.limits.v_max,
+            fd_step: 2e-3,
+        }
+    }
+}
+
+/// The barrier of one obstacle (implements [`ftcbf_controller::Barrier`]).
+#[derive(Debug, Clone)]
+pub struct ObstacleBarrier {
+    name: String,
+    obstacle: Arc<Obstacle>,
+    cfg: BarrierConfig,
+}
+
+impl ObstacleBarrier {
+    /// The configuration.
+    pub fn config(&self) -> &BarrierConfig {
+        &self.cfg
+    }
+
+    /// Clearance d(p) = sd − r of the robot disc at planar position p [m] (no margin, no lift).
+    pub fn clearance(&self, p: Vector2<f64>) -> f64 {
+        self.obstacle
+            .signed_distance(Vector3::new(p.x, p.y, self.cfg.centre_height))
+            - self.cfg.robot_radius
+    }
+
+    fn grad2(&self, p: Vector2<f64>) -> Vector2<f64> {
+        let (_, g) = self
+            .obstacle
+            .sd_and_grad(Vector3::new(p.x, p.y, self.cfg.centre_height));
+        g.xy()
+    }
+
+    fn hess2_numeric(&self, p: Vector2<f64>) -> Matrix2<f64> {
+        let h = self.cfg.fd_step;
+        let mut m = Matrix2::zeros();
+        for j in 0..2 {
+            let mut e = Vector2::zeros();
+            e[j] = h;
+            let col = (self.grad2(p + e) - self.grad2(p - e)) / (2.0 * h);
+            m.set_column(j, &col);
+        }
+        0.5 * (m + m.transpose())
+    }
+
+    /// (d, ∇d, ∇²d, D(∇²d·v)) in the plane.
+    fn planar_terms(
+        &self,
+        p: Vector2<f64>,
+        v: Vector2<f64>,
+    ) -> (f64, Vector2<f64>, Matrix2<f64>, Matrix2<f64>) {
+        let z = self.cfg.centre_height;
+        let r = self.cfg.robot_radius;
+        let p3 = Vector3::new(p.x, p.y, z);
+        let round = match self.obstacle.closed {
+            Some(Closed::HalfSpace { n, p0 }) => {
+                return (
+                    n.dot(&(p3 - p0)) - r,
+                    n.xy(),
+                    Matrix2::zeros(),
+                    Matrix2::zeros(),
+                )
+            }
+            Some(Closed::RoundSegment {
+                c,
+                z_lo,
+                z_hi,
+                radius,
+            }) => Some((c, z - z.clamp(z_lo, z_hi), radius)),
+            Some(Closed::VerticalCylinder {
+                c,
+                z_lo,
+                z_hi,
+                radius,
+            }) if z >= z_lo && z <= z_hi => Some((c, 0.0, radius)),
+            _ => None,
+        };
+        if let Some((c, dz, radius)) = round {
+            let e = p - c;
+            let rho = (e.norm_squared() + dz * dz).sqrt();
+            if rho > 1e-12 {
+                let g = e / rho;
+                let m = (Matrix2::identity() - g * g.transpose()) / rho;
+                let s = g.dot(&v);
+                let w = m * v;
+                let dmv = -(s * m + g * w.transpose() + w * g.transpose()) / rho;
+                return (rho - radius - r, g, m, dmv);
+            }
+        }
+        // Numerical curvature terms around parry's projection normal.
+        let (sd, g3) = self.obstacle.sd_and_grad(p3);
+        let m = self.hess2_numeric(p);
+        let h = self.cfg.fd_step;
+        let mut dmv = Matrix2::zeros();
+        for j in 0..2 {
+            let mut e = Vector2::zeros();
+            e[j] = h;
+            let col = (self.hess2_numeric(p + e) * v - self.hess2_numeric(p - e) * v) / (2.0 * h);
+            dmv.set_column(j, &col);
+        }
+        (sd - r, g3.xy(), m, 0.5 * (dmv + dmv.transpose()))
+    }
+}
+
+impl Barrier for ObstacleBarrier {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn eval(&self, x: &State) -> BarrierEval {
+        let p = Vector2::new(x[0], x[1]);
+        let v = Vector2::new(x[2], x[3]);
+        let k = self.cfg.k;
+        let (d, g, m, dmv) = self.planar_terms(p, v);
+        let value = d - self.cfg.margin + k * g.dot(&v);
+        let gp = g + k * (m * v);
+        let gradient = State::new(gp.x, gp.y, k * g.x, k * g.y);
+        let pp = m + k * dmv;
+        let pv = k * m;
+        let mut hessian = StateMatrix::zeros();
+        hessian.fixed_view_mut::<2, 2>(0, 0).copy_from(&pp);
+        hessian.fixed_view_mut::<2, 2>(0, 2).copy_from(&pv);
+        hessian
+            .fixed_view_mut::<2, 2>(2, 0)
+            .copy_from(&pv.transpose());
+        BarrierEval {
+            value,
+            gradient,
+            hessian,
+        }
+    }
+
+    fn h_bar(&self, gamma: f64) -> f64 {
+        let k = self.cfg.k;
+        let kappa = if self.obstacle.is_half_space() {
+            0.0
+        } else {
+            1.0 / self.cfg.robot_radius.max(1e-3)
+        };
+        let l = ((1.0 + k * self.cfg.v_max * kappa).powi(2) + k * k).sqrt();
+        gamma.max(0.0) * l
+    }
+}

@@ -1,0 +1,1140 @@
+//! Robot descriptions loaded from URDF (urdf-rs), independent of any physics engine.
+//!
+//! A [`RobotDescription`] is the validated, immutable model of a differential-drive robot:
+//! rigid bodies (URDF links, with links joined by `fixed` joints merged into one body), their
+//! mass properties and collision shapes, the movable joints between bodies, the two drive
+//! wheels with their radius and separation *read from the URDF*, the drive limits and the
+//! planar footprint used by the obstacle barriers. [`crate::physics::PhysicsWorld`] turns it
+//! into rapier bodies, colliders and joints.
+//!
+//! Frames: the *root frame* is the frame of the URDF's root link (for a TurtleBot3,
+//! `base_footprint`, on the ground between the wheels), REP-103: x forward, y left, z up.
+//!
+//! Loading rules:
+//! - `package://NAME/rest` is resolved against the caller's search path ([`LoadOptions`]):
+//!   for each directory `d`, `d/NAME/rest`, then `d/rest` when `d` itself is named `NAME`.
+//!   `file://` paths are used as they are; relative paths are relative to the URDF's directory.
+//!   A missing *visual* mesh is a warning ([`RobotDescription::warnings`]); visuals are not
+//!   loaded (the physics never needs them). A missing or unreadable *collision* mesh is an error.
+//! - Links without `<inertial>` (mass 0) are allowed only where they are rigidly attached
+//!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error.
+//! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>`) are rejected with the line, the enclosing
+//!   link/joint and the attribute, telling the user to run xacro first.
+//! - Drive wheels: the two joints named by the caller, otherwise the `continuous` joints whose
+//!   child link has a cylinder collision; left is the one with the larger root-frame y.
+//!   Wheel radius = that cylinder's radius; separation = planar distance between the two
+//!   wheel joint origins (root frame). Both wheels must share the radius within 0.1 mm.
+//! - Drive limits: explicit [`LoadOptions::limits`] if given, else derived from the wheel
+//!   joints' `<limit velocity>` (rad/s): `wheel_speed_max = min(velocity)`,
+//!   `v_max = r · wheel_speed_max`, `omega_max = 2 r · wheel_speed_max / separation`.
+//!   A URDF without wheel velocity limits and no override is an error.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+
+/// Errors of URDF loading. Every message names the file (when there is one) and what to fix.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotError {
+    /// The URDF file could not be read.
+    #[error("cannot read URDF file {path}: {source}")]
+    Io {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The XML is malformed or does not follow the URDF schema.
+    #[error("{origin}: malformed URDF: {message}")]
+    Parse {
+        /// File path or "<string>".
+        origin: String,
+        /// Parser message.
+        message: String,
+    },
+    /// Xacro macros or substitutions are still in the file.
+    #[error(
+        "{origin}: line {line}: xacro leftover `{snippet}` in {context}; \
+         this is a xacro source, run `xacro file.urdf.xacro > file.urdf` first"
+    )]
+    Xacro {
+        /// File path or "<string>".
+        origin: String,
+        /// 1-based line number.
+        line: usize,
+        /// The offending text.
+        snippet: String,
+        /// Where it sits (link/joint name and attribute, when found).
+        context: String,
+    },
+    /// The URDF's structure is not a tree the loader can use.
+    #[error("{origin}: {message}")]
+    Structure {
+        /// File path or "<string>".
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A movable body has no positive mass.
+    #[error(
+        "{origin}: link `{link}` moves (joint `{joint}`) but its mass is {mass} kg; \
+         give it an <inertial> with a positive <mass value>"
+    )]
+    NonPositiveMass {
+        /// File path or "<string>".
+        origin: String,
+        /// Link name.
+        link: String,
+        /// Joint that makes it movable ("root" for the root body).
+        joint: String,
+        /// The (merged) mass.
+        mass: f64,
+    },
+    /// A number in the URDF is invalid (negative size, non-finite value, …).
+    #[error("{origin}: {what}")]
+    InvalidValue {
+        /// File path or "<string>".
+        origin: String,
+        /// What is wrong, naming the link/joint and attribute.
+        what: String,
+    },
+    /// The drive wheels could not be identified.
+    #[error("{origin}: cannot find the drive wheels: {message}")]
+    Wheels {
+        /// File path or "<string>".
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A collision mesh could not be resolved or read.
+    #[error("{origin}: collision mesh `{filename}` of link `{link}`: {message}")]
+    CollisionMesh {
+        /// File path or "<string>".
+        origin: String,
+        /// Link name.
+        link: String,
+        /// The filename as written in the URDF.
+        filename: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// Options of [`RobotDescription::from_file`] / [`RobotDescription::from_urdf_str`].
+#[derive(Debug, Clone, Default)]
+pub struct LoadOptions {
+    /// Directories that hold ROS packages, used to resolve `package://NAME/...`.
+    pub package_paths: Vec<PathBuf>,
+    /// Names of the (left, right) wheel joints; `None` = find the continuous wheel joints.
+    pub wheel_joints: Option<(String, String)>,
+    /// Explicit drive limits; `None` = derive from the wheel joints' velocity limits.
+    pub limits: Option<DriveLimits>,
+}
+
+/// Speed limits of the differential drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveLimits {
+    /// Maximum forward speed |v| [m/s].
+    pub v_max: f64,
+    /// Maximum yaw rate |ω| [rad/s].
+    pub omega_max: f64,
+    /// Maximum wheel angular speed [rad/s].
+    pub wheel_speed_max: f64,
+}
+
+/// Wheel geometry of a differential drive, read from the URDF.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WheelGeometry {
+    /// Wheel radius [m].
+    pub radius: f64,
+    /// Distance between the two wheel contact points (track width) [m].
+    pub separation: f64,
+}
+
+/// One drive wheel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wheel {
+    /// URDF joint name.
+    pub joint_name: String,
+    /// Index into [`RobotDescription::joints`].
+    pub joint: usize,
+    /// Index into [`RobotDescription::bodies`] of the wheel body.
+    pub body: usize,
+    /// +1 if a positive joint rotation drives the robot forward (joint axis along +y of the
+    /// root frame), −1 if it drives it backward.
+    pub forward_sign: f64,
+    /// Motor torque bound from the joint's `<limit effort>` [N·m], if given (> 0).
+    pub effort_limit: Option<f64>,
+}
+
+/// The two drive wheels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriveWheels {
+    /// Left wheel (+y side).
+    pub left: Wheel,
+    /// Right wheel (−y side).
+    pub right: Wheel,
+    /// Radius and separation.
+    pub geometry: WheelGeometry,
+}
+
+/// A collision shape in its collider frame. Cylinders and capsules stand along the collider
+/// frame's **z** axis (URDF convention); the physics converts to parry's y axis.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CollisionShape {
+    /// Box with half extents along x, y, z [m].
+    Box {
+        /// Half extents [m].
+        half_extents: [f64; 3],
+    },
+    /// Cylinder along z.
+    Cylinder {
+        /// Radius [m].
+        radius: f64,
+        /// Half of the length [m].
+        half_length: f64,
+    },
+    /// Capsule along z (`half_length` is half the cylindrical part).
+    Capsule {
+        /// Radius [m].
+        radius: f64,
+        /// Half of the cylindrical part's length [m].
+        half_length: f64,
+    },
+    /// Sphere.
+    Sphere {
+        /// Radius [m].
+        radius: f64,
+    },
+    /// Triangle mesh (already scaled, collider frame) [m].
+    Mesh {
+        /// Vertices [m].
+        vertices: Vec<[f64; 3]>,
+        /// Triangles (indices into `vertices`).
+        indices: Vec<[u32; 3]>,
+    },
+}
+
+impl CollisionShape {
+    /// Points whose convex hull bounds the shape (box corners, cylinder bounding-box corners,
+    /// mesh vertices), in the collider frame.
+    fn bounding_points(&self) -> Vec<Point3<f64>> {
+        let corners = |h: [f64; 3]| {
+            let mut v = Vec::with_capacity(8);
+            for sx in [-1.0, 1.0] {
+                for sy in [-1.0, 1.0] {
+                    for sz in [-1.0, 1.0] {
+                        v.push(Point3::new(sx * h[0], sy * h[1], sz * h[2]));
+                    }
+                }
+            }
+            v
+        };
+        match self {
+            CollisionShape::Box { half_extents } => corners(*half_extents),
+            CollisionShape::Cylinder {
+                radius,
+                half_length,
+            } => corners([*radius, *radius, *half_length]),
+            CollisionShape::Capsule {
+                radius,
+                half_length,
+            } => corners([*radius, *radius, half_length + radius]),
+            CollisionShape::Sphere { radius } => corners([*radius; 3]),
+            CollisionShape::Mesh { vertices, .. } => vertices
+                .iter()
+                .map(|v| Point3::new(v[0], v[1], v[2]))
+                .collect(),
+        }
+    }
+}
+
+/// A collision shape attached to a body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotCollider {
+    /// The URDF link it came from.
+    pub link: String,
+    /// Collider frame in the body frame.
+    pub pose_in_body: Isometry3<f64>,
+    /// The shape.
+    pub shape: CollisionShape,
+    /// True for the collision shapes of the drive wheels (they get ground friction; all other
+    /// robot colliders are frictionless against the ground: casters and skids roll or slide).
+    pub is_wheel: bool,
+}
+
+/// A rigid body: one URDF link plus every link fixed to it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotBody {
+    /// Name of the body's own (top) link; its frame is the body frame.
+    pub name: String,
+    /// All URDF links merged into this body (the first is `name`).
+    pub links: Vec<String>,
+    /// Body frame in the root frame, in the URDF's rest configuration (all joints at 0).
+    pub pose_in_root: Isometry3<f64>,
+    /// Total mass [kg].
+    pub mass: f64,
+    /// Centre of mass in the body frame [m].
+    pub com: Vector3<f64>,
+    /// Inertia tensor about the centre of mass, body-frame axes [kg·m²].
+    pub inertia: Matrix3<f64>,
+    /// Collision shapes.
+    pub colliders: Vec<RobotCollider>,
+}
+
+/// Kind of a movable joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JointKind {
+    /// Unlimited rotation about the axis.
+    Continuous,
+    /// Rotation about the axis within [lower, upper] rad.
+    Revolute {
+        /// Lower limit [rad].
+        lower: f64,
+        /// Upper limit [rad].
+        upper: f64,
+    },
+    /// Translation along the axis within [lower, upper] m.
+    Prismatic {
+        /// Lower limit [m].
+        lower: f64,
+        /// Upper limit [m].
+        upper: f64,
+    },
+}
+
+/// A movable joint between two bodies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotJoint {
+    /// URDF joint name.
+    pub name: String,
+    /// Kind and limits.
+    pub kind: JointKind,
+    /// Parent body index.
+    pub parent: usize,
+    /// Child body index.
+    pub child: usize,
+    /// Joint frame in the parent *body* frame (the child body frame coincides with it at rest).
+    pub frame_in_parent: Isometry3<f64>,
+    /// Joint axis in the joint frame (unit).
+    pub axis: Unit<Vector3<f64>>,
+}
+
+/// A validated differential-drive robot model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotDescription {
+    /// The URDF robot name.
+    pub name: String,
+    /// Where it was loaded from ("<string>" when from a string).
+    pub origin: String,
+    /// Bodies; index 0 is the root body (its frame is the root frame).
+    pub bodies: Vec<RobotBody>,
+    /// Movable joints.
+    pub joints: Vec<RobotJoint>,
+    /// The drive wheels.
+    pub wheels: DriveWheels,
+    /// Drive limits.
+    pub limits: DriveLimits,
+    /// Circumscribed radius of the robot's collision footprint in the plane, about the root
+    /// frame origin [m] (the disc the obstacle barriers keep away from obstacles).
+    pub footprint_radius: f64,
+    /// Height above the ground of the middle of the robot's collision geometry [m]; obstacle
+    /// distances for the barriers are evaluated at this height.
+    pub centre_height: f64,
+    /// Non-fatal problems (missing visual meshes, …).
+    pub warnings: Vec<String>,
+}
+
+impl RobotDescription {
+    /// Loads a URDF file. `package://` meshes are resolved with `opts.package_paths`, relative
+    /// mesh paths against the file's directory.
+    pub fn from_file(path: impl AsRef<Path>, opts: &LoadOptions) -> Result<Self, RobotError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base_dir = path.parent().map(Path::to_path_buf);
+        load(
+            &text,
+            &path.display().to_string(),
+            base_dir.as_deref(),
+            opts,
+        )
+    }
+
+    /// Loads a URDF from a string (`origin` is used in messages); relative mesh paths are
+    /// resolved against the current directory.
+    pub fn from_urdf_str(text: &str, opts: &LoadOptions) -> Result<Self, RobotError> {
+        load(text, "<string>", None, opts)
+    }
+
+    /// Total mass of the robot [kg].
+    pub fn total_mass(&self) -> f64 {
+        self.bodies.iter().map(|b| b.mass).sum()
+    }
+
+    /// Index of the body that contains URDF link `link`.
+    pub fn body_of_link(&self, link: &str) -> Option<usize> {
+        self.bodies
+            .iter()
+            .position(|b| b.links.iter().any(|l| l == link))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+fn load(
+    text: &str,
+    origin: &str,
+    base_dir: Option<&Path>,
+    opts: &LoadOptions,
+) -> Result<RobotDescription, RobotError> {
+    check_xacro(text, origin)?;
+    // urdf-rs (serde-xml-rs) can panic on some malformed inputs; contain that as a parse error.
+    let parsed = std::panic::catch_unwind(|| urdf_rs::read_from_string(text));
+    let robot = match parsed {
+        Ok(Ok(r)) => r,
+        Ok(Err(e)) => {
+            return Err(RobotError::Parse {
+                origin: origin.to_string(),
+                message: e.to_string(),
+            })
+        }
+        Err(_) => {
+            return Err(RobotError::Parse {
+                origin: origin.to_string(),
+                message: "the URDF parser aborted on this input".to_string(),
+            })
+        }
+    };
+    build(&robot, origin, base_dir, opts)
+}
+
+/// Rejects xacro leftovers with the line, enclosing element name and attribute.
+fn check_xacro(text: &str, origin: &str) -> Result<(), RobotError> {
+    // `xmlns:xacro` alone is not a leftover: xacro keeps the namespace declaration in its output.
+    let markers = ["<xacro:", "${", "$("];
+    let Some(pos) = markers.iter().filter_map(|m| text.find(m)).min() else {
+        return Ok(());
+    };
+    let line = text[..pos].matches('\n').count() + 1;
+    let rest = &text[pos..];
+    let end = rest
+        .find(['}', ')', '>', '\n', '"'])
+        .map(|e| (e + 1).min(rest.len()))
+        .unwrap_or(rest.len().min(40));
+    let snippet = rest[..end].trim_end_matches(['"', '\n']).to_string();
+    // Enclosing element: the last `<link name=` / `<joint name=` before the position.
+    let before = &text[..pos];
+    let mut context = String::from("the robot element");
+    let last_link = before.rfind("<link");
+    let last_joint = before.rfind("<joint");
+    let (kind, at) = match (last_link, last_joint) {
+        (Some(l), Some(j)) if j > l => ("joint", Some(j)),
+        (Some(l), _) => ("link", Some(l)),
+        (None, Some(j)) => ("joint", Some(j)),
+        (None, None) => ("", None),
+    };
+    if let Some(at) = at {
+        let elem = &text[at..];
+        if let Some(n) = elem.find("name=\"") {
+            let name_start = n + 6;
+            if let Some(name_len) = elem[name_start..].find('"') {
+                context = format!("{kind} `{}`", &elem[name_start..name_start + name_len]);
+            }
+        }
+    }
+    // Attribute: `attr="...${` on the same element.
+    let line_start = before.rfind('\n').map(|i| i + 1).unwrap_or(0);
+    let segment = &text[line_start..pos];
+    if let Some(q) = segment.rfind("=\"") {
+        let attr: String = segment[..q]
+            .chars()
+            .rev()
+            .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect();
+        if !attr.is_empty() && !segment[q + 2..].contains('"') {
+            context = format!("{context}, attribute `{attr}`");
+        }
+    }
+    Err(RobotError::Xacro {
+        origin: origin.to_string(),
+        line,
+        snippet,
+        context,
+    })
+}
+
+fn iso_from_pose(p: &urdf_rs::Pose) -> Isometry3<f64> {
+    let [x, y, z] = p.xyz.0;
+    let [r, pi, yw] = p.rpy.0;
+    Isometry3::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_euler_angles(r, pi, yw),
+    )
+}
+
+fn finite3(v: [f64; 3]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+/// Mass properties accumulated in a body frame: mass, first moment, inertia about the
+/// body-frame origin.
+#[derive(Debug, Clone, Copy)]
+struct MassAcc {
+    mass: f64,
+    moment: Vector3<f64>,
+    inertia_origin: Matrix3<f64>,
+}
+
+impl MassAcc {
+    fn zero() -> Self {
+        Self {
+            mass: 0.0,
+            moment: Vector3::zeros(),
+            inertia_origin: Matrix3::zeros(),
+        }
+    }
+    /// Adds a point-mass-distribution with mass m, centre c and inertia `i_com` (about c,
+    /// in a frame rotated by `rot` relative to the body frame).
+    fn add(&mut self, m: f64, c: Vector3<f64>, rot: &UnitQuaternion<f64>, i_com: &Matrix3<f64>) {
+        let r = rot.to_rotation_matrix();
+        let i_body = r.matrix() * i_com * r.matrix().transpose();
+        let parallel = m * (Matrix3::identity() * c.dot(&c) - c * c.transpose());
+        self.mass += m;
+        self.moment += m * c;
+        self.inertia_origin += i_body + parallel;
+    }
+    fn finish(&self) -> (f64, Vector3<f64>, Matrix3<f64>) {
+        if self.mass <= 0.0 {
+            return (self.mass, Vector3::zeros(), Matrix3::zeros());
+        }
+        let c = self.moment / self.mass;
+        let parallel = self.mass * (Matrix3::identity() * c.dot(&c) - c * c.transpose());
+        (self.mass, c, self.inertia_origin - parallel)
+    }
+}
+
+fn build(
+    robot: &urdf_rs::Robot,
+    origin: &str,
+    base_dir: Option<&Path>,
+    opts: &LoadOptions,
+) -> Result<RobotDescription, RobotError> {
+    let err_struct = |message: String| RobotError::Structure {
+        origin: origin.to_string(),
+        message,
+    };
+    let invalid = |what: String| RobotError::InvalidValue {
+        origin: origin.to_string(),
+        what,
+    };
+    if robot.links.is_empty() {
+        return Err(err_struct("the URDF has no <link>".into()));
+    }
+    let link_index: HashMap<&str, usize> = robot
+        .links
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (l.name.as_str(), i))
+        .collect();
+    if link_index.len() != robot.links.len() {
+        return Err(err_struct("two <link> elements share a name".into()));
+    }
+    // Parent joint of each link.
+    let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
+    for (ji, j) in robot.joints.iter().enumerate() {
+        let p = *link_index.get(j.parent.link.as_str()).ok_or_else(|| {
+            err_struct(format!(
+                "joint `{}` names parent link `{}`, which does not exist",
+                j.name, j.parent.link
+            ))
+        })?;
+        let c = *link_index.get(j.child.link.as_str()).ok_or_else(|| {
+            err_struct(format!(
+                "joint `{}` names child link `{}`, which does not exist",
+                j.name, j.child.link
+            ))
+        })?;
+        if parent_joint[c].is_some() {
+            return Err(err_struct(format!(
+                "link `{}` is the child of more than one joint",
+                j.child.link
+            )));
+        }
+        if !finite3(j.origin.xyz.0) || !finite3(j.origin.rpy.0) || !finite3(j.axis.xyz.0) {
+            return Err(invalid(format!(
+                "joint `{}`: non-finite origin or axis",
+                j.name
+            )));
+        }
+        parent_joint[c] = Some(ji);
+        children[p].push(ji);
+    }
+    let roots: Vec<usize> = (0..robot.links.len())
+        .filter(|&i| parent_joint[i].is_none())
+        .collect();
+    if roots.len() != 1 {
+        let names: Vec<&str> = roots
+            .iter()
+            .map(|&i| robot.links[i].name.as_str())
+            .collect();
+        return Err(err_struct(format!(
+            "the links must form one tree with a single root; roots found: {names:?}"
+        )));
+    }
+    let root = roots[0];
+
+    // Walk the tree from the root: assign links to bodies, compute rest poses.
+    struct LinkInfo {
+        body: usize,
+        pose_in_body: Isometry3<f64>,
+    }
+    let mut info: Vec<Option<LinkInfo>> = (0..robot.links.len()).map(|_| None).collect();
+    let mut bodies: Vec<RobotBody> = Vec::new();
+    let mut body_joint: Vec<Option<usize>> = Vec::new(); // URDF joint making the body movable
+    let mut joints: Vec<RobotJoint> = Vec::new();
+    let mut joint_of_urdf: HashMap<usize, usize> = HashMap::new();
+
+    bodies.push(RobotBody {
+        name: robot.links[root].name.clone(),
+        links: vec![robot.links[root].name.clone()],
+        pose_in_root: Isometry3::identity(),
+        mass: 0.0,
+        com: Vector3::zeros(),
+        inertia: Matrix3::zeros(),
+        colliders: Vec::new(),
+    });
+    body_joint.push(None);
+    info[root] = Some(LinkInfo {
+        body: 0,
+        pose_in_body: Isometry3::identity(),
+    });
+    let mut stack = vec![root];
+    let mut visited = 1usize;
+    while let Some(l) = stack.pop() {
+        let (lbody, lpose) = match &info[l] {
+            Some(i) => (i.body, i.pose_in_body),
+            None => continue,
+        };
+        for &ji in &children[l] {
+            let j = &robot.joints[ji];
+            let c = link_index[j.child.link.as_str()];
+            if info[c].is_some() {
+                return Err(err_struct(format!(
+                    "joint `{}` closes a kinematic loop",
+                    j.name
+                )));
+            }
+            visited += 1;
+            let origin_iso = iso_from_pose(&j.origin);
+            match j.joint_type {
+                urdf_rs::JointType::Fixed => {
+                    info[c] = Some(LinkInfo {
+                        body: lbody,
+                        pose_in_body: lpose * origin_iso,
+                    });
+                    bodies[lbody].links.push(j.child.link.clone());
+                }
+                urdf_rs::JointType::Continuous
+                | urdf_rs::JointType::Revolute
+                | urdf_rs::JointType::Prismatic => {
+                    let axis_v = Vector3::from(j.axis.xyz.0);
+                    let axis = Unit::try_new(axis_v, 1e-9).ok_or_else(|| {
+                        invalid(format!("joint `{}`: <axis xyz> is zero", j.name))
+                    })?;
+                    let kind = match j.joint_type {
+                        urdf_rs::JointType::Continuous => JointKind::Continuous,
+                        urdf_rs::JointType::Revolute => JointKind::Revolute {
+                            lower: j.limit.lower,
+                            upper: j.limit.upper,
+                        },
+                        _ => JointKind::Prismatic {
+                            lower: j.limit.lower,
+                            upper: j.limit.upper,
+                        },
+                    };
+                    let frame_in_parent = lpose * origin_iso;
+                    let pose_in_root = bodies[lbody].pose_in_root * frame_in_parent;
+                    let b = bodies.len();
+                    bodies.push(RobotBody {
+                        name: j.child.link.clone(),
+                        links: vec![j.child.link.clone()],
+                        pose_in_root,
+                        mass: 0.0,
+                        com: Vector3::zeros(),
+                        inertia: Matrix3::zeros(),
+                        colliders: Vec::new(),
+                    });
+                    body_joint.push(Some(ji));
+                    joint_of_urdf.insert(ji, joints.len());
+                    joints.push(RobotJoint {
+                        name: j.name.clone(),
+                        kind,
+                        parent: lbody,
+                        child: b,
+                        frame_in_parent,
+                        axis,
+                    });
+                    info[c] = Some(LinkInfo {
+                        body: b,
+                        pose_in_body: Isometry3::identity(),
+                    });
+                }
+                ref other => {
+                    return Err(err_struct(format!(
+                        "joint `{}` has type {other:?}; only fixed, continuous, revolute and \
+                         prismatic joints are supported",
+                        j.name
+                    )))
+                }
+            }
+            stack.push(c);
+        }
+    }
+    if visited != robot.links.len() {
+        return Err(err_struct(
+            "some links are not connected to the root".into(),
+        ));
+    }
+
+    // Mass properties and colliders per body.
+    let mut acc = vec![MassAcc::zero(); bodies.len()];
+    let mut warnings = Vec::new();
+    for (li, link) in robot.links.iter().enumerate() {
+        let Some(li_info) = &info[li] else { continue };
+        let (b, pose) = (li_info.body, li_info.pose_in_body);
+        let inertial = &link.inertial;
+        let m = inertial.mass.value;
+        if !m.is_finite() || m < 0.0 {
+            return Err(invalid(format!(
+                "link `{}`: <mass value> must be a finite number ≥ 0, got {m}",
+                link.name
+            )));
+        }
+        if m > 0.0 {
+            let i = &inertial.inertia;
+            let vals = [i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz];
+            if vals.iter().any(|v| !v.is_finite()) || i.ixx < 0.0 || i.iyy < 0.0 || i.izz < 0.0 {
+                return Err(invalid(format!(
+                    "link `{}`: <inertia> must be finite with ixx, iyy, izz ≥ 0",
+                    link.name
+                )));
+            }
+            let i_com = Matrix3::new(
+                i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
+            );
+            let io = pose * iso_from_pose(&inertial.origin);
+            acc[b].add(m, io.translation.vector, &io.rotation, &i_com);
+        }
+        for col in &link.collision {
+            let cpose = pose * iso_from_pose(&col.origin);
+            let shape = collision_shape(&col.geometry, &link.name, origin, base_dir, opts)?;
+            bodies[b].colliders.push(RobotCollider {
+                link: link.name.clone(),
+                pose_in_body: cpose,
+                shape,
+                is_wheel: false,
+            });
+        }
+        for vis in &link.visual {
+            if let urdf_rs::Geometry::Mesh { filename, .. } = &vis.geometry {
+                if resolve_mesh_path(filename, base_dir, &opts.package_paths).is_none() {
+                    warnings.push(format!(
+                        "{origin}: visual mesh `{filename}` of link `{}` not found (ignored)",
+                        link.name
+                    ));
+                }
+            }
+        }
+    }
+    for (b, a) in acc.iter().enumerate() {
+        let (m, c, i) = a.finish();
+        if m <= 0.0 {
+            let joint = match body_joint[b] {
+                Some(ji) => robot.joints[ji].name.clone(),
+                None => "root".to_string(),
+            };
+            return Err(RobotError::NonPositiveMass {
+                origin: origin.to_string(),
+                link: bodies[b].name.clone(),
+                joint,
+                mass: m,
+            });
+        }
+        bodies[b].mass = m;
+        bodies[b].com = c;
+        bodies[b].inertia = i;
+    }
+
+    let wheels = find_wheels(robot, origin, &bodies, &joints, &joint_of_urdf, opts)?;
+    for w in [&wheels.left, &wheels.right] {
+        for c in &mut bodies[w.body].colliders {
+            c.is_wheel = true;
+        }
+    }
+    let limits = match opts.limits {
+        Some(l) => {
+            let ok = |x: f64| x.is_finite() && x > 0.0;
+            if !(ok(l.v_max) && ok(l.omega_max) && ok(l.wheel_speed_max)) {
+                return Err(invalid(format!(
+                    "drive limits override must be positive and finite, got {l:?}"
+                )));
+            }
+            l
+        }
+        None => derive_limits(robot, origin, &wheels)?,
+    };
+
+    // Footprint: circumscribed radius in the plane, and the middle height of the geometry.
+    let mut r_max: f64 = 0.0;
+    let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
+    for body in &bodies {
+        for c in &body.colliders {
+            let to_root = body.pose_in_root * c.pose_in_body;
+            for p in c.shape.bounding_points() {
+                let q = to_root * p;
+                r_max = r_max.max(q.x.hypot(q.y));
+                z_min = z_min.min(q.z);
+                z_max = z_max.max(q.z);
+            }
+        }
+    }
+    if !z_min.is_finite() {
+        return Err(err_struct("the robot has no collision geometry".into()));
+    }
+
+    Ok(RobotDescription {
+        name: robot.name.clone(),
+        origin: origin.to_string(),
+        bodies,
+        joints,
+        wheels,
+        limits,
+        footprint_radius: r_max,
+        centre_height: 0.5 * (z_min.max(0.0) + z_max),
+        warnings,
+    })
+}
+
+fn collision_shape(
+    g: &urdf_rs::Geometry,
+    link: &str,
+    origin: &str,
+    base_dir: Option<&Path>,
+    opts: &LoadOptions,
+) -> Result<CollisionShape, RobotError> {
+    let bad = |what: String| RobotError::InvalidValue {
+        origin: origin.to_string(),
+        what: format!("link `{link}` collision: {what}"),
+    };
+    let pos = |x: f64| x.is_finite() && x > 0.0;
+    Ok(match g {
+        urdf_rs::Geometry::Box { size } => {
+            let s = size.0;
+            if !s.iter().all(|v| pos(*v)) {
+                return Err(bad(format!("<box size> must be positive, got {s:?}")));
+            }
+            CollisionShape::Box {
+                half_extents: [s[0] / 2.0, s[1] / 2.0, s[2] / 2.0],
+            }
+        }
+        urdf_rs::Geometry::Cylinder { radius, length } => {
+            if !pos(*radius) || !pos(*length) {
+                return Err(bad(format!(
+                    "<cylinder radius length> must be positive, got {radius}, {length}"
+                )));
+            }
+            CollisionShape::Cylinder {
+                radius: *radius,
+                half_length: length / 2.0,
+            }
+        }
+        urdf_rs::Geometry::Capsule { radius, length } => {
+            let length_ok = length.is_finite() && *length >= 0.0;
+            if !pos(*radius) || !length_ok {
+                return Err(bad(format!(
+                    "<capsule radius length> must be positive, got {radius}, {length}"
+                )));
+            }
+            CollisionShape::Capsule {
+                radius: *radius,
+                half_length: length / 2.0,
+            }
+        }
+        urdf_rs::Geometry::Sphere { radius } => {
+            if !pos(*radius) {
+                return Err(bad(format!(
+                    "<sphere radius> must be positive, got {radius}"
+                )));
+            }
+            CollisionShape::Sphere { radius: *radius }
+        }
+        urdf_rs::Geometry::Mesh { filename, scale } => {
+            let scale = scale.map(|s| s.0).unwrap_or([1.0; 3]);
+            if !scale.iter().all(|v| v.is_finite() && *v != 0.0) {
+                return Err(bad(format!(
+                    "mesh scale must be finite and non-zero, got {scale:?}"
+                )));
+            }
+            let mesh_err = |message: String| RobotError::CollisionMesh {
+                origin: origin.to_string(),
+                link: link.to_string(),
+                filename: filename.clone(),
+                message,
+            };
+            let path =
+                resolve_mesh_path(filename, base_dir, &opts.package_paths).ok_or_else(|| {
+                    mesh_err(format!(
+                        "file not found (package search path: {:?})",
+                        opts.package_paths
+                    ))
+                })?;
+            let (vertices, indices) =
+                read_stl(&path).map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
+            let vertices = vertices
+                .into_iter()
+                .map(|v| [v[0] * scale[0], v[1] * scale[1], v[2] * scale[2]])
+                .collect();
+            CollisionShape::Mesh { vertices, indices }
+        }
+    })
+}
+
+/// Resolves a mesh filename (`package://`, `file://`, absolute or relative) to an existing file.
+pub fn resolve_mesh_path(
+    filename: &str,
+    base_dir: Option<&Path>,
+    package_paths: &[PathBuf],
+) -> Option<PathBuf> {
+    if let Some(rest) = filename.strip_prefix("package://") {
+        let (pkg, rel) = rest.split_once('/')?;
+        for dir in package_paths {
+            let cand = dir.join(pkg).join(rel);
+            if cand.is_file() {
+                return Some(cand);
+            }
+            if dir.file_name().is_some_and(|n| n == pkg) {
+                let cand = dir.join(rel);
+                if cand.is_file() {
+                    return Some(cand);
+                }
+            }
+        }
+        return None;
+    }
+    let plain = filename.strip_prefix("file://").unwrap_or(filename);
+    let p = Path::new(plain);
+    let cand = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base_dir
+            .map(|d| d.join(p))
+            .unwrap_or_else(|| p.to_path_buf())
+    };
+    cand.is_file().then_some(cand)
+}
+
+/// Vertices and triangles of an STL file (ASCII or binary). A binary file whose 80-byte header
+/// happens to start with `solid` is recognised by its size (84 + 50·n bytes).
+#[allow(clippy::type_complexity)]
+pub fn read_stl(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+    let mut bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    if bytes.len() >= 84 {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        let binary_size = n.checked_mul(50).and_then(|s| s.checked_add(84));
+        if binary_size == Some(bytes.len()) && bytes.starts_with(b"solid") {
+            // Binary STL with a misleading header: blank the header so it is read as binary.
+            bytes[..5].copy_from_slice(b"     ");
+        }
+    }
+    let mut cursor = std::io::Cursor::new(bytes);
+    let mesh = stl_io::read_stl(&mut cursor).map_err(|e| format!("not a valid STL: {e}"))?;
+    if mesh.faces.is_empty() {
+        return Err("the STL has no triangles".into());
+    }
+    let vertices: Vec<[f64; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| [v[0] as f64, v[1] as f64, v[2] as f64])
+        .collect();
+    if vertices.iter().any(|v| !finite3(*v)) {
+        return Err("the STL has non-finite vertices".into());
+    }
+    let mut indices = Vec::with_capacity(mesh.faces.len());
+    for f in &mesh.faces {
+        let t = f.vertices;
+        if t.iter()
+            .any(|&i| i >= vertices.len() || i > u32::MAX as usize)
+        {
+            return Err("the STL has an out-of-range vertex index".into());
+        }
+        indices.push([t[0] as u32, t[1] as u32, t[2] as u32]);
+    }
+    Ok((vertices, indices))
+}
+
+fn find_wheels(
+    robot: &urdf_rs::Robot,
+    origin: &str,
+    bodies: &[RobotBody],
+    joints: &[RobotJoint],
+    joint_of_urdf: &HashMap<usize, usize>,
+    opts: &LoadOptions,
+) -> Result<DriveWheels, RobotError> {
+    let werr = |message: String| RobotError::Wheels {
+        origin: origin.to_string(),
+        message,
+    };
+    let cylinder_radius = |body: usize| {
+        bodies[body].colliders.iter().find_map(|c| match c.shape {
+            CollisionShape::Cylinder { radius, .. } => Some(radius),
+            _ => None,
+        })
+    };
+    let candidates: Vec<usize> = match &opts.wheel_joints {
+        Some((l, r)) => {
+            let mut v = Vec::new();
+            for name in [l, r] {
+                let ji = robot
+                    .joints
+                    .iter()
+                    .position(|j| &j.name == name)
+                    .ok_or_else(|| werr(format!("no joint named `{name}`")))?;
+                let k = *joint_of_urdf.get(&ji).ok_or_else(|| {
+                    werr(format!(
+                        "joint `{name}` is fixed; a wheel joint must rotate"
+                    ))
+                })?;
+                v.push(k);
+            }
+            v
+        }
+        None => joints
+            .iter()
+            .enumerate()
+            .filter(|(_, j)| {
+                matches!(j.kind, JointKind::Continuous) && cylinder_radius(j.child).is_some()
+            })
+            .map(|(k, _)| k)
+            .collect(),
+    };
+    if candidates.len() != 2 {
+        let names: Vec<&str> = candidates
+            .iter()
+            .map(|&k| joints[k].name.as_str())
+            .collect();
+        return Err(werr(format!(
+            "expected exactly 2 continuous joints whose child link has a <cylinder> collision, \
+             found {} {names:?}; name the wheel joints explicitly if the URDF has others",
+            candidates.len()
+        )));
+    }
+    let mut wheels = Vec::new();
+    for &k in &candidates {
+        let j = &joints[k];
+        if matches!(j.kind, JointKind::Prismatic { .. }) {
+            return Err(werr(format!("joint `{}` is prismatic", j.name)));
+        }
+        let radius = cylinder_radius(j.child).ok_or_else(|| {
+            werr(format!(
+                "wheel link of joint `{}` has no <cylinder> collision to read the radius from",
+                j.name
+            ))
+        })?;
+        let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
+        let axis_root = frame_root.rotation * j.axis.into_inner();
+        if axis_root.y.abs() < 0.99 {
+            return Err(werr(format!(
+                "joint `{}`: the wheel axis in the root frame is {:?}, not lateral (±y)",
+                j.name,
+                axis_root.as_slice()
+            )));
+        }
+        let urdf_j = robot.joints.iter().find(|u| u.name == j.name);
+        let effort = urdf_j
+            .map(|u| u.limit.effort)
+            .filter(|e| e.is_finite() && *e > 0.0);
+        wheels.push((
+            k,
+            radius,
+            frame_root.translation.vector,
+            axis_root.y.signum(),
+            effort,
+        ));
+    }
+    let (mut a, mut b) = (wheels[0], wheels[1]);
+    if opts.wheel_joints.is_none() && a.2.y < b.2.y {
+        std::mem::swap(&mut a, &mut b);
+    }
+    if (a.1 - b.1).abs() > 1e-4 {
+        return Err(werr(format!(
+            "the wheels have different radii ({} m and {} m)",
+            a.1, b.1
+        )));
+    }
+    let separation = (a.2.xy() - b.2.xy()).norm();
+    if separation <= 0.0 || !separation.is_finite() {
+        return Err(werr("the two wheel joints are at the same place".into()));
+    }
+    if a.2.y <= b.2.y {
+        return Err(werr(format!(
+            "the left wheel joint `{}` is not on the +y side of the right one `{}`",
+            joints[a.0].name, joints[b.0].name
+        )));
+    }
+    let mk = |w: (usize, f64, Vector3<f64>, f64, Option<f64>)| Wheel {
+        joint_name: joints[w.0].name.clone(),
+        joint: w.0,
+        body: joints[w.0].child,
+        forward_sign: w.3,
+        effort_limit: w.4,
+    };
+    Ok(DriveWheels {
+        left: mk(a),
+        right: mk(b),
+        geometry: WheelGeometry {
+            radius: 0.5 * (a.1 + b.1),
+            separation,
+        },
+    })
+}
+
+fn derive_limits(
+    robot: &urdf_rs::Robot,
+    origin: &str,
+    wheels: &DriveWheels,
+) -> Result<DriveLimits, RobotError> {
+    let mut w_max = f64::INFINITY;
+    for w in [&wheels.left, &wheels.right] {
+        let v = robot
+            .joints
+            .iter()
+            .find(|j| j.name == w.joint_name)
+            .map(|j| j.limit.velocity)
+            .unwrap_or(0.0);
+        if !(v.is_finite() && v > 0.0) {
+            return Err(RobotError::InvalidValue {
+                origin: origin.to_string(),
+                what: format!(
+                    "wheel joint `{}` has no <limit velocity> (rad/s) to derive the drive limits \
+                     from; add one or pass explicit limits",
+                    w.joint_name
+                ),
+            });
+        }
+        w_max = w_max.min(v);
+    }
+    let g = wheels.geometry;
+    Ok(DriveLimits {
+        v_max: g.radius * w_max,
+        omega_max: 2.0 * g.radius * w_max / g.separation,
+        wheel_speed_max: w_max,
+    })
+}
