@@ -1,0 +1,26 @@
+//! # ftcbf-sim
+//!
+//! The simulator around [`ftcbf_controller`]: a differential-drive robot loaded from URDF
+//! driving in a rapier3d world among parry3d obstacles, redundant noisy sensors, attack
+//! injectors, world files, the closed-loop runner and rerun recording.
+//!
+//! Frames: the world frame is Z-up, REP-103 (x forward, y left at the start pose of
+//! identity); SI units, angles in radians.
+
+pub mod attacks;
+pub mod drive;
+pub mod observe;
+pub mod obstacles;
+pub mod physics;
+#[cfg(feature = "record")]
+pub mod record;
+pub mod regress;
+pub mod robot;
+pub mod runner;
+pub mod safe_sets;
+pub mod sensors;
+pub mod state;
+pub mod summary;
+pub mod world;
+
+pub use ftcbf_controller;

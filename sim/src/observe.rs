@@ -1,0 +1,140 @@
+//! What the runner shows an observer (the rerun recorder, or a test): a static [`Scene`] once,
+//! then one [`Frame`] per control step. Plain data, no rerun types, so the runner does not depend
+//! on any recording backend.
+
+use crate::state::TruthState;
+
+/// A drawable shape in its own frame. Cylinders, capsules and cones stand along their local z.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// Box with half extents [m].
+    Cuboid {
+        /// Half extents along x, y, z.
+        half_extents: [f32; 3],
+    },
+    /// Sphere.
+    Ball {
+        /// [m]
+        radius: f32,
+    },
+    /// Cylinder along local z.
+    Cylinder {
+        /// [m]
+        radius: f32,
+        /// [m]
+        half_height: f32,
+    },
+    /// Capsule along local z.
+    Capsule {
+        /// [m]
+        radius: f32,
+        /// Half length of the segment between the cap centres [m].
+        half_height: f32,
+    },
+    /// A triangle mesh (cones, hulls, meshes, and a finite patch of a half-space).
+    Mesh {
+        /// Vertices [m].
+        vertices: Vec<[f32; 3]>,
+        /// Triangles as vertex indices.
+        triangles: Vec<[u32; 3]>,
+    },
+}
+
+/// A shape with a pose (translation, rotation as quaternion x, y, z, w) in its parent frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placed {
+    /// Name (entity path segment).
+    pub name: String,
+    /// Shape.
+    pub geometry: Geometry,
+    /// [m]
+    pub translation: [f32; 3],
+    /// Quaternion (x, y, z, w).
+    pub rotation: [f32; 4],
+}
+
+/// Everything that does not change during a run.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// World name.
+    pub world: String,
+    /// Obstacles in the world frame.
+    pub obstacles: Vec<Placed>,
+    /// Robot links: (link name, its shapes in the link frame).
+    pub robot_links: Vec<(String, Vec<Placed>)>,
+    /// Safe-set boundaries at zero velocity, as polylines on the ground (name, points).
+    pub safe_set_outlines: Vec<(String, Vec<[f32; 3]>)>,
+    /// Goal centre and radius [m].
+    pub goal: ([f32; 2], f32),
+    /// Sensor channel names, in measurement order.
+    pub channels: Vec<String>,
+    /// Estimator labels, in the order of [`Frame::estimates`].
+    pub filters: Vec<String>,
+    /// Barrier names (safe sets, then obstacles), in the order of [`Frame::barrier_values`] columns.
+    pub barriers: Vec<String>,
+    /// Attack labels, in the order of [`Frame::attacks_active`].
+    pub attacks: Vec<String>,
+}
+
+/// One estimator's view at a control step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimateView {
+    /// x̂ = (p_x, p_y, v_x, v_y).
+    pub x: [f64; 4],
+    /// Residue norm used by Step 3 (0 for the open-loop estimators).
+    pub residue: f64,
+    /// V(x̂) of the CLF.
+    pub clf: f64,
+}
+
+/// One sensor channel at a control step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChannelView {
+    /// The clean measurement (truth + noise + bias).
+    pub clean: f64,
+    /// What the controller received after the attacks.
+    pub received: f64,
+    /// A new sample arrived this step.
+    pub fresh: bool,
+}
+
+/// One control step.
+#[derive(Debug, Clone)]
+pub struct Frame<'a> {
+    /// Simulation time [s].
+    pub t: f64,
+    /// Control step index.
+    pub step: u64,
+    /// Ground truth.
+    pub truth: &'a TruthState,
+    /// Per channel, in [`Scene::channels`] order.
+    pub channels: &'a [ChannelView],
+    /// Per estimator, in [`Scene::filters`] order.
+    pub estimates: &'a [EstimateView],
+    /// h(x̂) per estimator (row) and barrier (column), row-major.
+    pub barrier_values: &'a [f64],
+    /// h(x_true) per barrier.
+    pub barrier_truth: &'a [f64],
+    /// The input u = (a_x, a_y) [m/s²].
+    pub u: [f64; 2],
+    /// Body command (v [m/s], ω [rad/s]) sent to the drive (zero for the linear plant).
+    pub body_cmd: [f64; 2],
+    /// Which step of the policy decided (`step1`, `clf_relaxed`, `step2`, `step3`, `infeasible`).
+    pub decided_by: &'a str,
+    /// Why constraints were dropped this step (empty when nothing was dropped).
+    pub decision_note: &'a str,
+    /// Per attack: active now.
+    pub attacks_active: &'a [bool],
+    /// Robot link poses in the world frame (link name, translation, quaternion xyzw).
+    pub link_poses: &'a [(String, [f32; 3], [f32; 4])],
+    /// Collisions and safety violations that started this step.
+    pub events: &'a [String],
+}
+
+/// Receives the scene once and every control step of a run.
+pub trait Observer {
+    /// Called once before the first step.
+    fn scene(&mut self, scene: &Scene);
+    /// Called after every control step.
+    fn frame(&mut self, frame: &Frame<'_>);
+}

@@ -1,0 +1,362 @@
+//! Headless rerun recording of a run to an `.rrd` file (feature `record`).
+//!
+//! Entity paths (stable; the README describes what the viewer shows):
+//! - `world/ground`, `world/obstacles/<name>`, `world/safe_sets/<name>`, `world/goal` — static scene;
+//! - `world/robot/<link>` — link transforms every control step, link shapes (static) below them;
+//! - `world/trail` — the true path; `world/estimates/<filter>` — each estimator's position;
+//! - `sensors/<channel>/{clean,received}`, `barriers/<barrier>/{truth,<filter>}`, `clf/<filter>`,
+//!   `residues/<filter>`, `control/{u_x,u_y,v,omega}`, `attacks/<label>` — time series;
+//! - `events/policy` (dropped constraints and why), `events/safety` (collisions, violations) — text logs.
+//!
+//! Timelines: `sim_time` (seconds) and `step` (control step). The recording id is derived from the
+//! world, the controller and the seed, and log time is not recorded, so a file says what ran, not when.
+
+use std::path::Path;
+
+use rerun::{RecordingStream, RecordingStreamBuilder};
+
+use crate::observe::{Frame, Geometry, Observer, Placed, Scene};
+
+/// Why a recording could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The file could not be created.
+    #[error("cannot create the recording {path}: {message}")]
+    Create {
+        /// The .rrd path.
+        path: String,
+        /// The SDK's message.
+        message: String,
+    },
+    /// The SDK failed while logging or flushing.
+    #[error("recording {path}: {message}")]
+    Write {
+        /// The .rrd path.
+        path: String,
+        /// The SDK's message.
+        message: String,
+    },
+}
+
+/// Writes a run to an `.rrd` file. Logging errors are kept and reported by [`Recorder::finish`].
+pub struct Recorder {
+    rec: RecordingStream,
+    path: String,
+    scene: Scene,
+    trail: Vec<[f32; 3]>,
+    first_error: Option<String>,
+}
+
+/// Points of the trail between two re-logs of the whole strip.
+const TRAIL_DECIMATION: u64 = 5;
+
+fn palette(i: usize) -> rerun::Color {
+    const C: [[u8; 3]; 10] = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [127, 127, 127],
+        [188, 189, 34],
+        [23, 190, 207],
+    ];
+    let [r, g, b] = C[i % C.len()];
+    rerun::Color::from_rgb(r, g, b)
+}
+
+/// An entity-path segment: keeps letters, digits, `_` and `-`, replaces the rest by `_`.
+fn seg(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if s.is_empty() {
+        "_".into()
+    } else {
+        s
+    }
+}
+
+impl Recorder {
+    /// Creates `path` (and its directory) and a stream with a recording id fixed by `recording_id`.
+    pub fn create(path: &Path, recording_id: &str) -> Result<Self, RecordError> {
+        let p = path.display().to_string();
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| RecordError::Create {
+                path: p.clone(),
+                message: e.to_string(),
+            })?;
+        }
+        let rec = RecordingStreamBuilder::new("ftcbf")
+            .recording_id(recording_id)
+            .recording_name(recording_id)
+            .enabled(true)
+            .save(path)
+            .map_err(|e| RecordError::Create {
+                path: p.clone(),
+                message: e.to_string(),
+            })?;
+        rec.set_log_time_enabled(false);
+        Ok(Self {
+            rec,
+            path: p,
+            scene: Scene::default(),
+            trail: Vec::new(),
+            first_error: None,
+        })
+    }
+
+    fn keep<T, E: std::fmt::Display>(&mut self, r: Result<T, E>) {
+        if let Err(e) = r {
+            self.first_error.get_or_insert_with(|| e.to_string());
+        }
+    }
+
+    fn log_placed(&mut self, base: &str, p: &Placed, color: rerun::Color) {
+        let path = format!("{base}/{}", seg(&p.name));
+        let tf = rerun::Transform3D::from_translation_rotation(
+            p.translation,
+            rerun::Quaternion::from_xyzw(p.rotation),
+        );
+        let r = self.rec.log_static(path.as_str(), &tf);
+        self.keep(r);
+        let r = match &p.geometry {
+            Geometry::Cuboid { half_extents } => self.rec.log_static(
+                path.as_str(),
+                &rerun::Boxes3D::from_half_sizes([*half_extents])
+                    .with_colors([color])
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ),
+            Geometry::Ball { radius } => self.rec.log_static(
+                path.as_str(),
+                &rerun::Ellipsoids3D::from_radii([*radius])
+                    .with_colors([color])
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ),
+            Geometry::Cylinder {
+                radius,
+                half_height,
+            } => self.rec.log_static(
+                path.as_str(),
+                &rerun::Cylinders3D::from_lengths_and_radii([2.0 * half_height], [*radius])
+                    .with_colors([color])
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ),
+            Geometry::Capsule {
+                radius,
+                half_height,
+            } => self.rec.log_static(
+                path.as_str(),
+                // rerun capsules run from the origin along +z: give the endpoints, centred.
+                &rerun::Capsules3D::from_endpoints_and_radii(
+                    [[0.0, 0.0, -half_height]],
+                    [[0.0, 0.0, *half_height]],
+                    [*radius],
+                )
+                .with_colors([color]),
+            ),
+            Geometry::Mesh {
+                vertices,
+                triangles,
+            } => self.rec.log_static(
+                path.as_str(),
+                &rerun::Mesh3D::new(vertices.iter().copied())
+                    .with_triangle_indices(triangles.iter().copied())
+                    .with_albedo_factor(color.0),
+            ),
+        };
+        self.keep(r);
+    }
+
+    /// Flushes and closes the file; reports the first logging error, if any.
+    pub fn finish(mut self) -> Result<(), RecordError> {
+        let r = self.rec.flush_blocking();
+        self.keep(r);
+        self.rec.disconnect();
+        match self.first_error {
+            Some(message) => Err(RecordError::Write {
+                path: self.path,
+                message,
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Observer for Recorder {
+    fn scene(&mut self, scene: &Scene) {
+        self.scene = scene.clone();
+        let r = self
+            .rec
+            .log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP());
+        self.keep(r);
+        let r = self.rec.log_static(
+            "world/ground",
+            &rerun::Boxes3D::from_centers_and_half_sizes([[0.0, 0.0, -0.005]], [[5.0, 5.0, 0.005]])
+                .with_colors([rerun::Color::from_rgb(200, 200, 200)]),
+        );
+        self.keep(r);
+        for ob in &scene.obstacles {
+            self.log_placed("world/obstacles", ob, rerun::Color::from_rgb(120, 120, 140));
+        }
+        for (name, pts) in &scene.safe_set_outlines {
+            let r = self.rec.log_static(
+                format!("world/safe_sets/{}", seg(name)).as_str(),
+                &rerun::LineStrips3D::new([pts.clone()])
+                    .with_colors([rerun::Color::from_rgb(214, 39, 40)])
+                    .with_labels([name.as_str()]),
+            );
+            self.keep(r);
+        }
+        let ([gx, gy], gr) = scene.goal;
+        let circle: Vec<[f32; 3]> = (0..=64)
+            .map(|k| {
+                let a = k as f32 / 64.0 * std::f32::consts::TAU;
+                [gx + gr * a.cos(), gy + gr * a.sin(), 0.002]
+            })
+            .collect();
+        let r = self.rec.log_static(
+            "world/goal",
+            &rerun::LineStrips3D::new([circle])
+                .with_colors([rerun::Color::from_rgb(44, 160, 44)])
+                .with_labels(["goal"]),
+        );
+        self.keep(r);
+        for (link, shapes) in &scene.robot_links {
+            let base = format!("world/robot/{}", seg(link));
+            for s in shapes {
+                self.log_placed(&base, s, rerun::Color::from_rgb(60, 60, 60));
+            }
+        }
+        for (i, f) in scene.filters.iter().enumerate() {
+            let r = self.rec.log_static(
+                format!("world/estimates/{}", seg(f)).as_str(),
+                &rerun::Points3D::new([[0.0f32, 0.0, 0.0]])
+                    .with_colors([palette(i)])
+                    .with_radii([0.012f32])
+                    .with_labels([f.as_str()]),
+            );
+            self.keep(r);
+        }
+    }
+
+    fn frame(&mut self, f: &Frame<'_>) {
+        self.rec.set_duration_secs("sim_time", f.t);
+        self.rec.set_time_sequence("step", f.step as i64);
+        let mut results = Vec::new();
+        for (name, pos, quat) in f.link_poses {
+            results.push(self.rec.log(
+                format!("world/robot/{}", seg(name)).as_str(),
+                &rerun::Transform3D::from_translation_rotation(
+                    *pos,
+                    rerun::Quaternion::from_xyzw(*quat),
+                ),
+            ));
+        }
+        let truth = [f.truth.x as f32, f.truth.y as f32, 0.003];
+        self.trail.push(truth);
+        if f.step % TRAIL_DECIMATION == 0 {
+            results.push(self.rec.log(
+                "world/trail",
+                &rerun::LineStrips3D::new([self.trail.clone()])
+                    .with_colors([rerun::Color::from_rgb(0, 0, 0)]),
+            ));
+        }
+        for (i, e) in f.estimates.iter().enumerate() {
+            let Some(label) = self.scene.filters.get(i) else {
+                continue;
+            };
+            let l = seg(label);
+            results.push(self.rec.log(
+                format!("world/estimates/{l}").as_str(),
+                &rerun::Points3D::new([[e.x[0] as f32, e.x[1] as f32, 0.01]])
+                    .with_colors([palette(i)])
+                    .with_radii([0.012f32]),
+            ));
+            results.push(
+                self.rec
+                    .log(format!("clf/{l}").as_str(), &rerun::Scalars::single(e.clf)),
+            );
+            results.push(self.rec.log(
+                format!("residues/{l}").as_str(),
+                &rerun::Scalars::single(e.residue),
+            ));
+        }
+        for (i, ch) in f.channels.iter().enumerate() {
+            let Some(name) = self.scene.channels.get(i) else {
+                continue;
+            };
+            let n = seg(name);
+            results.push(self.rec.log(
+                format!("sensors/{n}/clean").as_str(),
+                &rerun::Scalars::single(ch.clean),
+            ));
+            // Non-finite received values are what the attack sent; a time series cannot plot them.
+            if ch.received.is_finite() {
+                results.push(self.rec.log(
+                    format!("sensors/{n}/received").as_str(),
+                    &rerun::Scalars::single(ch.received),
+                ));
+            }
+        }
+        let nb = self.scene.barriers.len();
+        for (j, b) in self.scene.barriers.iter().enumerate() {
+            let bseg = seg(b);
+            if let Some(v) = f.barrier_truth.get(j) {
+                results.push(self.rec.log(
+                    format!("barriers/{bseg}/truth").as_str(),
+                    &rerun::Scalars::single(*v),
+                ));
+            }
+            for (i, fl) in self.scene.filters.iter().enumerate() {
+                if let Some(v) = f.barrier_values.get(i * nb + j) {
+                    results.push(self.rec.log(
+                        format!("barriers/{bseg}/{}", seg(fl)).as_str(),
+                        &rerun::Scalars::single(*v),
+                    ));
+                }
+            }
+        }
+        for (k, v) in [
+            ("control/u_x", f.u[0]),
+            ("control/u_y", f.u[1]),
+            ("control/v", f.body_cmd[0]),
+            ("control/omega", f.body_cmd[1]),
+        ] {
+            results.push(self.rec.log(k, &rerun::Scalars::single(v)));
+        }
+        for (i, on) in f.attacks_active.iter().enumerate() {
+            if let Some(label) = self.scene.attacks.get(i) {
+                results.push(self.rec.log(
+                    format!("attacks/{}", seg(label)).as_str(),
+                    &rerun::Scalars::single(if *on { 1.0 } else { 0.0 }),
+                ));
+            }
+        }
+        if !f.decision_note.is_empty() {
+            results.push(self.rec.log(
+                "events/policy",
+                &rerun::TextLog::new(format!("[{}] {}", f.decided_by, f.decision_note))
+                    .with_level(rerun::TextLogLevel::INFO),
+            ));
+        }
+        for e in f.events {
+            results.push(self.rec.log(
+                "events/safety",
+                &rerun::TextLog::new(e.as_str()).with_level(rerun::TextLogLevel::ERROR),
+            ));
+        }
+        for r in results {
+            self.keep(r);
+        }
+    }
+}

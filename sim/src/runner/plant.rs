@@ -1,0 +1,218 @@
+//! The plant the controller drives: the robot in rapier (through the compensator and the wheel
+//! motors), or the paper's linearised model integrated directly.
+
+use ftcbf_controller::model::LinearModel;
+use ftcbf_controller::{Input, State, StateMatrix};
+use nalgebra::Vector2;
+use rand::Rng;
+use rand_chacha::ChaCha20Rng;
+use rand_distr::StandardNormal;
+
+use crate::drive::{Drive, DriveConfig};
+use crate::obstacles::ObstacleBarrier;
+use crate::physics::{PhysicsConfig, PhysicsWorld, Pose2};
+use crate::state::TruthState;
+use crate::world::{Dynamics, World};
+
+use super::plant_rng;
+use super::setup::obstacle_barrier_config;
+
+/// The simulated plant.
+#[allow(clippy::large_enum_variant)]
+pub enum Plant {
+    /// The robot from URDF in rapier3d.
+    Rapier {
+        /// Physics.
+        physics: PhysicsWorld,
+        /// Compensator (6.3)-(6.4) and wheel kinematics.
+        drive: Drive,
+        /// Obstacles in contact after the last tick.
+        contact: Vec<bool>,
+    },
+    /// Eq. 6.2 with Euler–Maruyama.
+    Linear {
+        /// The model (F, G, σ).
+        model: LinearModel,
+        /// True state.
+        x: State,
+        /// Input held over the control period.
+        u: Input,
+        /// Time [s].
+        t: f64,
+        /// Integration step [s].
+        dt: f64,
+        /// Process-noise stream.
+        rng: ChaCha20Rng,
+        /// Obstacles, as distance queries for a point robot.
+        obstacles: Vec<ObstacleBarrier>,
+    },
+}
+
+impl Plant {
+    /// Builds the plant of `world`.
+    pub fn new(world: &World, seed: u64) -> Result<Self, String> {
+        match world.file.dynamics {
+            Dynamics::Rapier => {
+                let robot = world
+                    .robot
+                    .as_ref()
+                    .ok_or_else(|| "rapier dynamics without a robot".to_string())?;
+                let start = world
+                    .file
+                    .robot
+                    .as_ref()
+                    .map(|r| r.start)
+                    .unwrap_or_default();
+                let cfg = PhysicsConfig {
+                    dt: world.file.physics.dt,
+                    friction: world.file.physics.friction,
+                    ..PhysicsConfig::default()
+                };
+                let physics = PhysicsWorld::new(
+                    robot,
+                    Pose2 {
+                        x: start.x,
+                        y: start.y,
+                        theta: start.theta,
+                    },
+                    &world.obstacles,
+                    &cfg,
+                )
+                .map_err(|e| e.to_string())?;
+                let drive = Drive::new(&robot.wheels.geometry, &robot.limits, DriveConfig::default())
+                    .map_err(|e| e.to_string())?;
+                Ok(Plant::Rapier {
+                    physics,
+                    drive,
+                    contact: vec![false; world.obstacles.len()],
+                })
+            }
+            Dynamics::Linear => {
+                let lin = world
+                    .file
+                    .linear
+                    .as_ref()
+                    .ok_or_else(|| "linear dynamics without [linear]".to_string())?;
+                let model = LinearModel::new(
+                    LinearModel::double_integrator_f(),
+                    LinearModel::double_integrator_g(),
+                    LinearModel::paper_observation(),
+                    StateMatrix::identity() * lin.process_noise,
+                    vec![1.0; 6],
+                )
+                .map_err(|e| e.to_string())?;
+                let bcfg = obstacle_barrier_config(world);
+                Ok(Plant::Linear {
+                    model,
+                    x: State::new(lin.x0[0], lin.x0[1], lin.x0[2], lin.x0[3]),
+                    u: Input::zeros(),
+                    t: 0.0,
+                    dt: lin.dt,
+                    rng: plant_rng(seed),
+                    obstacles: world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect(),
+                })
+            }
+        }
+    }
+
+    /// The true state now.
+    pub fn truth(&self) -> TruthState {
+        match self {
+            Plant::Rapier { physics, .. } => physics.truth(),
+            Plant::Linear { x, t, .. } => {
+                let speed = x[2].hypot(x[3]);
+                TruthState {
+                    t: *t,
+                    x: x[0],
+                    y: x[1],
+                    theta: if speed > 1e-12 { x[3].atan2(x[2]) } else { 0.0 },
+                    vx: x[2],
+                    vy: x[3],
+                    v_body: speed,
+                    omega: 0.0,
+                }
+            }
+        }
+    }
+
+    /// Holds the controller's input `u` for the coming control period. For the robot, the
+    /// compensator turns it into (v, ω) about the measured `heading`, then into wheel speeds.
+    /// Returns the body command (v, ω) (zero for the linear plant).
+    pub fn apply_input(&mut self, u: &Input, heading: f64, control_dt: f64) -> [f64; 2] {
+        match self {
+            Plant::Rapier { physics, drive, .. } => {
+                let cmd = drive.command(*u, heading, control_dt);
+                let (l, r) = drive.wheel_speeds(cmd);
+                physics.set_wheel_speeds(l, r);
+                [cmd.v, cmd.omega]
+            }
+            Plant::Linear { u: held, .. } => {
+                *held = *u;
+                [0.0, 0.0]
+            }
+        }
+    }
+
+    /// One plant step.
+    pub fn tick(&mut self) {
+        match self {
+            Plant::Rapier {
+                physics, contact, ..
+            } => {
+                physics.step();
+                contact.iter_mut().for_each(|c| *c = false);
+                for i in physics.contacts() {
+                    if let Some(c) = contact.get_mut(i) {
+                        *c = true;
+                    }
+                }
+            }
+            Plant::Linear {
+                model,
+                x,
+                u,
+                t,
+                dt,
+                rng,
+                ..
+            } => {
+                let w = State::from_fn(|_, _| rng.sample::<f64, _>(StandardNormal));
+                *x = model.euler_maruyama_step(x, u, *dt, &w);
+                *t += *dt;
+            }
+        }
+    }
+
+    /// Whether the robot touches obstacle `i` after the last step.
+    pub fn in_contact(&self, i: usize) -> bool {
+        match self {
+            Plant::Rapier { contact, .. } => contact.get(i).copied().unwrap_or(false),
+            Plant::Linear { x, obstacles, .. } => obstacles
+                .get(i)
+                .is_some_and(|o| o.clearance(Vector2::new(x[0], x[1])) < 0.0),
+        }
+    }
+
+    /// True clearance to each obstacle [m].
+    pub fn clearances(&self, out: &mut Vec<f64>) {
+        match self {
+            Plant::Rapier { physics, .. } => physics.clearances(out),
+            Plant::Linear { x, obstacles, .. } => {
+                out.clear();
+                out.extend(
+                    obstacles
+                        .iter()
+                        .map(|o| o.clearance(Vector2::new(x[0], x[1]))),
+                );
+            }
+        }
+    }
+
+    /// World poses of the robot's bodies (empty for the linear plant, which is drawn as a point).
+    pub fn link_poses(&self, out: &mut Vec<(String, [f32; 3], [f32; 4])>) {
+        out.clear();
+        if let Plant::Rapier { physics, .. } = self {
+            out.extend(physics.link_poses().map(|(n, p, q)| (n.to_string(), p, q)));
+        }
+    }
+}

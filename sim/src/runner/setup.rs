@@ -1,0 +1,299 @@
+//! From a validated [`World`] to the controller's configuration: which channels the linear model
+//! observes, its noise model, the barriers, and the parameters (given, or computed per §4.3).
+
+use std::sync::Arc;
+
+use ftcbf_controller::barrier::HalfPlane;
+use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
+use ftcbf_controller::lyapunov::ClfConfig;
+use ftcbf_controller::model::LinearModel;
+use ftcbf_controller::params::FtParameters;
+use ftcbf_controller::{Barrier, Input, State, StateMatrix};
+use nalgebra::{Matrix2, RowVector4};
+
+use crate::obstacles::BarrierConfig;
+use crate::safe_sets::LiftedEllipse;
+use crate::sensors::Quantity;
+use crate::world::{ControllerKindSpec, Dynamics, Param, SafeSetSpec, World};
+
+use super::RunError;
+
+/// Filter process-noise intensity assumed for the rapier robot when the world does not give one
+/// [(m/s²)²·s]: it covers the unmodelled drive dynamics (motor lag, slip) as white acceleration.
+pub const DEFAULT_RAPIER_PROCESS_NOISE: f64 = 1e-2;
+/// Variance floor for a channel declared noise-free, so R stays invertible [unit²].
+pub const MIN_VARIANCE: f64 = 1e-8;
+/// Readings larger than this are rejected by the controller as absurd [m or m/s].
+pub const MAX_ABS_READING: f64 = 1e6;
+/// Initial estimate covariance P0 = P0_VARIANCE · I.
+pub const P0_VARIANCE: f64 = 1e-2;
+
+/// The controller kind for a world-file name.
+pub fn controller_kind(spec: ControllerKindSpec) -> ControllerKind {
+    match spec {
+        ControllerKindSpec::FtCbfClf => ControllerKind::FtCbfClf,
+        ControllerKindSpec::Baseline => ControllerKind::Baseline,
+        ControllerKindSpec::Nominal => ControllerKind::Nominal,
+    }
+}
+
+/// The world-file name of a controller kind.
+pub fn controller_name(spec: ControllerKindSpec) -> &'static str {
+    match spec {
+        ControllerKindSpec::FtCbfClf => "ft-cbf-clf",
+        ControllerKindSpec::Baseline => "baseline",
+        ControllerKindSpec::Nominal => "nominal",
+    }
+}
+
+/// Everything the runner derives once per run for the controller.
+pub struct ControlSetup {
+    /// The configuration handed to `Controller::new`.
+    pub config: ControllerConfig,
+    /// For each controller channel, the sensor index it reads.
+    pub sensor_of_channel: Vec<usize>,
+    /// For each sensor, its controller channel (None: heading, speed, yaw rate).
+    pub channel_of_sensor: Vec<Option<usize>>,
+    /// Barrier names: safe sets, then obstacles.
+    pub barrier_names: Vec<String>,
+    /// Number of closed-form safe sets (the first barriers).
+    pub safe_sets: usize,
+    /// The parameters used, and how they were obtained (for `check` and logs).
+    pub params: ParamReport,
+}
+
+/// The parameters in force, for reports.
+#[derive(Debug, Clone)]
+pub struct ParamReport {
+    /// γ_i per fault pattern.
+    pub gamma: Vec<f64>,
+    /// γ of the all-channel filter.
+    pub gamma_baseline: f64,
+    /// θ_ij per pair (or one value for all).
+    pub theta: Vec<f64>,
+    /// δ (∞ = constraints always active).
+    pub delta: f64,
+    /// Computed by §4.3 (`auto`), with the details.
+    pub computed: Option<FtParameters>,
+    /// ε the computed parameters are for.
+    pub epsilon: f64,
+}
+
+/// The planar-state row of a sensed quantity, if the linear model observes it.
+fn observation_row(q: Quantity) -> Option<RowVector4<f64>> {
+    match q {
+        Quantity::X => Some(RowVector4::new(1.0, 0.0, 0.0, 0.0)),
+        Quantity::Y => Some(RowVector4::new(0.0, 1.0, 0.0, 0.0)),
+        Quantity::Vx => Some(RowVector4::new(0.0, 0.0, 1.0, 0.0)),
+        Quantity::Vy => Some(RowVector4::new(0.0, 0.0, 0.0, 1.0)),
+        Quantity::Heading | Quantity::Speed | Quantity::YawRate => None,
+    }
+}
+
+/// Barriers for the world's safe sets (closed form, from the controller crate).
+pub fn safe_set_barriers(world: &World) -> Vec<Arc<dyn Barrier>> {
+    let v_max = world.robot.as_ref().map_or(1.0, |r| r.limits.v_max);
+    world
+        .file
+        .safe_sets
+        .iter()
+        .map(|s| -> Arc<dyn Barrier> {
+            match s {
+                SafeSetSpec::HalfPlane { name, a, b } => Arc::new(HalfPlane::new(
+                    name.clone(),
+                    State::new(a[0], a[1], a[2], a[3]),
+                    *b,
+                )),
+                SafeSetSpec::EllipseInside {
+                    name,
+                    center,
+                    semi_axes,
+                    angle,
+                    lift,
+                } => Arc::new(LiftedEllipse::new(
+                    name.clone(),
+                    *center,
+                    *semi_axes,
+                    *angle,
+                    true,
+                    *lift,
+                    v_max,
+                )),
+                SafeSetSpec::EllipseOutside {
+                    name,
+                    center,
+                    semi_axes,
+                    angle,
+                    lift,
+                } => Arc::new(LiftedEllipse::new(
+                    name.clone(),
+                    *center,
+                    *semi_axes,
+                    *angle,
+                    false,
+                    *lift,
+                    v_max,
+                )),
+            }
+        })
+        .collect()
+}
+
+/// The obstacle barriers' geometry settings for this world's robot (a point for `linear`).
+pub fn obstacle_barrier_config(world: &World) -> BarrierConfig {
+    let c = &world.file.control;
+    match &world.robot {
+        Some(robot) => BarrierConfig::for_robot(robot, c.obstacle_margin, c.obstacle_lift),
+        None => BarrierConfig {
+            robot_radius: 0.0,
+            centre_height: 0.0,
+            margin: c.obstacle_margin,
+            k: c.obstacle_lift,
+            v_max: 1.0,
+            fd_step: 2e-3,
+        },
+    }
+}
+
+impl ControlSetup {
+    /// Builds the controller configuration for `world` run with `kind`.
+    pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
+        let file = &world.file;
+        let err = |key: &str, message: String| RunError::Setup {
+            world: world.path.display().to_string(),
+            key: key.to_string(),
+            message,
+        };
+
+        // Channels the linear model observes, in sensor order.
+        let mut c_rows = Vec::new();
+        let mut r = Vec::new();
+        let mut sensor_of_channel = Vec::new();
+        let mut channel_of_sensor = vec![None; file.sensors.len()];
+        for (si, s) in file.sensors.iter().enumerate() {
+            if let Some(row) = observation_row(s.measures) {
+                channel_of_sensor[si] = Some(c_rows.len());
+                sensor_of_channel.push(si);
+                c_rows.push(row);
+                r.push((s.noise_std * s.noise_std).max(MIN_VARIANCE));
+            }
+        }
+        let mut patterns = Vec::with_capacity(world.patterns.len());
+        for (pi, p) in world.patterns.iter().enumerate() {
+            let mut mapped = Vec::with_capacity(p.len());
+            for &si in p {
+                match channel_of_sensor[si] {
+                    Some(ci) => mapped.push(ci),
+                    None => {
+                        return Err(err(
+                            &format!("fault_patterns[{pi}].channels"),
+                            format!(
+                                "channel \"{}\" measures {}, which the controller's linear model does not use; \
+                                 fault patterns may only hold x, y, vx and vy channels",
+                                file.sensors[si].name,
+                                file.sensors[si].measures.as_str()
+                            ),
+                        ))
+                    }
+                }
+            }
+            patterns.push(mapped);
+        }
+
+        let q_intensity = file.control.process_noise.unwrap_or(match file.dynamics {
+            Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
+            Dynamics::Rapier => DEFAULT_RAPIER_PROCESS_NOISE,
+        });
+        let model = LinearModel::new(
+            LinearModel::double_integrator_f(),
+            LinearModel::double_integrator_g(),
+            c_rows,
+            StateMatrix::identity() * q_intensity,
+            r,
+        )
+        .map_err(|e| err("sensors", e.to_string()))?;
+
+        // Barriers: closed-form safe sets, then obstacles.
+        let mut barriers = safe_set_barriers(world);
+        let safe_sets = barriers.len();
+        let bcfg = obstacle_barrier_config(world);
+        for ob in &world.obstacles {
+            barriers.push(Arc::new(ob.barrier(&bcfg)));
+        }
+        let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
+
+        // Parameters.
+        let control_dt = world.control_dt();
+        let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
+        let needs_auto = matches!(file.control.gamma, Param::Auto)
+            || matches!(file.control.theta, Param::Auto);
+        let computed = needs_auto.then(|| {
+            FtParameters::compute(&model, &patterns, control_dt, file.control.epsilon, horizon)
+        });
+        let m = patterns.len();
+        let gamma = match (file.control.gamma, &computed) {
+            (Param::Value(g), _) => vec![g; m],
+            (Param::Auto, Some(p)) => p.gamma.clone(),
+            (Param::Auto, None) => unreachable!("computed when auto"),
+        };
+        let gamma_baseline = match (file.control.gamma, &computed) {
+            (Param::Value(g), _) => g,
+            (Param::Auto, Some(p)) => p.gamma_baseline,
+            (Param::Auto, None) => unreachable!("computed when auto"),
+        };
+        let theta = match (file.control.theta, &computed) {
+            (Param::Value(t), _) => vec![t],
+            (Param::Auto, Some(p)) if !p.theta.is_empty() => p.theta.clone(),
+            // m < 2: no pairs, θ unused.
+            (Param::Auto, _) => vec![f64::INFINITY],
+        };
+        let delta = file.control.delta.unwrap_or(f64::INFINITY);
+
+        let (start_x, start_y) = match (&file.robot, &file.linear) {
+            (Some(r), _) => (r.start.x, r.start.y),
+            (None, Some(l)) => (l.x0[0], l.x0[1]),
+            (None, None) => (0.0, 0.0),
+        };
+        let x0 = match &file.linear {
+            Some(l) => State::new(l.x0[0], l.x0[1], l.x0[2], l.x0[3]),
+            None => State::new(start_x, start_y, 0.0, 0.0),
+        };
+        let mut clf = ClfConfig::paper(file.control.clf.v_bar.unwrap_or(0.0));
+        clf.rho = file.control.clf.rho;
+
+        let config = ControllerConfig {
+            kind: controller_kind(kind),
+            model,
+            fault_patterns: patterns,
+            barriers,
+            goal: State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0),
+            goal_radius: file.goal.radius,
+            gamma: gamma.clone(),
+            gamma_baseline,
+            theta: theta.clone(),
+            delta,
+            cbf_gain: 1.0,
+            clf,
+            input_cost: Matrix2::identity(),
+            input_limit: file.control.input_limit.map(|l| Input::new(l, l)),
+            x0,
+            p0: StateMatrix::identity() * P0_VARIANCE,
+            max_abs_reading: MAX_ABS_READING,
+        };
+        Ok(Self {
+            config,
+            sensor_of_channel,
+            channel_of_sensor,
+            barrier_names,
+            safe_sets,
+            params: ParamReport {
+                gamma,
+                gamma_baseline,
+                theta,
+                delta,
+                computed,
+                epsilon: file.control.epsilon,
+            },
+        })
+    }
+}

@@ -1,0 +1,103 @@
+//! The result of one run: what the runner measured against the truth. Serialisable, so the CLI
+//! prints it as JSON and `ftcbf batch` aggregates it.
+
+use serde::{Deserialize, Serialize};
+
+/// A named minimum (e.g. the smallest h(x_true) of one safe set over a run).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NamedValue {
+    /// Safe-set or obstacle name as the world file gives it.
+    pub name: String,
+    /// The value.
+    pub value: f64,
+}
+
+/// The first contact between the robot and an obstacle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CollisionEvent {
+    /// Simulation time [s].
+    pub t: f64,
+    /// Obstacle name.
+    pub obstacle: String,
+}
+
+/// The first time the true state left a safe set (h(x_true) < 0).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ViolationEvent {
+    /// Simulation time [s].
+    pub t: f64,
+    /// Safe-set name.
+    pub set: String,
+    /// h(x_true) at that time.
+    pub value: f64,
+}
+
+/// How often each step of the policy (§4.1 / §5.1) decided the input over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StepCounts {
+    /// Step 1: every active constraint could be met.
+    pub step1: u64,
+    /// Only the CLF rows had to be relaxed (safety first), no CBF row dropped.
+    pub clf_relaxed: u64,
+    /// Step 2: constraints of estimators deviating from their pairwise estimators were dropped.
+    pub step2: u64,
+    /// Step 3: constraints of the largest-residue estimators were dropped.
+    pub step3: u64,
+    /// Still infeasible after Step 3: the documented safe action was applied.
+    pub infeasible: u64,
+}
+
+/// The window of one attack, as the world file declared it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AttackWindow {
+    /// e.g. `attacks[0] bias on gnss2_y`.
+    pub label: String,
+    /// [s]
+    pub start: f64,
+    /// [s]; `None` = until the end of the run.
+    pub end: Option<f64>,
+    /// True when the attacked channels are not all inside one declared fault pattern
+    /// (outside the paper's threat model: no guarantee applies).
+    pub outside_fault_patterns: bool,
+}
+
+/// Everything one run measured. The same world + seed gives the same summary, bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// World name.
+    pub world: String,
+    /// The seed the run used.
+    pub seed: u64,
+    /// `ft-cbf-clf`, `baseline` or `nominal`.
+    pub controller: String,
+    /// Simulated time [s].
+    pub duration: f64,
+    /// The true state stayed in every safe set and the robot never touched an obstacle.
+    pub safe: bool,
+    /// The robot touched an obstacle.
+    pub collided: bool,
+    /// First contact, if any.
+    pub first_collision: Option<CollisionEvent>,
+    /// First safe-set violation, if any.
+    pub first_violation: Option<ViolationEvent>,
+    /// Smallest h(x_true) per safe set and per obstacle barrier.
+    pub min_barrier: Vec<NamedValue>,
+    /// Smallest true clearance robot–obstacle over the run [m] (`None` without obstacles).
+    pub min_clearance: Option<f64>,
+    /// The goal set was entered.
+    pub goal_reached: bool,
+    /// First time in the goal set [s].
+    pub time_to_goal: Option<f64>,
+    /// Which step of the policy decided, per control step.
+    pub steps: StepCounts,
+    /// Number of control steps.
+    pub control_steps: u64,
+    /// Readings rejected by the controller as non-finite or absurd.
+    pub rejected_readings: u64,
+    /// The attacks of the world.
+    pub attack_windows: Vec<AttackWindow>,
+    /// At least one attack lies outside the declared fault patterns.
+    pub attacks_outside_fault_patterns: bool,
+    /// True planar state (p_x, p_y, v_x, v_y) at the end [m, m, m/s, m/s].
+    pub final_state: [f64; 4],
+}

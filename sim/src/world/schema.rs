@@ -1,0 +1,424 @@
+//! The serde schema of a world file (TOML). Every table denies unknown keys, so a typo is an
+//! error, not a silently ignored setting. See the README's world-file reference.
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::attacks::AttackSpec;
+use crate::obstacles::ObstacleSpec;
+use crate::sensors::{ChannelSpec, FaultPatternSpec};
+
+/// The whole file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldFile {
+    /// Name used in summaries and as the default recording name (default: the file stem).
+    pub name: Option<String>,
+    /// Free text shown by `ftcbf check`.
+    pub description: Option<String>,
+    /// Simulated duration [s].
+    pub duration: f64,
+    /// Seed of every random source of the run (sensor noise, process noise, random attacks).
+    #[serde(default)]
+    pub seed: u64,
+    /// `rapier` (the robot from URDF in physics, default) or `linear` (eq. 6.2 integrated directly).
+    #[serde(default)]
+    pub dynamics: Dynamics,
+    /// The robot (required for `rapier`).
+    pub robot: Option<RobotSection>,
+    /// Physics settings (`rapier`).
+    #[serde(default)]
+    pub physics: PhysicsSection,
+    /// Linear-model settings (`linear`).
+    pub linear: Option<LinearSection>,
+    /// The controller.
+    pub control: ControlSection,
+    /// The goal set.
+    pub goal: GoalSection,
+    /// Safe sets given in closed form over the planar state.
+    #[serde(default)]
+    pub safe_sets: Vec<SafeSetSpec>,
+    /// Obstacles (parry shapes): colliders in physics and barriers for the controller.
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    /// Sensor channels, in the order of the measurement vector y.
+    pub sensors: Vec<ChannelSpec>,
+    /// Fault patterns F(r_1..r_m): disjoint sets of channels that may fail together.
+    #[serde(default)]
+    pub fault_patterns: Vec<FaultPatternSpec>,
+    /// Attack / fault injectors, applied in this order.
+    #[serde(default)]
+    pub attacks: Vec<AttackSpec>,
+    /// Expectations that make the world a regression case.
+    pub expect: Option<Expect>,
+}
+
+/// Which plant the run simulates.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Dynamics {
+    /// The robot from URDF in rapier3d, driven through the compensator (6.3)-(6.4) and wheel motors.
+    #[default]
+    Rapier,
+    /// The paper's linearised model (6.2) integrated with Euler–Maruyama.
+    Linear,
+}
+
+/// `[robot]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    /// URDF path, relative to the world file.
+    pub urdf: PathBuf,
+    /// Directories searched for `package://NAME/...`: `DIR/NAME/...`. Relative to the world file.
+    #[serde(default)]
+    pub package_paths: Vec<PathBuf>,
+    /// Start pose in the world frame.
+    #[serde(default)]
+    pub start: StartPose,
+    /// Names of the left and right drive-wheel joints (default: found from the continuous joints).
+    pub wheels: Option<[String; 2]>,
+}
+
+/// A planar pose.
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartPose {
+    /// [m]
+    #[serde(default)]
+    pub x: f64,
+    /// [m]
+    #[serde(default)]
+    pub y: f64,
+    /// Heading [rad].
+    #[serde(default)]
+    pub theta: f64,
+}
+
+/// `[physics]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicsSection {
+    /// Physics step [s] (default 1/240).
+    #[serde(default = "default_physics_dt")]
+    pub dt: f64,
+    /// Coulomb friction coefficient of wheels, ground and obstacles (default 1.0).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+}
+
+impl Default for PhysicsSection {
+    fn default() -> Self {
+        Self {
+            dt: default_physics_dt(),
+            friction: default_friction(),
+        }
+    }
+}
+
+fn default_physics_dt() -> f64 {
+    1.0 / 240.0
+}
+fn default_friction() -> f64 {
+    1.0
+}
+
+/// `[linear]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearSection {
+    /// Integration step [s] (default 0.001).
+    #[serde(default = "default_linear_dt")]
+    pub dt: f64,
+    /// Initial state (p_x, p_y, v_x, v_y).
+    pub x0: [f64; 4],
+    /// Process-noise intensity: Q = process_noise · I₄ [(unit)²/s] (default 1e-3, the paper's).
+    #[serde(default = "default_noise")]
+    pub process_noise: f64,
+}
+
+fn default_linear_dt() -> f64 {
+    1.0e-3
+}
+fn default_noise() -> f64 {
+    1.0e-3
+}
+
+/// The controller to run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+pub enum ControllerKindSpec {
+    /// Fault-tolerant CBF-CLF (the paper's).
+    #[default]
+    #[serde(rename = "ft-cbf-clf")]
+    FtCbfClf,
+    /// CBF-CLF over one filter using all sensors (the paper's comparison).
+    #[serde(rename = "baseline")]
+    Baseline,
+    /// CLF only, no barriers.
+    #[serde(rename = "nominal")]
+    Nominal,
+}
+
+/// A parameter given as a number or computed (`"auto"`, from ε and the noise model, §4.3).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Param {
+    /// Computed by the controller crate.
+    #[default]
+    Auto,
+    /// Given.
+    Value(f64),
+}
+
+impl<'de> Deserialize<'de> for Param {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Num(f64),
+            Text(String),
+        }
+        match Raw::deserialize(d).map_err(|_| {
+            serde::de::Error::custom("expected a number or \"auto\"")
+        })? {
+            Raw::Num(v) => Ok(Param::Value(v)),
+            Raw::Text(s) if s == "auto" => Ok(Param::Auto),
+            Raw::Text(s) => Err(serde::de::Error::custom(format!(
+                "expected a number or \"auto\", found \"{s}\""
+            ))),
+        }
+    }
+}
+
+/// `[control]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlSection {
+    /// Control rate [Hz] (default 50).
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// `ft-cbf-clf` (default), `baseline` or `nominal`.
+    #[serde(default)]
+    pub controller: ControllerKindSpec,
+    /// Bound on each component of u [m/s²] (none by default).
+    pub input_limit: Option<f64>,
+    /// γ_i (§4.3): a number for all fault patterns, or `"auto"` (default).
+    #[serde(default)]
+    pub gamma: Param,
+    /// θ_ij (§4.3): a number for all pairs, or `"auto"` (default).
+    #[serde(default)]
+    pub theta: Param,
+    /// δ of Step 1: constraints are active when ĥ(x̂) < δ (default: always active).
+    pub delta: Option<f64>,
+    /// ε for `"auto"` parameters: the run should be safe with probability ≥ 1 − ε (default 0.05).
+    #[serde(default = "default_epsilon")]
+    pub epsilon: f64,
+    /// The filters' process-noise intensity Q = q · I₄ (default: the linear plant's, or 1e-3).
+    pub process_noise: Option<f64>,
+    /// The CLF (eq. 6.6).
+    #[serde(default)]
+    pub clf: ClfSection,
+    /// Obstacle barriers: distance margin [m] kept beyond the robot's footprint (default 0.02).
+    #[serde(default = "default_margin")]
+    pub obstacle_margin: f64,
+    /// Obstacle barriers: gain k of the relative-degree-2 lift H = d + k·ḋ [s] (default 0.5).
+    #[serde(default = "default_lift")]
+    pub obstacle_lift: f64,
+}
+
+fn default_rate() -> f64 {
+    50.0
+}
+fn default_epsilon() -> f64 {
+    0.05
+}
+fn default_margin() -> f64 {
+    0.02
+}
+fn default_lift() -> f64 {
+    0.5
+}
+
+/// `[control.clf]`
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClfSection {
+    /// CLF rows are active when V(x̂) > v_bar (default 0: always).
+    pub v_bar: Option<f64>,
+    /// Decay rate ρ (default 1/(d·λ̄(P_d)) as in §6.1).
+    pub rho: Option<f64>,
+}
+
+/// `[goal]`
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalSection {
+    /// Goal position (x, y) [m].
+    pub center: [f64; 2],
+    /// Radius d [m].
+    pub radius: f64,
+    /// `position` (default: ‖p − p_g‖ ≤ d) or `state` (the paper's ‖x − x_g‖ ≤ d over all four states).
+    #[serde(default)]
+    pub metric: GoalMetric,
+}
+
+/// How the goal set is measured.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GoalMetric {
+    /// Position only.
+    #[default]
+    Position,
+    /// Full planar state, velocity included (the paper's G).
+    State,
+}
+
+/// A closed-form safe set over the planar state.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SafeSetSpec {
+    /// h(x) = a·x − b over x = (p_x, p_y, v_x, v_y).
+    HalfPlane {
+        /// Name in logs.
+        name: String,
+        /// a.
+        a: [f64; 4],
+        /// b.
+        b: f64,
+    },
+    /// The inside of an ellipse over the position, lifted to relative degree 2 (h + k·ḣ).
+    EllipseInside {
+        /// Name in logs.
+        name: String,
+        /// Centre [m].
+        center: [f64; 2],
+        /// Semi-axes along the ellipse's own x and y [m].
+        semi_axes: [f64; 2],
+        /// Rotation of the ellipse's x axis from the world x axis [rad].
+        #[serde(default)]
+        angle: f64,
+        /// Lift gain k [s] (default 0.5).
+        #[serde(default = "default_lift")]
+        lift: f64,
+    },
+    /// The outside of an ellipse (a round keep-out zone), lifted the same way.
+    EllipseOutside {
+        /// Name in logs.
+        name: String,
+        /// Centre [m].
+        center: [f64; 2],
+        /// Semi-axes [m].
+        semi_axes: [f64; 2],
+        /// [rad]
+        #[serde(default)]
+        angle: f64,
+        /// Lift gain k [s] (default 0.5).
+        #[serde(default = "default_lift")]
+        lift: f64,
+    },
+}
+
+impl SafeSetSpec {
+    /// The set's name.
+    pub fn name(&self) -> &str {
+        match self {
+            SafeSetSpec::HalfPlane { name, .. }
+            | SafeSetSpec::EllipseInside { name, .. }
+            | SafeSetSpec::EllipseOutside { name, .. } => name,
+        }
+    }
+}
+
+/// Expected outcome of one controller on a world.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExpectOutcome {
+    /// The true state stays in every safe set and never touches an obstacle.
+    pub safe: Option<bool>,
+    /// The robot touches an obstacle.
+    pub collided: Option<bool>,
+    /// The goal set is entered.
+    pub reaches_goal: Option<bool>,
+    /// … no later than this [s].
+    pub goal_within: Option<f64>,
+}
+
+/// `[expect]`: what a correct run of this world shows; a run that does not is a failed regression.
+/// The top-level keys apply to the world's own `control.controller`; `[expect.baseline]` and
+/// `[expect.nominal]` add paired runs of the comparison controllers on the same seed.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Expect {
+    /// The true state stays in every safe set and never touches an obstacle.
+    pub safe: Option<bool>,
+    /// The robot touches an obstacle.
+    pub collided: Option<bool>,
+    /// The goal set is entered.
+    pub reaches_goal: Option<bool>,
+    /// … no later than this [s].
+    pub goal_within: Option<f64>,
+    /// Expectations for the `baseline` controller on the same world and seed.
+    pub baseline: Option<ExpectOutcome>,
+    /// Expectations for the `nominal` controller on the same world and seed.
+    pub nominal: Option<ExpectOutcome>,
+}
+
+impl Expect {
+    /// The expectations for the world's own controller.
+    pub fn own(&self) -> ExpectOutcome {
+        ExpectOutcome {
+            safe: self.safe,
+            collided: self.collided,
+            reaches_goal: self.reaches_goal,
+            goal_within: self.goal_within,
+        }
+    }
+}
+
+impl ExpectOutcome {
+    /// Every expectation the summary fails, as a sentence with the numbers behind it.
+    pub fn failures(&self, s: &crate::summary::RunSummary) -> Vec<String> {
+        let mut out = Vec::new();
+        if let Some(want) = self.safe {
+            if s.safe != want {
+                let why = match (&s.first_collision, &s.first_violation) {
+                    (Some(c), _) => format!("collided with {} at t = {:.3} s", c.obstacle, c.t),
+                    (None, Some(v)) => format!(
+                        "left {} at t = {:.3} s (h = {:.4})",
+                        v.set, v.t, v.value
+                    ),
+                    (None, None) => "stayed safe".to_string(),
+                };
+                out.push(format!("expected safe = {want}, but the robot {why}"));
+            }
+        }
+        if let Some(want) = self.collided {
+            if s.collided != want {
+                out.push(format!(
+                    "expected collided = {want}, got {} (min clearance {})",
+                    s.collided,
+                    s.min_clearance
+                        .map_or("n/a".to_string(), |c| format!("{c:.4} m"))
+                ));
+            }
+        }
+        if let Some(want) = self.reaches_goal {
+            if s.goal_reached != want {
+                out.push(format!(
+                    "expected reaches_goal = {want}, got {}",
+                    s.goal_reached
+                ));
+            }
+        }
+        if let Some(limit) = self.goal_within {
+            match s.time_to_goal {
+                Some(t) if t <= limit => {}
+                Some(t) => out.push(format!(
+                    "expected the goal within {limit} s, reached at {t:.3} s"
+                )),
+                None => out.push(format!("expected the goal within {limit} s, never reached")),
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,496 @@
+//! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
+
+mod batch;
+mod cli;
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use ftcbf_sim::ftcbf_controller::params::{check_lemma1, check_theorem5};
+use ftcbf_sim::ftcbf_controller::{Input, State};
+use ftcbf_sim::observe::{Frame, Observer, Scene};
+use ftcbf_sim::record::Recorder;
+use ftcbf_sim::regress::{self, RegressionRow};
+use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
+use ftcbf_sim::safe_sets::ellipse_phi_state;
+use ftcbf_sim::runner::{run, run_observed, RunOptions};
+use ftcbf_sim::summary::RunSummary;
+use ftcbf_sim::world::{ControllerKindSpec, Dynamics, Override, Param, SafeSetSpec, World, WorldError};
+
+use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
+
+/// Exit code: a world file is invalid.
+const EXIT_INVALID: u8 = 2;
+/// Exit code: a run did not meet its world's `[expect]`.
+const EXIT_EXPECTATION: u8 = 3;
+
+/// An error with the exit code it maps to.
+struct Failure {
+    code: u8,
+    error: anyhow::Error,
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(error: anyhow::Error) -> Self {
+        Failure { code: 1, error }
+    }
+}
+
+fn invalid(e: WorldError) -> Failure {
+    Failure {
+        code: EXIT_INVALID,
+        error: anyhow::Error::new(e).context("invalid world file"),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run(a) => cmd_run(&a),
+        Command::Check(a) => cmd_check(&a),
+        Command::Regress(a) => cmd_regress(&a),
+        Command::Batch(a) => batch::batch_command(&a, &prepare_batch(&a.world)).map_err(Failure::from),
+        Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("error: {:#}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn kind_of(c: ControllerArg) -> ControllerKindSpec {
+    match c {
+        ControllerArg::FtCbfClf => ControllerKindSpec::FtCbfClf,
+        ControllerArg::Baseline => ControllerKindSpec::Baseline,
+        ControllerArg::Nominal => ControllerKindSpec::Nominal,
+    }
+}
+
+fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
+    match name {
+        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
+        "baseline" => Ok(ControllerKindSpec::Baseline),
+        "nominal" => Ok(ControllerKindSpec::Nominal),
+        other => anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)"),
+    }
+}
+
+fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
+    World::load(path, overrides).map_err(invalid)
+}
+
+/// The recording id: what ran, so the same world + controller + seed gives the same id.
+fn recording_id(world: &World, kind: ControllerKindSpec, seed: u64) -> String {
+    format!("{}-{}-seed{}", world.name, controller_name(kind), seed)
+}
+
+/// Shows a progress bar over control steps while forwarding to the recorder.
+struct WithProgress<'a> {
+    inner: &'a mut dyn Observer,
+    bar: ProgressBar,
+}
+
+impl Observer for WithProgress<'_> {
+    fn scene(&mut self, scene: &Scene) {
+        self.inner.scene(scene);
+    }
+    fn frame(&mut self, frame: &Frame<'_>) {
+        self.inner.frame(frame);
+        self.bar.inc(1);
+    }
+}
+
+fn steps_bar(len: u64, what: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
+    let overrides = a
+        .set
+        .iter()
+        .map(|s| Override::parse(s).map_err(|e| anyhow::anyhow!("--set {e}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let world = load(&a.world, &overrides)?;
+    let kind = a.controller.map(kind_of).unwrap_or(world.file.control.controller);
+    let seed = a.seed.unwrap_or(world.file.seed);
+    let opts = RunOptions {
+        seed: Some(seed),
+        controller: Some(kind),
+        duration: a.duration,
+    };
+    let summary = if a.no_record {
+        run(&world, &opts).context("run failed")?
+    } else {
+        let out = a
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}.rrd", world.name)));
+        let mut rec = Recorder::create(&out, &recording_id(&world, kind, seed)).context("recording")?;
+        let duration = a.duration.unwrap_or(world.file.duration);
+        let bar = steps_bar((duration / world.control_dt()).round() as u64, &world.name);
+        let summary = {
+            let mut obs = WithProgress {
+                inner: &mut rec,
+                bar: bar.clone(),
+            };
+            run_observed(&world, &opts, Some(&mut obs)).context("run failed")?
+        };
+        bar.finish_and_clear();
+        rec.finish().context("recording")?;
+        eprintln!("recording: {} (open it with: rerun {})", out.display(), out.display());
+        summary
+    };
+    let expected = regress::expectation_for(&world, kind);
+    let failures = expected
+        .as_ref()
+        .map(|e| e.failures(&summary))
+        .unwrap_or_default();
+    if a.json {
+        let text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
+        println!("{text}");
+    } else {
+        print_summary(&summary);
+        match &expected {
+            None => println!("expectations: none for {}", summary.controller),
+            Some(_) if failures.is_empty() => println!("expectations: met"),
+            Some(_) => {
+                for f in &failures {
+                    println!("expectation FAILED: {f}");
+                }
+            }
+        }
+    }
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(Failure {
+            code: EXIT_EXPECTATION,
+            error: anyhow::anyhow!(
+                "{}: {} expectation(s) failed: {}",
+                world.path.display(),
+                failures.len(),
+                failures.join("; ")
+            ),
+        })
+    }
+}
+
+fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+    v.map_or("—".to_string(), |v| format!("{v:.3}{unit}"))
+}
+
+fn print_summary(s: &RunSummary) {
+    println!(
+        "{} · {} · seed {} · {:.1} s simulated, {} control steps",
+        s.world, s.controller, s.seed, s.duration, s.control_steps
+    );
+    let verdict = if s.safe { "SAFE" } else { "UNSAFE" };
+    println!("  safety:    {verdict}");
+    if let Some(c) = &s.first_collision {
+        println!("    first collision: {} at t = {:.3} s", c.obstacle, c.t);
+    }
+    if let Some(v) = &s.first_violation {
+        println!(
+            "    first violation: left {} at t = {:.3} s (h = {:.4})",
+            v.set, v.t, v.value
+        );
+    }
+    for b in &s.min_barrier {
+        println!("    min h({}) over the run = {:.4}", b.name, b.value);
+    }
+    if let Some(c) = s.min_clearance {
+        println!("    min clearance to obstacles = {c:.4} m");
+    }
+    match s.time_to_goal {
+        Some(t) => println!("  goal:      reached at t = {t:.2} s"),
+        None => println!("  goal:      not reached"),
+    }
+    let st = &s.steps;
+    println!(
+        "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
+        st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
+    );
+    if s.rejected_readings > 0 {
+        println!("  rejected readings (non-finite or absurd): {}", s.rejected_readings);
+    }
+    for w in &s.attack_windows {
+        println!(
+            "  attack:    {} in [{}, {}){}",
+            w.label,
+            w.start,
+            w.end.map_or("∞".to_string(), |e| e.to_string()),
+            if w.outside_fault_patterns {
+                "  — OUTSIDE the declared fault patterns: no guarantee applies"
+            } else {
+                ""
+            }
+        );
+    }
+}
+
+fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
+    let world = load(&a.world, &[])?;
+    let f = &world.file;
+    println!("world {} ({})", world.name, world.path.display());
+    if let Some(d) = &f.description {
+        println!("  {d}");
+    }
+    match f.dynamics {
+        Dynamics::Rapier => {
+            if let Some(r) = &world.robot {
+                println!(
+                    "  plant: {} in rapier3d, dt = {} s; wheel radius {:.4} m, separation {:.4} m, |v| ≤ {:.3} m/s, |ω| ≤ {:.3} rad/s, footprint radius {:.4} m",
+                    r.name,
+                    f.physics.dt,
+                    r.wheels.geometry.radius,
+                    r.wheels.geometry.separation,
+                    r.limits.v_max,
+                    r.limits.omega_max,
+                    r.footprint_radius
+                );
+                for w in &r.warnings {
+                    println!("  warning: {w}");
+                }
+            }
+        }
+        Dynamics::Linear => println!(
+            "  plant: linearised model (6.2), Euler–Maruyama dt = {} s",
+            f.linear.as_ref().map_or(0.0, |l| l.dt)
+        ),
+    }
+    println!(
+        "  control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
+        controller_name(f.control.controller),
+        f.control.rate_hz,
+        world.ticks_per_control,
+        f.duration,
+        f.seed
+    );
+    let names: Vec<&str> = f.sensors.iter().map(|s| s.name.as_str()).collect();
+    println!("  channels: {}", names.join(", "));
+    for (p, idx) in f.fault_patterns.iter().zip(&world.patterns) {
+        let ch: Vec<&str> = idx.iter().map(|&i| names[i]).collect();
+        println!("  fault pattern {} = {{{}}}", p.name, ch.join(", "));
+    }
+
+    let setup = ControlSetup::new(&world, f.control.controller).context("controller setup")?;
+    let p = &setup.params;
+    println!("parameters (§4.3):");
+    match &p.computed {
+        Some(c) => {
+            println!("  computed for ε = {} (\"auto\"):", p.epsilon);
+            for line in c.to_string().lines() {
+                println!("    {line}");
+            }
+        }
+        None => println!("  given in the world file"),
+    }
+    let fmt = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.6}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!("  in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}", fmt(&p.gamma), p.gamma_baseline, fmt(&p.theta), p.delta);
+    for b in &setup.config.barriers {
+        let hb: Vec<String> = p.gamma.iter().map(|g| format!("{:.6}", b.h_bar(*g))).collect();
+        println!(
+            "  h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
+            b.name(),
+            hb.join(", "),
+            b.h_bar(p.gamma_baseline)
+        );
+    }
+
+    println!("sufficient conditions:");
+    let model = &setup.config.model;
+    for s in &f.safe_sets {
+        match s {
+            SafeSetSpec::HalfPlane { name, a, .. } => {
+                let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
+                println!("  {name} (half-plane): {v}");
+            }
+            SafeSetSpec::EllipseInside {
+                name,
+                center,
+                semi_axes,
+                angle,
+                lift,
+            } => {
+                let phi = ellipse_phi_state(*semi_axes, *angle);
+                let centre = State::new(center[0], center[1], 0.0, 0.0);
+                let start = setup.config.x0;
+                let w = Input::new(centre[0] - start[0], centre[1] - start[1]);
+                let v = check_theorem5(&phi, &centre, &model.g, &w, &[start]);
+                println!(
+                    "  {name} (ellipse, position only, rank G = 2 < n = 4 so Prop. 1 does not apply; lifted with k = {lift} s so ∂H/∂v ≠ 0 away from the centre): Thm. 5 at the start: {v}"
+                );
+            }
+            SafeSetSpec::EllipseOutside { name, lift, .. } => println!(
+                "  {name} (outside an ellipse): lifted with k = {lift} s: ∂H/∂x·G = k∇h ≠ 0 away from the centre, so (4.4) holds for one filter; across filters it needs the estimates within θ of each other (Thm. 3, cond. 1)"
+            ),
+        }
+    }
+    for ob in &world.obstacles {
+        println!(
+            "  obstacle {} ({}): lifted signed distance, ∂H/∂v = k∇d with ‖∇d‖ = 1 outside the shape, so Λ ≠ 0 (4.4) for every filter",
+            ob.name,
+            ob.spec.shape.kind()
+        );
+    }
+    for (i, a) in f.attacks.iter().enumerate() {
+        println!("  attacks[{i}]: {}", a.display_label());
+    }
+    Ok(())
+}
+
+fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
+    let paths = if a.paths.is_empty() {
+        vec![PathBuf::from("worlds")]
+    } else {
+        a.paths.clone()
+    };
+    let files = regress::collect_world_files(&paths).context("listing world files")?;
+    if files.is_empty() {
+        return Err(anyhow::anyhow!("no world files under {}", paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")).into());
+    }
+    let mut worlds = Vec::new();
+    for f in &files {
+        let w = load(f, &[])?;
+        if regress::has_expectations(&w) {
+            worlds.push(Arc::new(w));
+        } else {
+            eprintln!("skipping {} (no [expect] table)", f.display());
+        }
+    }
+    let jobs: Vec<(Arc<World>, ControllerKindSpec)> = worlds
+        .iter()
+        .flat_map(|w| regress::expected_controllers(w).into_iter().map(move |k| (w.clone(), k)))
+        .collect();
+    let bar = steps_bar(jobs.len() as u64, "regress");
+    let rows: Vec<Result<RegressionRow, String>> = jobs
+        .par_iter()
+        .map(|(w, k)| {
+            let r = regress::check_world(w, *k).map_err(|e| e.to_string());
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut failed = 0usize;
+    let mut table = Vec::new();
+    for r in rows {
+        match r {
+            Ok(row) => {
+                if !row.passed() {
+                    failed += 1;
+                }
+                table.push(row);
+            }
+            Err(e) => return Err(anyhow::anyhow!(e).into()),
+        }
+    }
+    if a.json {
+        let v: Vec<serde_json::Value> = table
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "world": r.world, "controller": r.summary.controller, "passed": r.passed(),
+                    "failures": r.failures, "expected": r.expected, "summary": r.summary,
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&v).context("serialising")?);
+    } else {
+        println!(
+            "{:<26} {:<11} {:<7} {:<9} {:<10} {:>11} {:>10}  verdict",
+            "world", "controller", "safe", "collided", "goal [s]", "min clr [m]", "min h"
+        );
+        for r in &table {
+            let s = &r.summary;
+            let min_h = s
+                .min_barrier
+                .iter()
+                .map(|b| b.value)
+                .fold(f64::INFINITY, f64::min);
+            println!(
+                "{:<26} {:<11} {:<7} {:<9} {:<10} {:>11} {:>10}  {}",
+                r.world,
+                s.controller,
+                s.safe,
+                s.collided,
+                fmt_opt(s.time_to_goal, ""),
+                fmt_opt(s.min_clearance, ""),
+                if min_h.is_finite() { format!("{min_h:.4}") } else { "—".into() },
+                if r.passed() { "pass".to_string() } else { format!("FAIL: {}", r.failures.join("; ")) }
+            );
+        }
+        println!("{} run(s), {} failed", table.len(), failed);
+    }
+    if failed > 0 {
+        Err(Failure {
+            code: EXIT_EXPECTATION,
+            error: anyhow::anyhow!("{failed} regression case(s) failed"),
+        })
+    } else {
+        Ok(())
+    }
+}
+
+/// The closed-loop runner of one world, for `ftcbf batch`.
+struct WorldRunner(World);
+
+impl batch::TrialRunner for WorldRunner {
+    fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
+        let opts = RunOptions {
+            seed: Some(seed),
+            controller: Some(parse_kind(controller)?),
+            duration: None,
+        };
+        Ok(run(&self.0, &opts)?)
+    }
+}
+
+fn prepare_batch(path: &Path) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
+    move |ovr: &[batch::ParamOverride]| {
+        let overrides: Vec<Override> = ovr
+            .iter()
+            .map(|o| Override {
+                key: o.key.clone(),
+                value: o.value,
+            })
+            .collect();
+        let world = World::load(path, &overrides)?;
+        let c = &world.file.control;
+        let auto = matches!(c.gamma, Param::Auto) || matches!(c.theta, Param::Auto);
+        let info = batch::WorldInfo {
+            name: world.name.clone(),
+            seed: world.file.seed,
+            epsilon: auto.then_some(c.epsilon),
+        };
+        Ok(batch::PreparedWorld {
+            info,
+            runner: Box::new(WorldRunner(world)),
+        })
+    }
+}
