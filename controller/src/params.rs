@@ -163,6 +163,17 @@ pub struct RiccatiSolution {
 /// `converged = false` once P exceeds 1e12.
 pub fn steady_state_riccati(model: &LinearModel, uses: &[bool], dt: f64) -> RiccatiSolution {
     let d = model.discretize(dt);
+    if !observable(model, uses, &d.phi) {
+        // Every eigenvalue of Φ lies on the unit circle for the double integrator, so an
+        // unobservable channel set is undetectable: P grows without bound; no need to iterate.
+        let p = StateMatrix::identity() * f64::INFINITY;
+        return RiccatiSolution {
+            prior: p,
+            posterior: p,
+            iterations: 0,
+            converged: false,
+        };
+    }
     let mut post = StateMatrix::identity();
     let mut prior = post;
     let max_iter = 1_000_000;
@@ -208,6 +219,68 @@ pub fn steady_state_riccati(model: &LinearModel, uses: &[bool], dt: f64) -> Ricc
     }
 }
 
+/// Whether (Φ, C̄) is observable, C̄ = the rows of the channels where `uses[k]`: the stacked
+/// matrix [C̄; C̄Φ; C̄Φ²; C̄Φ³] has rank 4 (singular values above 1e-9 of the largest).
+pub fn observable(model: &LinearModel, uses: &[bool], phi: &StateMatrix) -> bool {
+    let rows: Vec<RowVector4<f64>> = (0..model.channels())
+        .filter(|&k| uses.get(k).copied().unwrap_or(false))
+        .map(|k| model.c[k])
+        .collect();
+    if rows.is_empty() {
+        return false;
+    }
+    let mut o = nalgebra::DMatrix::<f64>::zeros(4 * rows.len(), 4);
+    let mut power = StateMatrix::identity();
+    for blk in 0..4 {
+        for (r, c) in rows.iter().enumerate() {
+            let row = c * power;
+            o.row_mut(blk * rows.len() + r).copy_from(&row);
+        }
+        power *= phi;
+    }
+    let sv = o.singular_values();
+    let max = sv.max();
+    max > 0.0 && sv.iter().filter(|&&v| v > 1e-9 * max).count() == 4
+}
+
+/// The posterior covariance with the largest λ̄ over `n` steps of the Riccati recursion started
+/// at `p0` (predict with Φ, Q_d at `dt`, then the sequential updates of the channels where
+/// `uses[k]`). For a channel set without a steady state (an open-loop or dead-reckoning
+/// filter, e.g. one that drops every position fix) this is the largest error covariance the
+/// filter reaches within a run of `n` samples.
+pub fn horizon_riccati(
+    model: &LinearModel,
+    uses: &[bool],
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+) -> StateMatrix {
+    let d = model.discretize(dt);
+    let lmax = |p: &StateMatrix| p.symmetric_eigenvalues().max();
+    let mut post = *p0;
+    let mut worst = post;
+    for _ in 0..n {
+        let mut p = d.phi * post * d.phi.transpose() + d.qd;
+        for (k, &u) in uses.iter().enumerate() {
+            if !u || k >= model.channels() {
+                continue;
+            }
+            let c: RowVector4<f64> = model.c[k];
+            let pc = p * c.transpose();
+            let s = (c * pc)[0] + model.r[k];
+            let kg = pc / s;
+            let ikc = StateMatrix::identity() - kg * c;
+            p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
+            p = (p + p.transpose()) * 0.5;
+        }
+        post = p;
+        if lmax(&post) > lmax(&worst) {
+            worst = post;
+        }
+    }
+    worst
+}
+
 /// Steady-state `K c̄ = P∞⁺ c̄ᵀ R⁻¹ c̄ / dt` of a channel subset (the K of §4.2.1 used by
 /// [`crate::barrier::HigherOrderHalfPlane`]).
 pub fn steady_state_gain_product(model: &LinearModel, uses: &[bool], dt: f64) -> StateMatrix {
@@ -243,18 +316,43 @@ pub struct FtParameters {
     pub eps_per_sample: f64,
     /// Riccati iterations per filter (singles, pairs, baseline).
     pub riccati_iterations: Vec<usize>,
-    /// Whether every Riccati recursion converged (false: an open-loop pair filter).
+    /// Whether every Riccati recursion converged (false: a pair filter without a steady state,
+    /// whose γ_ij then comes from its covariance over the horizon).
     pub all_converged: bool,
 }
 
 impl FtParameters {
-    /// Compute for total failure probability `eps` over `horizon_samples` samples.
+    /// Compute for total failure probability `eps` over `horizon_samples` samples, for filters
+    /// started from a known state (P0 = 0). See [`FtParameters::compute_from`].
     pub fn compute(
         model: &LinearModel,
         patterns: &[Vec<usize>],
         dt: f64,
         eps: f64,
         horizon_samples: usize,
+    ) -> Self {
+        Self::compute_from(
+            model,
+            patterns,
+            dt,
+            eps,
+            horizon_samples,
+            &StateMatrix::zeros(),
+        )
+    }
+
+    /// Compute for total failure probability `eps` over `horizon_samples` samples. Filters with a
+    /// steady state use it (§4.3); a pair filter without one (its channels leave the position
+    /// unobservable, e.g. two GNSS patterns dropped leave only odometry) uses the largest
+    /// covariance it reaches within the horizon from `p0` ([`horizon_riccati`]), so θ_ij stays
+    /// finite and Step 2 can still decide.
+    pub fn compute_from(
+        model: &LinearModel,
+        patterns: &[Vec<usize>],
+        dt: f64,
+        eps: f64,
+        horizon_samples: usize,
+        p0: &StateMatrix,
     ) -> Self {
         let q = model.channels();
         let m = patterns.len().max(1);
@@ -289,7 +387,11 @@ impl FtParameters {
                 let gp = if s.converged {
                     gamma_bound(&s.posterior, eps1)
                 } else {
-                    f64::INFINITY
+                    let pair = mask(&[&patterns[i], &patterns[j]]);
+                    gamma_bound(
+                        &horizon_riccati(model, &pair, dt, p0, horizon_samples),
+                        eps1,
+                    )
                 };
                 gamma_pair.push(gp);
                 theta.push(2.0 * (gamma[i].max(gamma[j]) + gp));
