@@ -12,7 +12,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 /// rerun `.rrd` files.
 #[derive(Debug, Parser)]
 #[command(name = "ftcbf", version, propagate_version = true)]
-#[command(after_help = "Examples:\n  ftcbf run worlds/paper_turtlebot.toml\n  ftcbf check worlds/corridor_spoof.toml\n  ftcbf regress worlds/\n  ftcbf batch worlds/paper_linear.toml --trials 1000")]
+#[command(
+    after_help = "Examples:\n  ftcbf run worlds/paper_turtlebot.toml\n  ftcbf check worlds/corridor_spoof.toml\n  ftcbf regress worlds/\n  ftcbf batch worlds/paper_linear.toml --trials 1000"
+)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]
@@ -26,14 +28,18 @@ pub enum Command {
     ///
     /// Exits 0 when the run met the world's [expect] table (or the world has none), 3 when an
     /// expectation failed, 2 when the world file is invalid, 1 on any other error.
-    #[command(after_help = "Examples:\n  ftcbf run worlds/paper_turtlebot.toml                 # writes runs/paper_turtlebot.rrd\n  ftcbf run worlds/paper_linear.toml --controller baseline --no-record\n  ftcbf run worlds/corridor_spoof.toml --seed 7 --json > summary.json\n\nOpen the recording with the rerun viewer:  rerun runs/paper_turtlebot.rrd")]
+    #[command(
+        after_help = "Examples:\n  ftcbf run worlds/paper_turtlebot.toml                 # writes runs/paper_turtlebot.rrd\n  ftcbf run worlds/paper_linear.toml --controller baseline --no-record\n  ftcbf run worlds/corridor_spoof.toml --seed 7 --json > summary.json\n\nOpen the recording with the rerun viewer:  rerun runs/paper_turtlebot.rrd"
+    )]
     Run(RunArgs),
     /// Validate a world and print the controller's derived parameters and the paper's sufficient
     /// conditions (Lemma 1, Prop. 1, Thm. 5) for it, without simulating.
     #[command(after_help = "Example:\n  ftcbf check worlds/elliptic_arena_drift.toml")]
     Check(CheckArgs),
     /// Run every world that has an [expect] table and print a pass/fail table; exits 3 if any fails.
-    #[command(after_help = "Examples:\n  ftcbf regress                      # every world under worlds/\n  ftcbf regress worlds/paper_linear.toml worlds/corridor_spoof.toml")]
+    #[command(
+        after_help = "Examples:\n  ftcbf regress                      # every world under worlds/\n  ftcbf regress worlds/paper_linear.toml worlds/corridor_spoof.toml"
+    )]
     Regress(RegressArgs),
     /// Run N independent trials of a world (paired across controllers) and certify its safety
     /// probability with exact confidence intervals.

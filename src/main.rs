@@ -19,10 +19,12 @@ use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
 use ftcbf_sim::regress::{self, RegressionRow};
 use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
-use ftcbf_sim::safe_sets::ellipse_phi_state;
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
+use ftcbf_sim::safe_sets::ellipse_phi_state;
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ControllerKindSpec, Dynamics, Override, Param, SafeSetSpec, World, WorldError};
+use ftcbf_sim::world::{
+    ControllerKindSpec, Dynamics, Override, Param, SafeSetSpec, World, WorldError,
+};
 
 use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
 
@@ -56,7 +58,9 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd_run(&a),
         Command::Check(a) => cmd_check(&a),
         Command::Regress(a) => cmd_regress(&a),
-        Command::Batch(a) => batch::batch_command(&a, &prepare_batch(&a.world)).map_err(Failure::from),
+        Command::Batch(a) => {
+            batch::batch_command(&a, &prepare_batch(&a.world)).map_err(Failure::from)
+        }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
     };
     match result {
@@ -81,7 +85,9 @@ fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
         "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
         "baseline" => Ok(ControllerKindSpec::Baseline),
         "nominal" => Ok(ControllerKindSpec::Nominal),
-        other => anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)"),
+        other => {
+            anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)")
+        }
     }
 }
 
@@ -131,7 +137,10 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         .map(|s| Override::parse(s).map_err(|e| anyhow::anyhow!("--set {e}")))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let world = load(&a.world, &overrides)?;
-    let kind = a.controller.map(kind_of).unwrap_or(world.file.control.controller);
+    let kind = a
+        .controller
+        .map(kind_of)
+        .unwrap_or(world.file.control.controller);
     let seed = a.seed.unwrap_or(world.file.seed);
     let opts = RunOptions {
         seed: Some(seed),
@@ -145,7 +154,8 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
             .out
             .clone()
             .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}.rrd", world.name)));
-        let mut rec = Recorder::create(&out, &recording_id(&world, kind, seed)).context("recording")?;
+        let mut rec =
+            Recorder::create(&out, &recording_id(&world, kind, seed)).context("recording")?;
         let duration = a.duration.unwrap_or(world.file.duration);
         let bar = steps_bar((duration / world.control_dt()).round() as u64, &world.name);
         let summary = {
@@ -157,7 +167,11 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         };
         bar.finish_and_clear();
         rec.finish().context("recording")?;
-        eprintln!("recording: {} (open it with: rerun {})", out.display(), out.display());
+        eprintln!(
+            "recording: {} (open it with: rerun {})",
+            out.display(),
+            out.display()
+        );
         summary
     };
     let expected = regress::expectation_for(&world, kind);
@@ -231,7 +245,10 @@ fn print_summary(s: &RunSummary) {
         st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
     );
     if s.rejected_readings > 0 {
-        println!("  rejected readings (non-finite or absurd): {}", s.rejected_readings);
+        println!(
+            "  rejected readings (non-finite or absurd): {}",
+            s.rejected_readings
+        );
     }
     for w in &s.attack_windows {
         println!(
@@ -311,9 +328,19 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    println!("  in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}", fmt(&p.gamma), p.gamma_baseline, fmt(&p.theta), p.delta);
+    println!(
+        "  in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}",
+        fmt(&p.gamma),
+        p.gamma_baseline,
+        fmt(&p.theta),
+        p.delta
+    );
     for b in &setup.config.barriers {
-        let hb: Vec<String> = p.gamma.iter().map(|g| format!("{:.6}", b.h_bar(*g))).collect();
+        let hb: Vec<String> = p
+            .gamma
+            .iter()
+            .map(|g| format!("{:.6}", b.h_bar(*g)))
+            .collect();
         println!(
             "  h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
             b.name(),
@@ -372,7 +399,15 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
     };
     let files = regress::collect_world_files(&paths).context("listing world files")?;
     if files.is_empty() {
-        return Err(anyhow::anyhow!("no world files under {}", paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")).into());
+        return Err(anyhow::anyhow!(
+            "no world files under {}",
+            paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+        .into());
     }
     let mut worlds = Vec::new();
     for f in &files {
@@ -385,7 +420,11 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
     }
     let jobs: Vec<(Arc<World>, ControllerKindSpec)> = worlds
         .iter()
-        .flat_map(|w| regress::expected_controllers(w).into_iter().map(move |k| (w.clone(), k)))
+        .flat_map(|w| {
+            regress::expected_controllers(w)
+                .into_iter()
+                .map(move |k| (w.clone(), k))
+        })
         .collect();
     let bar = steps_bar(jobs.len() as u64, "regress");
     let rows: Vec<Result<RegressionRow, String>> = jobs
@@ -420,7 +459,10 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
                 })
             })
             .collect();
-        println!("{}", serde_json::to_string_pretty(&v).context("serialising")?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&v).context("serialising")?
+        );
     } else {
         println!(
             "{:<26} {:<11} {:<7} {:<9} {:<10} {:>11} {:>10}  verdict",
@@ -441,8 +483,16 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
                 s.collided,
                 fmt_opt(s.time_to_goal, ""),
                 fmt_opt(s.min_clearance, ""),
-                if min_h.is_finite() { format!("{min_h:.4}") } else { "—".into() },
-                if r.passed() { "pass".to_string() } else { format!("FAIL: {}", r.failures.join("; ")) }
+                if min_h.is_finite() {
+                    format!("{min_h:.4}")
+                } else {
+                    "—".into()
+                },
+                if r.passed() {
+                    "pass".to_string()
+                } else {
+                    format!("FAIL: {}", r.failures.join("; "))
+                }
             );
         }
         println!("{} run(s), {} failed", table.len(), failed);
@@ -471,7 +521,9 @@ impl batch::TrialRunner for WorldRunner {
     }
 }
 
-fn prepare_batch(path: &Path) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
+fn prepare_batch(
+    path: &Path,
+) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
     move |ovr: &[batch::ParamOverride]| {
         let overrides: Vec<Override> = ovr
             .iter()

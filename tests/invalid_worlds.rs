@@ -15,7 +15,11 @@ fn every_invalid_world_is_rejected_with_a_helpful_message() {
         .filter(|p| p.extension().is_some_and(|x| x == "toml"))
         .collect();
     files.sort();
-    assert!(files.len() >= 25, "the catalogue has {} worlds, expected at least 25", files.len());
+    assert!(
+        files.len() >= 25,
+        "the catalogue has {} worlds, expected at least 25",
+        files.len()
+    );
     let mut problems = Vec::new();
     for f in &files {
         let text = std::fs::read_to_string(f).expect("readable");
@@ -26,12 +30,17 @@ fn every_invalid_world_is_rejected_with_a_helpful_message() {
             .unwrap_or_else(|| panic!("{}: first line must be `# expect-error: TEXT`", f.display()))
             .to_string();
         match World::load(f, &[]) {
-            Ok(_) => problems.push(format!("{}: accepted, expected an error containing {expect:?}", f.display())),
+            Ok(_) => problems.push(format!(
+                "{}: accepted, expected an error containing {expect:?}",
+                f.display()
+            )),
             Err(e) => {
                 let msg = e.to_string();
                 let name = f.file_name().and_then(|n| n.to_str()).unwrap_or_default();
                 if !msg.contains(&expect) {
-                    problems.push(format!("{name}: message {msg:?} does not contain {expect:?}"));
+                    problems.push(format!(
+                        "{name}: message {msg:?} does not contain {expect:?}"
+                    ));
                 }
                 if !msg.contains(name) {
                     problems.push(format!("{name}: message {msg:?} does not name the file"));
@@ -39,5 +48,10 @@ fn every_invalid_world_is_rejected_with_a_helpful_message() {
             }
         }
     }
-    assert!(problems.is_empty(), "{} problem(s):\n{}", problems.len(), problems.join("\n"));
+    assert!(
+        problems.is_empty(),
+        "{} problem(s):\n{}",
+        problems.len(),
+        problems.join("\n")
+    );
 }

@@ -67,22 +67,22 @@ fn palette(i: usize) -> rerun::Color {
     rerun::Color::from_rgb(r, g, b)
 }
 
-/// An entity-path segment: keeps letters, digits, `_` and `-`, replaces the rest by `_`.
+/// An entity-path segment: letters, digits, `_`, `-` and `+` kept, any other run of characters
+/// becomes one `_`, no `_` at either end.
 fn seg(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() {
+    let mut s = String::with_capacity(name.len());
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '+' {
+            s.push(c);
+        } else if !s.ends_with('_') {
+            s.push('_');
+        }
+    }
+    let t = s.trim_matches('_');
+    if t.is_empty() {
         "_".into()
     } else {
-        s
+        t.to_string()
     }
 }
 
@@ -265,23 +265,27 @@ impl Observer for Recorder {
         let truth = [f.truth.x as f32, f.truth.y as f32, 0.003];
         self.trail.push(truth);
         if f.step % TRAIL_DECIMATION == 0 {
-            results.push(self.rec.log(
-                "world/trail",
-                &rerun::LineStrips3D::new([self.trail.clone()])
-                    .with_colors([rerun::Color::from_rgb(0, 0, 0)]),
-            ));
+            results.push(
+                self.rec.log(
+                    "world/trail",
+                    &rerun::LineStrips3D::new([self.trail.clone()])
+                        .with_colors([rerun::Color::from_rgb(0, 0, 0)]),
+                ),
+            );
         }
         for (i, e) in f.estimates.iter().enumerate() {
             let Some(label) = self.scene.filters.get(i) else {
                 continue;
             };
             let l = seg(label);
-            results.push(self.rec.log(
-                format!("world/estimates/{l}").as_str(),
-                &rerun::Points3D::new([[e.x[0] as f32, e.x[1] as f32, 0.01]])
-                    .with_colors([palette(i)])
-                    .with_radii([0.012f32]),
-            ));
+            results.push(
+                self.rec.log(
+                    format!("world/estimates/{l}").as_str(),
+                    &rerun::Points3D::new([[e.x[0] as f32, e.x[1] as f32, 0.01]])
+                        .with_colors([palette(i)])
+                        .with_radii([0.012f32]),
+                ),
+            );
             results.push(
                 self.rec
                     .log(format!("clf/{l}").as_str(), &rerun::Scalars::single(e.clf)),
@@ -343,11 +347,13 @@ impl Observer for Recorder {
             }
         }
         if !f.decision_note.is_empty() {
-            results.push(self.rec.log(
-                "events/policy",
-                &rerun::TextLog::new(format!("[{}] {}", f.decided_by, f.decision_note))
-                    .with_level(rerun::TextLogLevel::INFO),
-            ));
+            results.push(
+                self.rec.log(
+                    "events/policy",
+                    &rerun::TextLog::new(format!("[{}] {}", f.decided_by, f.decision_note))
+                        .with_level(rerun::TextLogLevel::INFO),
+                ),
+            );
         }
         for e in f.events {
             results.push(self.rec.log(

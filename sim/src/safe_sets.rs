@@ -11,7 +11,12 @@ use nalgebra::{Matrix2, Vector2};
 pub fn ellipse_phi(semi: [f64; 2], angle: f64) -> Matrix2<f64> {
     let (s, c) = angle.sin_cos();
     let r = Matrix2::new(c, -s, s, c);
-    let d = Matrix2::new(1.0 / (semi[0] * semi[0]), 0.0, 0.0, 1.0 / (semi[1] * semi[1]));
+    let d = Matrix2::new(
+        1.0 / (semi[0] * semi[0]),
+        0.0,
+        0.0,
+        1.0 / (semi[1] * semi[1]),
+    );
     r * d * r.transpose()
 }
 
@@ -135,7 +140,12 @@ mod tests {
             let x = State::new(0.9, 0.4, 0.1, -0.2);
             let ev = b.eval(&x);
             let ng = numeric_grad(&b, &x);
-            assert!((ev.gradient - ng).amax() < 1e-6, "{} vs {}", ev.gradient, ng);
+            assert!(
+                (ev.gradient - ng).amax() < 1e-6,
+                "{} vs {}",
+                ev.gradient,
+                ng
+            );
             let e = 1e-5;
             for i in 0..4 {
                 let mut xp = x;
@@ -189,6 +199,9 @@ mod tests {
                 }
             }
         }
-        assert!(worst > 0.0 && worst <= bound, "sup {worst} vs bound {bound}");
+        assert!(
+            worst > 0.0 && worst <= bound,
+            "sup {worst} vs bound {bound}"
+        );
     }
 }

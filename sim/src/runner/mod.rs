@@ -17,6 +17,7 @@ mod scene;
 pub mod setup;
 
 use ftcbf_controller::controller::Controller;
+use ftcbf_controller::estimator::FilterRole;
 use ftcbf_controller::policy::{DropReason, QpOutcome, Stage, Verdict};
 
 use crate::attacks::AttackStack;
@@ -128,19 +129,29 @@ pub fn run_observed(
     let mut attacks = AttackStack::new(&file.attacks, &suite, seed)
         .map_err(|e| start_err("attacks", e.to_string()))?;
     let barriers = setup.config.barriers.clone();
-    let mut controller =
-        Controller::new(setup.config.clone()).map_err(|e| start_err("controller", e.to_string()))?;
+    let mut controller = Controller::new(setup.config.clone())
+        .map_err(|e| start_err("controller", e.to_string()))?;
     let mut plant = Plant::new(world, seed).map_err(|e| start_err("plant", e))?;
     let heading_channel = file
         .sensors
         .iter()
         .position(|s| s.measures == Quantity::Heading);
     let baseline = controller.bank().baseline_index();
+    // Filters named after the world's fault patterns: drop_<F(r_i)>, drop_<F(r_i)>+<F(r_j)>, all.
+    let pname = |i: usize| {
+        file.fault_patterns
+            .get(i)
+            .map_or_else(|| format!("r{}", i + 1), |p| p.name.clone())
+    };
     let filters: Vec<String> = controller
         .bank()
         .filters()
         .iter()
-        .map(|f| f.label().to_string())
+        .map(|f| match f.role() {
+            FilterRole::DropPattern(i) => format!("drop_{}", pname(i)),
+            FilterRole::DropPair(i, j) => format!("drop_{}+{}", pname(i), pname(j)),
+            FilterRole::Baseline => "all".to_string(),
+        })
         .collect();
 
     let windows = attacks.windows();

@@ -79,8 +79,12 @@ impl Plant {
                     &cfg,
                 )
                 .map_err(|e| e.to_string())?;
-                let drive = Drive::new(&robot.wheels.geometry, &robot.limits, DriveConfig::default())
-                    .map_err(|e| e.to_string())?;
+                let drive = Drive::new(
+                    &robot.wheels.geometry,
+                    &robot.limits,
+                    DriveConfig::default(),
+                )
+                .map_err(|e| e.to_string())?;
                 Ok(Plant::Rapier {
                     physics,
                     drive,

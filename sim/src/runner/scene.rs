@@ -40,7 +40,12 @@ fn obstacle_geometry(ob: &Obstacle) -> Placed {
             name: ob.name.clone(),
             geometry,
             translation: [pose.translation.x, pose.translation.y, pose.translation.z],
-            rotation: [pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w],
+            rotation: [
+                pose.rotation.x,
+                pose.rotation.y,
+                pose.rotation.z,
+                pose.rotation.w,
+            ],
         }
     };
     let f = |v: f64| v as f32;
@@ -224,7 +229,10 @@ pub fn build_scene(
             .filter(|(_, p)| !p.is_empty())
             .collect(),
         goal: (
-            [world.file.goal.center[0] as f32, world.file.goal.center[1] as f32],
+            [
+                world.file.goal.center[0] as f32,
+                world.file.goal.center[1] as f32,
+            ],
             world.file.goal.radius as f32,
         ),
         channels: world.file.sensors.iter().map(|s| s.name.clone()).collect(),

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
-use ftcbf_controller::lyapunov::ClfConfig;
+use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::params::FtParameters;
 use ftcbf_controller::{Barrier, Input, State, StateMatrix};
@@ -225,10 +225,17 @@ impl ControlSetup {
         // Parameters.
         let control_dt = world.control_dt();
         let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
-        let needs_auto = matches!(file.control.gamma, Param::Auto)
-            || matches!(file.control.theta, Param::Auto);
+        let needs_auto =
+            matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
         let computed = needs_auto.then(|| {
-            FtParameters::compute(&model, &patterns, control_dt, file.control.epsilon, horizon)
+            FtParameters::compute_from(
+                &model,
+                &patterns,
+                control_dt,
+                file.control.epsilon,
+                horizon,
+                &(StateMatrix::identity() * P0_VARIANCE),
+            )
         });
         let m = patterns.len();
         let gamma = match (file.control.gamma, &computed) {
@@ -258,21 +265,34 @@ impl ControlSetup {
             Some(l) => State::new(l.x0[0], l.x0[1], l.x0[2], l.x0[3]),
             None => State::new(start_x, start_y, 0.0, 0.0),
         };
-        let mut clf = ClfConfig::paper(file.control.clf.v_bar.unwrap_or(0.0));
+        let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
+        let mut clf = ClfConfig::paper(0.0);
         clf.rho = file.control.clf.rho;
+        clf.v_bar = match file.control.clf.v_bar {
+            Some(v) => v,
+            None => {
+                // The largest V-level set inside the goal ball ‖x − x_g‖ ≤ d: inside it the CLF
+                // rows rest (Y_t(V̄) of §5.1). With noise the stochastic CLF condition (5.1)
+                // cannot hold at the goal itself (its Itô term is a positive constant while
+                // ∇V → 0), so without a V̄ > 0 the rows would demand ever larger inputs there.
+                let v = QuadraticClf::new(&model.f, &model.g, goal, file.goal.radius, &clf)
+                    .map_err(|e| err("control.clf", e.to_string()))?;
+                v.p_d.symmetric_eigenvalues().min() * file.goal.radius * file.goal.radius
+            }
+        };
 
         let config = ControllerConfig {
             kind: controller_kind(kind),
             model,
             fault_patterns: patterns,
             barriers,
-            goal: State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0),
+            goal,
             goal_radius: file.goal.radius,
             gamma: gamma.clone(),
             gamma_baseline,
             theta: theta.clone(),
             delta,
-            cbf_gain: 1.0,
+            cbf_gain: file.control.cbf_gain,
             clf,
             input_cost: Matrix2::identity(),
             input_limit: file.control.input_limit.map(|l| Input::new(l, l)),

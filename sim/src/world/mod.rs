@@ -95,7 +95,8 @@ impl World {
         // First the file as written, so errors carry its own line numbers.
         let mut file: WorldFile = toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
         if !overrides.is_empty() {
-            let mut doc: toml::Value = toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
+            let mut doc: toml::Value =
+                toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
             for ov in overrides {
                 overrides::apply(&mut doc, ov).map_err(|message| WorldError::Override {
                     path: path.to_path_buf(),
@@ -213,7 +214,10 @@ impl Validator<'_> {
             }
             Dynamics::Linear => {
                 let lin = file.linear.as_ref().ok_or_else(|| {
-                    self.err("linear", "dynamics = \"linear\" needs a [linear] table with `x0`")
+                    self.err(
+                        "linear",
+                        "dynamics = \"linear\" needs a [linear] table with `x0`",
+                    )
                 })?;
                 if file.robot.is_some() {
                     return Err(self.err(
@@ -257,6 +261,7 @@ impl Validator<'_> {
         if let Param::Value(t) = c.theta {
             self.positive("control.theta", t)?;
         }
+        self.positive("control.cbf_gain", c.cbf_gain)?;
         if let Some(d) = c.delta {
             self.positive("control.delta", d)?;
         }
@@ -291,7 +296,9 @@ impl Validator<'_> {
                     self.finite(&format!("{key}.a"), a)?;
                     self.finite(&format!("{key}.b"), &[*b])?;
                     if a.iter().all(|v| *v == 0.0) {
-                        return Err(self.err(format!("{key}.a"), "expected a non-zero normal vector"));
+                        return Err(
+                            self.err(format!("{key}.a"), "expected a non-zero normal vector")
+                        );
                     }
                 }
                 SafeSetSpec::EllipseInside {

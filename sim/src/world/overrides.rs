@@ -105,12 +105,18 @@ pub(crate) fn apply(doc: &mut toml::Value, ov: &Override) -> Result<(), String> 
                     .ok_or_else(|| format!("`{}`: no key `{k}` in the world file", ov.key))?;
             }
             Segment::Index(idx) => {
-                let arr = cur
-                    .as_array_mut()
-                    .ok_or_else(|| format!("`{}`: [{idx}] used on something that is not an array", ov.key))?;
+                let arr = cur.as_array_mut().ok_or_else(|| {
+                    format!(
+                        "`{}`: [{idx}] used on something that is not an array",
+                        ov.key
+                    )
+                })?;
                 let len = arr.len();
                 let slot = arr.get_mut(*idx).ok_or_else(|| {
-                    format!("`{}`: index {idx} is out of range (the array has {len} entries)", ov.key)
+                    format!(
+                        "`{}`: index {idx} is out of range (the array has {len} entries)",
+                        ov.key
+                    )
                 })?;
                 if i == last {
                     *slot = number_like(Some(slot), ov.value);
@@ -158,9 +164,13 @@ mod tests {
         assert!(e.contains("out of range") && e.contains("1 entries"), "{e}");
         let e = apply(&mut d, &Override::parse("nope.value=1").unwrap()).unwrap_err();
         assert!(e.contains("no key `nope`"), "{e}");
-        assert!(Override::parse("attacks[x].value=1").unwrap_err().contains("not an array index"));
+        assert!(Override::parse("attacks[x].value=1")
+            .unwrap_err()
+            .contains("not an array index"));
         assert!(Override::parse("seed").unwrap_err().contains("KEY=NUMBER"));
-        assert!(Override::parse("seed=abc").unwrap_err().contains("not a number"));
+        assert!(Override::parse("seed=abc")
+            .unwrap_err()
+            .contains("not a number"));
         assert!(Override::parse("seed=inf").unwrap_err().contains("finite"));
     }
 }

@@ -178,9 +178,9 @@ impl<'de> Deserialize<'de> for Param {
             Num(f64),
             Text(String),
         }
-        match Raw::deserialize(d).map_err(|_| {
-            serde::de::Error::custom("expected a number or \"auto\"")
-        })? {
+        match Raw::deserialize(d)
+            .map_err(|_| serde::de::Error::custom("expected a number or \"auto\""))?
+        {
             Raw::Num(v) => Ok(Param::Value(v)),
             Raw::Text(s) if s == "auto" => Ok(Param::Auto),
             Raw::Text(s) => Err(serde::de::Error::custom(format!(
@@ -210,6 +210,11 @@ pub struct ControlSection {
     pub theta: Param,
     /// δ of Step 1: constraints are active when ĥ(x̂) < δ (default: always active).
     pub delta: Option<f64>,
+    /// Gain κ of the CBF condition `… ≥ −κ·ĥ(x̂)` (eq. 4.3 has κ = 1, the default). A larger κ
+    /// lets the estimate settle closer to the boundary: at rest the robust term holds
+    /// ĥ ≥ γ‖∂h/∂x K c̄‖/κ.
+    #[serde(default = "default_cbf_gain")]
+    pub cbf_gain: f64,
     /// ε for `"auto"` parameters: the run should be safe with probability ≥ 1 − ε (default 0.05).
     #[serde(default = "default_epsilon")]
     pub epsilon: f64,
@@ -228,6 +233,9 @@ pub struct ControlSection {
 
 fn default_rate() -> f64 {
     50.0
+}
+fn default_cbf_gain() -> f64 {
+    1.0
 }
 fn default_epsilon() -> f64 {
     0.05
@@ -383,10 +391,9 @@ impl ExpectOutcome {
             if s.safe != want {
                 let why = match (&s.first_collision, &s.first_violation) {
                     (Some(c), _) => format!("collided with {} at t = {:.3} s", c.obstacle, c.t),
-                    (None, Some(v)) => format!(
-                        "left {} at t = {:.3} s (h = {:.4})",
-                        v.set, v.t, v.value
-                    ),
+                    (None, Some(v)) => {
+                        format!("left {} at t = {:.3} s (h = {:.4})", v.set, v.t, v.value)
+                    }
                     (None, None) => "stayed safe".to_string(),
                 };
                 out.push(format!("expected safe = {want}, but the robot {why}"));
