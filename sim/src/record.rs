@@ -3,13 +3,18 @@
 //! Entity paths (stable; the README describes what the viewer shows):
 //! - `world/ground`, `world/obstacles/<name>`, `world/safe_sets/<name>`, `world/goal` — static scene;
 //! - `world/robot/<link>` — link transforms every control step, link shapes (static) below them;
-//! - `world/trail` — the true path; `world/estimates/<filter>` — each estimator's position;
+//! - `world/trail` — the whole true path (static, written at the end); `world/estimates/<filter>`
+//!   — each estimator's position every control step;
 //! - `sensors/<channel>/{clean,received}`, `barriers/<barrier>/{truth,<filter>}`, `clf/<filter>`,
 //!   `residues/<filter>`, `control/{u_x,u_y,v,omega}`, `attacks/<label>` — time series;
 //! - `events/policy` (dropped constraints and why), `events/safety` (collisions, violations) — text logs.
 //!
 //! Timelines: `sim_time` (seconds) and `step` (control step). The recording id is derived from the
 //! world, the controller and the seed, and log time is not recorded, so a file says what ran, not when.
+//!
+//! Cost: transforms and estimate points are logged as they happen; every time series is kept in
+//! memory and sent once, as columns, by [`Recorder::finish`] (one chunk per series instead of one
+//! message per value).
 
 use std::path::Path;
 
@@ -44,11 +49,39 @@ pub struct Recorder {
     path: String,
     scene: Scene,
     trail: Vec<[f32; 3]>,
+    series: Vec<Series>,
     first_error: Option<String>,
 }
 
-/// Points of the trail between two re-logs of the whole strip.
-const TRAIL_DECIMATION: u64 = 5;
+/// One scalar time series, buffered until [`Recorder::finish`].
+struct Series {
+    path: String,
+    t: Vec<f64>,
+    step: Vec<i64>,
+    v: Vec<f64>,
+}
+
+impl Series {
+    fn new(path: String) -> Self {
+        Self {
+            path,
+            t: Vec::new(),
+            step: Vec::new(),
+            v: Vec::new(),
+        }
+    }
+    /// Appends a finite value (a plot cannot show NaN or ±∞; the events say when they came).
+    fn push(&mut self, t: f64, step: u64, v: f64) {
+        if v.is_finite() {
+            self.t.push(t);
+            self.step.push(step as i64);
+            self.v.push(v);
+        }
+    }
+}
+
+/// Index of the first series of each group, in the order `scene` creates them.
+const U_SERIES: [&str; 4] = ["control/u_x", "control/u_y", "control/v", "control/omega"];
 
 fn palette(i: usize) -> rerun::Color {
     const C: [[u8; 3]; 10] = [
@@ -111,6 +144,7 @@ impl Recorder {
             path: p,
             scene: Scene::default(),
             trail: Vec::new(),
+            series: Vec::new(),
             first_error: None,
         })
     }
@@ -179,6 +213,35 @@ impl Recorder {
 
     /// Flushes and closes the file; reports the first logging error, if any.
     pub fn finish(mut self) -> Result<(), RecordError> {
+        for sr in std::mem::take(&mut self.series) {
+            if sr.v.is_empty() {
+                continue;
+            }
+            let r = rerun::Scalars::new(sr.v)
+                .columns_of_unit_batches()
+                .map_err(|e| e.to_string())
+                .and_then(|cols| {
+                    self.rec
+                        .send_columns(
+                            sr.path.as_str(),
+                            [
+                                rerun::TimeColumn::new_duration_secs("sim_time", sr.t),
+                                rerun::TimeColumn::new_sequence("step", sr.step),
+                            ],
+                            cols,
+                        )
+                        .map_err(|e| e.to_string())
+                });
+            self.keep(r);
+        }
+        if !self.trail.is_empty() {
+            let r = self.rec.log_static(
+                "world/trail",
+                &rerun::LineStrips3D::new([std::mem::take(&mut self.trail)])
+                    .with_colors([rerun::Color::from_rgb(0, 0, 0)]),
+            );
+            self.keep(r);
+        }
         let r = self.rec.flush_blocking();
         self.keep(r);
         self.rec.disconnect();
@@ -247,6 +310,29 @@ impl Observer for Recorder {
             );
             self.keep(r);
         }
+        // Time series, in the order `frame` fills them.
+        let mut series = Vec::new();
+        for f in &scene.filters {
+            series.push(Series::new(format!("clf/{}", seg(f))));
+            series.push(Series::new(format!("residues/{}", seg(f))));
+        }
+        for c in &scene.channels {
+            series.push(Series::new(format!("sensors/{}/clean", seg(c))));
+            series.push(Series::new(format!("sensors/{}/received", seg(c))));
+        }
+        for b in &scene.barriers {
+            series.push(Series::new(format!("barriers/{}/truth", seg(b))));
+            for f in &scene.filters {
+                series.push(Series::new(format!("barriers/{}/{}", seg(b), seg(f))));
+            }
+        }
+        for u in U_SERIES {
+            series.push(Series::new(u.to_string()));
+        }
+        for a in &scene.attacks {
+            series.push(Series::new(format!("attacks/{}", seg(a))));
+        }
+        self.series = series;
     }
 
     fn frame(&mut self, f: &Frame<'_>) {
@@ -262,88 +348,69 @@ impl Observer for Recorder {
                 ),
             ));
         }
-        let truth = [f.truth.x as f32, f.truth.y as f32, 0.003];
-        self.trail.push(truth);
-        if f.step % TRAIL_DECIMATION == 0 {
-            results.push(
-                self.rec.log(
-                    "world/trail",
-                    &rerun::LineStrips3D::new([self.trail.clone()])
-                        .with_colors([rerun::Color::from_rgb(0, 0, 0)]),
-                ),
-            );
-        }
+        self.trail.push([f.truth.x as f32, f.truth.y as f32, 0.003]);
         for (i, e) in f.estimates.iter().enumerate() {
             let Some(label) = self.scene.filters.get(i) else {
                 continue;
             };
-            let l = seg(label);
             results.push(
                 self.rec.log(
-                    format!("world/estimates/{l}").as_str(),
+                    format!("world/estimates/{}", seg(label)).as_str(),
                     &rerun::Points3D::new([[e.x[0] as f32, e.x[1] as f32, 0.01]])
                         .with_colors([palette(i)])
                         .with_radii([0.012f32]),
                 ),
             );
-            results.push(
-                self.rec
-                    .log(format!("clf/{l}").as_str(), &rerun::Scalars::single(e.clf)),
-            );
-            results.push(self.rec.log(
-                format!("residues/{l}").as_str(),
-                &rerun::Scalars::single(e.residue),
-            ));
         }
-        for (i, ch) in f.channels.iter().enumerate() {
-            let Some(name) = self.scene.channels.get(i) else {
-                continue;
-            };
-            let n = seg(name);
-            results.push(self.rec.log(
-                format!("sensors/{n}/clean").as_str(),
-                &rerun::Scalars::single(ch.clean),
-            ));
-            // Non-finite received values are what the attack sent; a time series cannot plot them.
-            if ch.received.is_finite() {
-                results.push(self.rec.log(
-                    format!("sensors/{n}/received").as_str(),
-                    &rerun::Scalars::single(ch.received),
-                ));
-            }
-        }
+        // Series, in the order `scene` created them.
+        let (t, k) = (f.t, f.step);
+        let nf = self.scene.filters.len();
+        let nc = self.scene.channels.len();
         let nb = self.scene.barriers.len();
-        for (j, b) in self.scene.barriers.iter().enumerate() {
-            let bseg = seg(b);
-            if let Some(v) = f.barrier_truth.get(j) {
-                results.push(self.rec.log(
-                    format!("barriers/{bseg}/truth").as_str(),
-                    &rerun::Scalars::single(*v),
-                ));
+        let mut it = self.series.iter_mut();
+        for i in 0..nf {
+            let e = f.estimates.get(i);
+            if let Some(sr) = it.next() {
+                sr.push(t, k, e.map_or(f64::NAN, |e| e.clf));
             }
-            for (i, fl) in self.scene.filters.iter().enumerate() {
-                if let Some(v) = f.barrier_values.get(i * nb + j) {
-                    results.push(self.rec.log(
-                        format!("barriers/{bseg}/{}", seg(fl)).as_str(),
-                        &rerun::Scalars::single(*v),
-                    ));
+            if let Some(sr) = it.next() {
+                sr.push(t, k, e.map_or(f64::NAN, |e| e.residue));
+            }
+        }
+        for i in 0..nc {
+            let c = f.channels.get(i);
+            if let Some(sr) = it.next() {
+                sr.push(t, k, c.map_or(f64::NAN, |c| c.clean));
+            }
+            if let Some(sr) = it.next() {
+                sr.push(t, k, c.map_or(f64::NAN, |c| c.received));
+            }
+        }
+        for j in 0..nb {
+            if let Some(sr) = it.next() {
+                sr.push(t, k, f.barrier_truth.get(j).copied().unwrap_or(f64::NAN));
+            }
+            for i in 0..nf {
+                if let Some(sr) = it.next() {
+                    sr.push(
+                        t,
+                        k,
+                        f.barrier_values
+                            .get(i * nb + j)
+                            .copied()
+                            .unwrap_or(f64::NAN),
+                    );
                 }
             }
         }
-        for (k, v) in [
-            ("control/u_x", f.u[0]),
-            ("control/u_y", f.u[1]),
-            ("control/v", f.body_cmd[0]),
-            ("control/omega", f.body_cmd[1]),
-        ] {
-            results.push(self.rec.log(k, &rerun::Scalars::single(v)));
+        for v in [f.u[0], f.u[1], f.body_cmd[0], f.body_cmd[1]] {
+            if let Some(sr) = it.next() {
+                sr.push(t, k, v);
+            }
         }
-        for (i, on) in f.attacks_active.iter().enumerate() {
-            if let Some(label) = self.scene.attacks.get(i) {
-                results.push(self.rec.log(
-                    format!("attacks/{}", seg(label)).as_str(),
-                    &rerun::Scalars::single(if *on { 1.0 } else { 0.0 }),
-                ));
+        for on in f.attacks_active {
+            if let Some(sr) = it.next() {
+                sr.push(t, k, if *on { 1.0 } else { 0.0 });
             }
         }
         if !f.decision_note.is_empty() {

@@ -22,11 +22,11 @@ pub type PrepareFn<'a> = dyn Fn(&[ParamOverride]) -> anyhow::Result<PreparedWorl
 /// `unresolved at this N`. Results do not depend on --jobs.
 #[derive(Debug, Clone, clap::Args)]
 #[command(after_help = "Examples:
-  ftcbf batch worlds/corridor.toml --trials 1000
-  ftcbf batch worlds/corridor.toml --trials 500 --controller ft-cbf-clf --out runs.csv --out runs.json
-  ftcbf batch worlds/corridor.toml --sweep 'attacks[0].value=0,0.5,1,2' --trials 200
+  ftcbf batch worlds/corridor_spoof.toml --trials 1000
+  ftcbf batch worlds/corridor_spoof.toml --trials 500 --controller ft-cbf-clf --out runs.csv --out runs.json
+  ftcbf batch worlds/corridor_spoof.toml --sweep 'attacks[0].value=0,0.5,1,2' --trials 200
   # on four machines, then combine:
-  ftcbf batch worlds/corridor.toml --trials 10000 --shard 1/4 --out part1.json
+  ftcbf batch worlds/corridor_spoof.toml --trials 10000 --shard 1/4 --out part1.json
   ftcbf merge part1.json part2.json part3.json part4.json --out all.json
 
 CSV columns (one row per trial and controller): sweep_key, sweep_value, trial, seed, controller,
