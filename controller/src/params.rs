@@ -23,7 +23,8 @@ use crate::types::{Input, InputMatrix, State, StateMatrix};
 // Special functions
 // ------------------------------------------------------------------------------------------
 
-/// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, 9 terms; relative error ~1e-15).
+/// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, 9 terms; relative error ~1e-15); NaN for
+/// x ≤ 0 or NaN.
 pub fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
     const C: [f64; 9] = [
@@ -37,6 +38,9 @@ pub fn ln_gamma(x: f64) -> f64 {
         9.984_369_578_019_572e-6,
         1.505_632_735_149_311_6e-7,
     ];
+    if x.is_nan() || x <= 0.0 {
+        return f64::NAN;
+    }
     if x < 0.5 {
         // reflection
         let pi = std::f64::consts::PI;
@@ -157,6 +161,31 @@ pub struct RiccatiSolution {
     pub converged: bool,
 }
 
+/// One step of the Riccati recursion: predict P⁻ = ΦP⁺Φᵀ + Q_d, then the sequential (Joseph
+/// form) updates of the channels where `uses[k]`. Returns (P⁻, P⁺).
+fn riccati_step(
+    model: &LinearModel,
+    uses: &[bool],
+    d: &crate::model::Discretization,
+    post: &StateMatrix,
+) -> (StateMatrix, StateMatrix) {
+    let prior = d.phi * post * d.phi.transpose() + d.qd;
+    let mut p = prior;
+    for (k, &u) in uses.iter().enumerate() {
+        if !u || k >= model.channels() {
+            continue;
+        }
+        let c: RowVector4<f64> = model.c[k];
+        let pc = p * c.transpose();
+        let s = (c * pc)[0] + model.r[k];
+        let kg = pc / s;
+        let ikc = StateMatrix::identity() - kg * c;
+        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
+        p = (p + p.transpose()) * 0.5;
+    }
+    (prior, p)
+}
+
 /// Iterate predict (Φ, Q_d at `dt`) + update with the channels where `uses[k]` until the
 /// relative change of P⁺ is below 1e-13 (max 1e6 iterations). A channel set that does not
 /// make the state detectable (e.g. open loop) has no steady state: the recursion stops with
@@ -178,20 +207,8 @@ pub fn steady_state_riccati(model: &LinearModel, uses: &[bool], dt: f64) -> Ricc
     let mut prior = post;
     let max_iter = 1_000_000;
     for it in 1..=max_iter {
-        prior = d.phi * post * d.phi.transpose() + d.qd;
-        let mut p = prior;
-        for (k, &u) in uses.iter().enumerate() {
-            if !u || k >= model.channels() {
-                continue;
-            }
-            let c: RowVector4<f64> = model.c[k];
-            let pc = p * c.transpose();
-            let s = (c * pc)[0] + model.r[k];
-            let kg = pc / s;
-            let ikc = StateMatrix::identity() - kg * c;
-            p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
-            p = (p + p.transpose()) * 0.5;
-        }
+        let p;
+        (prior, p) = riccati_step(model, uses, &d, &post);
         let change = (p - post).amax() / p.amax().max(1e-300);
         post = p;
         if change < 1e-13 {
@@ -260,20 +277,7 @@ pub fn horizon_riccati(
     let mut post = *p0;
     let mut worst = post;
     for _ in 0..n {
-        let mut p = d.phi * post * d.phi.transpose() + d.qd;
-        for (k, &u) in uses.iter().enumerate() {
-            if !u || k >= model.channels() {
-                continue;
-            }
-            let c: RowVector4<f64> = model.c[k];
-            let pc = p * c.transpose();
-            let s = (c * pc)[0] + model.r[k];
-            let kg = pc / s;
-            let ikc = StateMatrix::identity() - kg * c;
-            p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
-            p = (p + p.transpose()) * 0.5;
-        }
-        post = p;
+        post = riccati_step(model, uses, &d, &post).1;
         if lmax(&post) > lmax(&worst) {
             worst = post;
         }

@@ -16,39 +16,8 @@ pub struct Interval {
     pub upper: f64,
 }
 
-/// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, nine coefficients; relative error of Γ
-/// about 1e-15). Returns NaN for x ≤ 0 or NaN.
-pub fn ln_gamma(x: f64) -> f64 {
-    // Lanczos coefficients for g = 7, n = 9 (published constants).
-    const G: f64 = 7.0;
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x.is_nan() || x <= 0.0 {
-        return f64::NAN;
-    }
-    if x < 0.5 {
-        // Reflection: Γ(x) Γ(1 − x) = π / sin(πx); sin(πx) > 0 on (0, 0.5).
-        return std::f64::consts::PI.ln()
-            - (std::f64::consts::PI * x).sin().ln()
-            - ln_gamma(1.0 - x);
-    }
-    let z = x - 1.0;
-    let mut sum = C[0];
-    for (i, c) in C.iter().enumerate().skip(1) {
-        sum += c / (z + i as f64);
-    }
-    let t = z + G + 0.5;
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (z + 0.5) * t.ln() - t + sum.ln()
-}
+/// ln Γ(x) (NaN for x ≤ 0): the controller crate's Lanczos implementation, one for the project.
+pub use ftcbf_sim::ftcbf_controller::params::ln_gamma;
 
 /// ln B(a, b) = ln Γ(a) + ln Γ(b) − ln Γ(a + b).
 fn ln_beta(a: f64, b: f64) -> f64 {

@@ -110,16 +110,8 @@ pub fn safe_set_barriers(world: &World) -> Vec<Arc<dyn Barrier>> {
                     semi_axes,
                     angle,
                     lift,
-                } => Arc::new(LiftedEllipse::new(
-                    name.clone(),
-                    *center,
-                    *semi_axes,
-                    *angle,
-                    true,
-                    *lift,
-                    v_max,
-                )),
-                SafeSetSpec::EllipseOutside {
+                }
+                | SafeSetSpec::EllipseOutside {
                     name,
                     center,
                     semi_axes,
@@ -130,7 +122,7 @@ pub fn safe_set_barriers(world: &World) -> Vec<Arc<dyn Barrier>> {
                     *center,
                     *semi_axes,
                     *angle,
-                    false,
+                    matches!(s, SafeSetSpec::EllipseInside { .. }),
                     *lift,
                     v_max,
                 )),
