@@ -96,6 +96,10 @@ pub struct ChannelView {
     pub received: f64,
     /// A new sample arrived this step.
     pub fresh: bool,
+    /// The residue detector's statistic for this reading: the all-channel filter's normalised
+    /// one-step innovation z = (received − c x̂⁻)/√(c P⁻ cᵀ + r), before the update (NaN when
+    /// the channel is not in the linear model or not fresh). |z| ≤ 3 is a 3σ detector's "normal".
+    pub detector_z: f64,
 }
 
 /// One control step.

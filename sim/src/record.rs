@@ -5,7 +5,7 @@
 //! - `world/robot/<link>` — link transforms every control step, link shapes (static) below them;
 //! - `world/trail` — the whole true path (static, written at the end); `world/estimates/<filter>`
 //!   — each estimator's position every control step;
-//! - `sensors/<channel>/{clean,received}`, `barriers/<barrier>/{truth,<filter>}`, `clf/<filter>`,
+//! - `sensors/<channel>/{clean,received,detector_z}`, `barriers/<barrier>/{truth,<filter>}`, `clf/<filter>`,
 //!   `residues/<filter>`, `control/{u_x,u_y,v,omega}`, `attacks/<label>` — time series;
 //! - `events/policy` (dropped constraints and why), `events/safety` (collisions, violations) — text logs.
 //!
@@ -319,6 +319,7 @@ impl Observer for Recorder {
         for c in &scene.channels {
             series.push(Series::new(format!("sensors/{}/clean", seg(c))));
             series.push(Series::new(format!("sensors/{}/received", seg(c))));
+            series.push(Series::new(format!("sensors/{}/detector_z", seg(c))));
         }
         for b in &scene.barriers {
             series.push(Series::new(format!("barriers/{}/truth", seg(b))));
@@ -384,6 +385,9 @@ impl Observer for Recorder {
             }
             if let Some(sr) = it.next() {
                 sr.push(t, k, c.map_or(f64::NAN, |c| c.received));
+            }
+            if let Some(sr) = it.next() {
+                sr.push(t, k, c.map_or(f64::NAN, |c| c.detector_z));
             }
         }
         for j in 0..nb {

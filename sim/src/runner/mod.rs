@@ -192,7 +192,8 @@ pub fn run_observed(
         ChannelView {
             clean: 0.0,
             received: 0.0,
-            fresh: false
+            fresh: false,
+            detector_z: f64::NAN,
         };
         file.sensors.len()
     ];
@@ -255,9 +256,16 @@ pub fn run_observed(
             }
         }
         if observer.is_some() {
-            for (v, s) in channels_view.iter_mut().zip(samples.iter()) {
+            let bank = controller.bank();
+            for (si, (v, s)) in channels_view.iter_mut().zip(samples.iter()).enumerate() {
                 v.received = s.value;
                 v.fresh = s.fresh;
+                v.detector_z = match setup.channel_of_sensor[si] {
+                    Some(c) if s.fresh => bank
+                        .predicted_measurement(baseline, c)
+                        .map_or(f64::NAN, |(mean, std)| (s.value - mean) / std),
+                    _ => f64::NAN,
+                };
             }
         }
 
