@@ -7,9 +7,13 @@
 //! * `closed_loop`: the paper's study — the truth follows eq. 6.2 with process noise 1e-3·I
 //!   (Euler–Maruyama, one step per control period) under the controller's input from
 //!   x0 = (1, 0, 0, 0), measurements with variance 1e-3 (seeded ChaCha8), restarted every
-//!   30 s; the stage mix (Step 1 / Step 2 / CLF relaxation: 1–3 QP solves per step) is
-//!   printed before measuring. The time includes the simulation of truth and readings
-//!   (a few hundred ns).
+//!   30 s; the stage mix, the clarabel solves per step (feasibility is decided by the
+//!   geometric test of `feasibility.rs`, so one solve per step) and the solver failures /
+//!   test–solver disagreements are printed before measuring. The time includes the
+//!   simulation of truth and readings (a few hundred ns).
+//!
+//! Plus `feasibility_m3_infeasible`: the geometric test alone on an infeasible m = 3 set
+//! (6 rows + box, every vertex enumerated: its worst case).
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -17,6 +21,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ftcbf_controller::barrier::HalfPlane;
+use ftcbf_controller::constraints::HalfSpace;
+use ftcbf_controller::feasibility::check_half_spaces;
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
     QuadraticClf, State, StateMatrix,
@@ -96,7 +102,7 @@ impl ClosedLoop {
         y[3] += 1.0;
         y
     }
-    fn step(&mut self) -> (Input, QpOutcome, u32) {
+    fn step(&mut self) -> (Input, QpOutcome, [u32; 3]) {
         self.k += 1;
         if self.k.is_multiple_of(3000) {
             self.ctrl = controller(self.patterns.clone());
@@ -104,11 +110,13 @@ impl ClosedLoop {
         }
         let y = self.readings();
         let out = self.ctrl.step(&y, &[true; 6], DT);
-        let (u, qp, solves) = (out.u, out.qp, out.decision.qp_solves);
+        let d = &out.decision;
+        let (u, qp) = (out.u, out.qp);
+        let counts = [d.qp_solves, d.solver_failures, d.feasibility_disagreements];
         self.x = self
             .model
             .euler_maruyama_step(&self.x, &u, DT, &State::zeros());
-        (u, qp, solves)
+        (u, qp, counts)
     }
 }
 
@@ -128,10 +136,12 @@ fn bench_step(c: &mut Criterion) {
 
         let mut cl = ClosedLoop::new(patterns);
         let mut mix = [0usize; 5];
-        let mut solves = 0u64;
+        let mut counts = [0u64; 3];
         for _ in 0..3000 {
             let (_, qp, s) = cl.step();
-            solves += s as u64;
+            for (c, v) in counts.iter_mut().zip(s) {
+                *c += v as u64;
+            }
             let i = match qp {
                 QpOutcome::Feasible { stage, .. } => stage as usize,
                 QpOutcome::InfeasibleAfterStep3 { .. } => 4,
@@ -139,8 +149,10 @@ fn bench_step(c: &mut Criterion) {
             mix[i] += 1;
         }
         eprintln!(
-            "m = {m} closed loop, 3000 steps: stages [Step1, Step2, ClfRelaxation, Step3, Fallback] = {mix:?}, {:.2} QP solves/step",
-            solves as f64 / 3000.0
+            "m = {m} closed loop, 3000 steps: stages [Step1, Step2, ClfRelaxation, Step3, Fallback] = {mix:?}, {:.2} clarabel solves/step, {} solver failures, {} disagreements",
+            counts[0] as f64 / 3000.0,
+            counts[1],
+            counts[2]
         );
         c.bench_function(&format!("step_m{m}_closed_loop"), |b| {
             b.iter(|| black_box(cl.step().0))
@@ -148,9 +160,40 @@ fn bench_step(c: &mut Criterion) {
     }
 }
 
+fn bench_feasibility(c: &mut Criterion) {
+    // three units' CBF rows u_y ≥ 0.5 − 0.1k tilted, CLF rows pulling u_y ≤ −1: infeasible
+    let mut rows = Vec::new();
+    for k in 0..3 {
+        let t = 0.1 * k as f64;
+        rows.push(HalfSpace {
+            normal: Input::new(t.sin(), -t.cos()),
+            offset: -(0.5 - 0.1 * k as f64),
+        });
+    }
+    let clf: Vec<HalfSpace> = (0..3)
+        .map(|k| HalfSpace {
+            normal: Input::new(0.05 * k as f64, 1.0) * 1e3,
+            offset: -1e3,
+        })
+        .collect();
+    let mut lines = Vec::with_capacity(6);
+    let limit = Some(Input::new(2.0, 2.0));
+    assert!(!check_half_spaces(&rows, &clf, limit, &mut lines).is_feasible());
+    c.bench_function("feasibility_m3_infeasible", |b| {
+        b.iter(|| {
+            black_box(check_half_spaces(
+                black_box(&rows),
+                black_box(&clf),
+                limit,
+                &mut lines,
+            ))
+        })
+    });
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
-    targets = bench_step
+    targets = bench_step, bench_feasibility
 }
 criterion_main!(benches);

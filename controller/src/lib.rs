@@ -21,6 +21,7 @@ pub mod barrier;
 pub mod constraints;
 pub mod controller;
 pub mod estimator;
+pub mod feasibility;
 pub mod lyapunov;
 pub mod model;
 pub mod params;

@@ -28,10 +28,24 @@
 //!    remaining CBF rows inside the box (soft CBF rows; CLF ignored). If even that fails
 //!    (solver failure), the input is maximum braking: `u = −v̂/τ_b` (τ_b = 0.5 s), clipped
 //!    to the box, with v̂ from the unit with the smallest residue.
+//!
+//! **Feasibility** of each stage's hard rows (Step 1 and Step 2: CBF and CLF rows; CLF
+//! relaxation and each Step-3 removal: the CBF rows alone, which is the feasibility of the
+//! problem with soft CLF rows) and the box is decided by the exact geometric test of
+//! [`crate::feasibility`] (same scaled rows; its tolerance, 10× clarabel's, leans to
+//! "feasible" inside the boundary band). clarabel runs only when that test finds the set
+//! feasible, to compute the input of the stage that decides, and in the fallback. Its status is always checked: a solver failure is counted
+//! in [`DecisionRecord::solver_failures`] (after [`QpSolver`]'s one rebuild); a solve that
+//! reports the set infeasible although the test found it feasible (only possible within the
+//! tolerance band at the boundary) is counted in
+//! [`DecisionRecord::feasibility_disagreements`]. In both cases the stage does not decide
+//! and the policy goes on to the next stage — exactly what it did when clarabel's status
+//! alone decided.
 
 use clarabel::solver::SolverStatus;
 
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
+use crate::feasibility::{check_half_spaces, Line};
 use crate::qp::{QpResult, QpSolver, RowMode};
 use crate::types::{Input, State};
 
@@ -144,10 +158,13 @@ pub struct DecisionRecord {
     pub stage: Stage,
     /// One entry per (unit, barrier) Ω and per unit Υ (when the CLF is used).
     pub decisions: Vec<ConstraintDecision>,
-    /// QP solves this step.
+    /// clarabel solves this step (the geometric feasibility tests are not counted).
     pub qp_solves: u32,
     /// Solves that ended in a solver failure (treated as "not shown feasible").
     pub solver_failures: u32,
+    /// Solves that reported infeasible a set the geometric test of [`crate::feasibility`]
+    /// found feasible (treated as "not shown feasible"; see the module docs).
+    pub feasibility_disagreements: u32,
 }
 
 impl DecisionRecord {
@@ -158,6 +175,7 @@ impl DecisionRecord {
             decisions: Vec::with_capacity(capacity),
             qp_solves: 0,
             solver_failures: 0,
+            feasibility_disagreements: 0,
         }
     }
     /// Decisions about Ω rows of `unit`.
@@ -289,6 +307,7 @@ pub struct PolicyScratch {
     cbf_rows: Vec<HalfSpace>,
     clf_rows: Vec<HalfSpace>,
     drop_reason: Vec<Option<(Stage, DropReason)>>,
+    lines: Vec<Line>,
 }
 
 impl PolicyScratch {
@@ -299,6 +318,7 @@ impl PolicyScratch {
             cbf_rows: Vec::with_capacity(units * barriers),
             clf_rows: Vec::with_capacity(units),
             drop_reason: Vec::with_capacity(units),
+            lines: Vec::with_capacity(units * barriers + units),
         }
     }
 }
@@ -344,6 +364,31 @@ fn solve(
     r
 }
 
+/// Decide a stage: the geometric test of the CBF rows (and the CLF rows when they are hard)
+/// with the box; clarabel only when the test finds them feasible. Returns
+/// `QpResult::Infeasible { iterations: 0 }` without a solve when the test finds them
+/// infeasible.
+fn attempt(
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    clf: RowMode,
+    rec: &mut DecisionRecord,
+) -> QpResult {
+    let hard_clf: &[HalfSpace] = match clf {
+        RowMode::Hard => &s.clf_rows,
+        RowMode::Soft => &[],
+    };
+    let verdict = check_half_spaces(&s.cbf_rows, hard_clf, qp.input_limit(), &mut s.lines);
+    if !verdict.is_feasible() {
+        return QpResult::Infeasible { iterations: 0 };
+    }
+    let r = solve(qp, s, RowMode::Hard, clf, rec);
+    if matches!(r, QpResult::Infeasible { .. }) {
+        rec.feasibility_disagreements += 1;
+    }
+    r
+}
+
 /// Run Steps 1–3 (see the module docs). Fills `record` and returns the input and outcome.
 pub fn resolve(
     p: &PolicyProblem,
@@ -354,6 +399,7 @@ pub fn resolve(
     record.decisions.clear();
     record.qp_solves = 0;
     record.solver_failures = 0;
+    record.feasibility_disagreements = 0;
     s.alive.clear();
     s.alive.resize(p.units, true);
     s.drop_reason.clear();
@@ -363,7 +409,7 @@ pub fn resolve(
     collect(p, s);
     let mut clf_relaxed = false;
     let mut stage = Stage::Step1;
-    let mut result = solve(qp, s, RowMode::Hard, RowMode::Hard, record);
+    let mut result = attempt(qp, s, RowMode::Hard, record);
 
     // Step 2
     if !matches!(result, QpResult::Feasible { .. }) && p.units > 1 {
@@ -397,7 +443,7 @@ pub fn resolve(
         }
         if dropped_any {
             collect(p, s);
-            result = solve(qp, s, RowMode::Hard, RowMode::Hard, record);
+            result = attempt(qp, s, RowMode::Hard, record);
         }
     }
 
@@ -405,7 +451,7 @@ pub fn resolve(
     if !matches!(result, QpResult::Feasible { .. }) && !s.clf_rows.is_empty() {
         stage = Stage::ClfRelaxation;
         clf_relaxed = true;
-        result = solve(qp, s, RowMode::Hard, RowMode::Soft, record);
+        result = attempt(qp, s, RowMode::Soft, record);
     }
 
     // Step 3
@@ -437,7 +483,7 @@ pub fn resolve(
             ));
             collect(p, s);
             clf_relaxed = !s.clf_rows.is_empty();
-            result = solve(qp, s, RowMode::Hard, RowMode::Soft, record);
+            result = attempt(qp, s, RowMode::Soft, record);
             if matches!(result, QpResult::Feasible { .. }) {
                 break;
             }

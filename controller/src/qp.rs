@@ -18,10 +18,11 @@
 //! `0 ≤ −1` (if `o < 0`: infeasible, as it should be).
 //!
 //! "Hard" rows have no slack; "soft" rows share the slack s (so the solver minimises the
-//! largest violation, weighted against the input cost). Feasibility of the hard rows is
-//! decided by the solver's status ([`QpResult`]); the status is always checked, and a
-//! reused solver that does not return Solved/PrimalInfeasible is rebuilt once from
-//! scratch before a failure is reported.
+//! largest violation, weighted against the input cost). The scaling is
+//! [`Line::from_half_space`], shared with the geometric test of [`crate::feasibility`] that
+//! the policy uses to decide feasibility before calling the solver. The solver's status
+//! ([`QpResult`]) is always checked, and a reused solver that does not return
+//! Solved/PrimalInfeasible is rebuilt once from scratch before a failure is reported.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -30,6 +31,7 @@ use clarabel::solver::{
 use nalgebra::Matrix2;
 
 use crate::constraints::HalfSpace;
+use crate::feasibility::Line;
 use crate::types::Input;
 
 /// Number of variables (u₁, u₂, s).
@@ -177,19 +179,13 @@ impl QpSolver {
     }
 
     fn set_row(&mut self, row: usize, h: &HalfSpace, soft: bool) {
-        let n = h.normal.norm();
-        let (a0, a1, b) = if n > 1e-12 && n.is_finite() && h.offset.is_finite() {
-            (h.normal[0] / n, h.normal[1] / n, h.offset / n)
-        } else if h.offset.is_finite() && h.offset >= 0.0 {
-            (0.0, 0.0, 1.0)
-        } else {
-            (0.0, 0.0, -1.0)
-        };
+        // the scaling shared with the geometric feasibility test
+        let line = Line::from_half_space(h);
         let base = row * NV;
-        self.a_dense[base] = a0;
-        self.a_dense[base + 1] = a1;
+        self.a_dense[base] = line.a[0];
+        self.a_dense[base + 1] = line.a[1];
         self.a_dense[base + 2] = if soft { -1.0 } else { 0.0 };
-        self.b[row] = b;
+        self.b[row] = line.b;
     }
 
     fn set_inactive(&mut self, row: usize) {

@@ -1,0 +1,422 @@
+//! Exact, allocation-free feasibility test of a set of input half-planes in R² (plus the
+//! input box), used by [`crate::policy`] to decide every "is this constraint set feasible?"
+//! question without an interior-point solve.
+//!
+//! # Rows
+//!
+//! Every [`HalfSpace`] `nᵀu ≤ o` is scaled exactly as [`crate::qp`] scales it before clarabel
+//! sees it ([`Line::from_half_space`] is the one function both use): `n/‖n‖ · u ≤ o/‖n‖`, so a
+//! violation `a·u − b` is a distance in input space (m/s²). A row with a vanishing or
+//! non-finite normal becomes `0 ≤ 1` (finite `o ≥ 0`: always holds) or `0 ≤ −1` (otherwise:
+//! never holds).
+//!
+//! # Method: vertex enumeration
+//!
+//! The rows and the four edges of the box `|u_k| ≤ L_k` bound a polygon
+//! `P = {u : a_i·u ≤ b_i ∀i, |u_k| ≤ L_k}`. `P` is bounded, so when it is non-empty it has a
+//! vertex, and every vertex is the intersection of two of the lines `a_i·u = b_i` (rows or box
+//! edges) whose normals are not parallel. The test computes the intersection of every
+//! non-parallel pair and accepts the first one that satisfies **all** rows and box edges
+//! within the tolerance below; it is rejected otherwise. `u = 0` is tried first (it is inside
+//! every box). Cost: `O(N³)` multiply-adds for `N` lines, no allocation (for `N = 10`,
+//! 45 pairs × 10 rows).
+//!
+//! **A "feasible" answer is a certificate**: the witness returned satisfies every row to
+//! within `tol`, however it was computed (Cramer's rule on nearly parallel lines is
+//! inaccurate, but an inaccurate vertex can only fail the check, never pass it wrongly).
+//! An "infeasible" answer is exact except in two degenerate situations, both outside any
+//! realistic control problem: (a) every vertex of `P` is the intersection of lines at an
+//! angle below ~ε·scale/tol ≈ 1e-9 rad (a needle-shaped `P` whose width is then of the
+//! order of the tolerance), and (b) without a box, see [`VIRTUAL_BOX`].
+//!
+//! # Tolerance (how feasibility was judged before)
+//!
+//! Before this module, feasibility was clarabel's status (Solved/AlmostSolved versus
+//! PrimalInfeasible/AlmostPrimalInfeasible, a failure counting as "not shown feasible") on
+//! the same scaled rows; clarabel accepts a point whose primal residual is below
+//! `tol_feas = 1e-8` relative to the size of the data (`max(1, ‖b‖∞, …)`). The test accepts a
+//! vertex `v` when, for every row and box edge, `a·v − b ≤ FEASIBILITY_TOL · max(1, max |b_i|)`
+//! (rows and the real box, not the virtual one), plus the floating-point bound of
+//! evaluating `a·v − b`. With `φ = min_u max_i (a_i·u − b_i)` (the smallest achievable
+//! largest violation, m/s², box edges included), the answer is "feasible" whenever `φ ≤ 0`
+//! and "infeasible" whenever `φ > tol`; only the band `0 < φ ≤ tol` can go either way.
+//!
+//! `FEASIBILITY_TOL` is 1e-7, ten times clarabel's, on purpose: inside the band the test
+//! leans to "feasible". The policy then calls clarabel, and if clarabel does not solve the
+//! set (it reports PrimalInfeasible, or — as it does on sets infeasible by ~1e-9…4e-7 —
+//! InsufficientProgress) the policy moves on exactly as it did when clarabel alone decided.
+//! The other direction (the test rejects a set clarabel would have solved) is the only one
+//! that can change a decision, and needs clarabel to accept a residual above its own
+//! tolerance. The tests cross-check this against clarabel on thousands of random problems,
+//! a third of them pushed to within 1e-10…1e-3 of the boundary.
+
+use crate::constraints::HalfSpace;
+use crate::types::Input;
+
+/// Relative feasibility tolerance (scaled rows, relative to `max(1, max |b_i|)` in m/s²):
+/// ten times clarabel's default `tol_feas` (see the module docs for why).
+pub const FEASIBILITY_TOL: f64 = 1e-7;
+
+/// Half-width of the box used when the problem has no input box (m/s²).
+///
+/// Without a box, the test decides feasibility inside `|u_k| ≤ VIRTUAL_BOX`. This cannot
+/// change the answer unless every input satisfying all rows has a component above
+/// 1e6 m/s² (about 10⁵ g): a non-empty constraint set always contains its minimum-norm
+/// point, which is what the QP would command, so a different answer requires the policy's
+/// answer itself to be an input of that size — for the planar robot's CBF/CLF rows, whose
+/// scaled offsets are accelerations of order 1–10 m/s², that is only a wedge of two
+/// almost antiparallel rows (angle ~1e-6 rad) meeting far away, which no realistic problem
+/// produces and clarabel itself could not resolve reliably (its tolerances are relative
+/// to the iterate's size).
+pub const VIRTUAL_BOX: f64 = 1e6;
+
+/// A scaled half-plane `a·u ≤ b` with `‖a‖ = 1`, or `a = 0` and `b = ±1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Line {
+    /// Unit normal (or zero).
+    pub a: [f64; 2],
+    /// Offset (m/s² for a unit normal).
+    pub b: f64,
+}
+
+impl Line {
+    /// The scaling of [`crate::qp`]: `n/‖n‖ · u ≤ o/‖n‖`; a vanishing (`‖n‖ ≤ 1e-12`) or
+    /// non-finite normal, or a non-finite offset, gives `0 ≤ 1` if the offset is finite and
+    /// non-negative and `0 ≤ −1` otherwise.
+    pub fn from_half_space(h: &HalfSpace) -> Self {
+        let n = h.normal.norm();
+        if n > 1e-12 && n.is_finite() && h.offset.is_finite() {
+            Self {
+                a: [h.normal[0] / n, h.normal[1] / n],
+                b: h.offset / n,
+            }
+        } else if h.offset.is_finite() && h.offset >= 0.0 {
+            Self {
+                a: [0.0, 0.0],
+                b: 1.0,
+            }
+        } else {
+            Self {
+                a: [0.0, 0.0],
+                b: -1.0,
+            }
+        }
+    }
+
+    /// `a·u − b` (≤ 0 when satisfied).
+    #[inline]
+    pub fn violation(&self, u: [f64; 2]) -> f64 {
+        self.a[0] * u[0] + self.a[1] * u[1] - self.b
+    }
+
+    #[inline]
+    fn is_degenerate(&self) -> bool {
+        self.a[0] == 0.0 && self.a[1] == 0.0
+    }
+}
+
+/// The verdict of the test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Feasibility {
+    /// Some input satisfies every row and the box within the tolerance.
+    Feasible {
+        /// Such an input (a vertex of the feasible polygon, or 0).
+        witness: Input,
+    },
+    /// No input does (see the module docs for the tolerance band).
+    Infeasible,
+}
+
+impl Feasibility {
+    /// True for [`Feasibility::Feasible`].
+    pub fn is_feasible(&self) -> bool {
+        matches!(self, Self::Feasible { .. })
+    }
+}
+
+/// The box half-widths used by the test: the real limits (each capped at [`VIRTUAL_BOX`];
+/// a NaN limit counts as [`VIRTUAL_BOX`]) or the virtual box.
+fn box_half_widths(input_limit: Option<Input>) -> [f64; 2] {
+    match input_limit {
+        Some(l) => [l[0].min(VIRTUAL_BOX), l[1].min(VIRTUAL_BOX)],
+        None => [VIRTUAL_BOX; 2],
+    }
+}
+
+/// Decide whether `{u : a_i·u ≤ b_i ∀i}` meets the box `|u_k| ≤ limit_k` (or the
+/// [`VIRTUAL_BOX`] when `input_limit` is `None`). Allocation-free.
+pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
+    let half = box_half_widths(input_limit);
+    if !(half[0] >= 0.0 && half[1] >= 0.0) {
+        return Feasibility::Infeasible; // a negative box is empty
+    }
+    // tolerance: relative to the data clarabel sees (rows and the real box)
+    let mut scale = 1.0_f64;
+    for l in lines {
+        if l.is_degenerate() {
+            if l.b < 0.0 {
+                return Feasibility::Infeasible; // 0 ≤ −1
+            }
+        } else {
+            scale = scale.max(l.b.abs());
+        }
+    }
+    if input_limit.is_some() {
+        scale = scale.max(half[0]).max(half[1]);
+    }
+    let tol = FEASIBILITY_TOL * scale;
+    let edges = [
+        Line {
+            a: [1.0, 0.0],
+            b: half[0],
+        },
+        Line {
+            a: [-1.0, 0.0],
+            b: half[0],
+        },
+        Line {
+            a: [0.0, 1.0],
+            b: half[1],
+        },
+        Line {
+            a: [0.0, -1.0],
+            b: half[1],
+        },
+    ];
+    let n = lines.len();
+    let line = |k: usize| if k < n { lines[k] } else { edges[k - n] };
+    // `v` satisfies every row within tol (+ the rounding bound of a·v − b). The box holds
+    // exactly at its own vertices and is checked with the same rule elsewhere.
+    let admissible = |v: [f64; 2]| {
+        let ok = |l: &Line| {
+            let r = l.violation(v);
+            let round = 4.0
+                * f64::EPSILON
+                * (l.a[0].abs() * v[0].abs() + l.a[1].abs() * v[1].abs() + l.b.abs());
+            r <= tol + round
+        };
+        lines.iter().all(ok) && edges.iter().all(ok)
+    };
+    if admissible([0.0, 0.0]) {
+        return Feasibility::Feasible {
+            witness: Input::zeros(),
+        };
+    }
+    let total = n + edges.len();
+    for i in 0..total {
+        let li = line(i);
+        if li.is_degenerate() {
+            continue;
+        }
+        for j in (i + 1)..total {
+            let lj = line(j);
+            let det = li.a[0] * lj.a[1] - li.a[1] * lj.a[0];
+            if det == 0.0 {
+                continue; // parallel (or degenerate): no single intersection
+            }
+            let v = [
+                (li.b * lj.a[1] - lj.b * li.a[1]) / det,
+                (li.a[0] * lj.b - lj.a[0] * li.b) / det,
+            ];
+            if v[0].is_finite() && v[1].is_finite() && admissible(v) {
+                return Feasibility::Feasible {
+                    witness: Input::new(v[0], v[1]),
+                };
+            }
+        }
+    }
+    Feasibility::Infeasible
+}
+
+/// Scale the rows of `first` and `second` into `lines` (cleared first; allocation-free once
+/// it has room for all rows) and [`check`] them with the box.
+pub fn check_half_spaces(
+    first: &[HalfSpace],
+    second: &[HalfSpace],
+    input_limit: Option<Input>,
+    lines: &mut Vec<Line>,
+) -> Feasibility {
+    lines.clear();
+    lines.extend(first.iter().chain(second).map(Line::from_half_space));
+    check(lines, input_limit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hs(nx: f64, ny: f64, o: f64) -> HalfSpace {
+        HalfSpace {
+            normal: Input::new(nx, ny),
+            offset: o,
+        }
+    }
+
+    fn verdict(rows: &[HalfSpace], limit: Option<Input>) -> Feasibility {
+        let mut buf = Vec::new();
+        check_half_spaces(rows, &[], limit, &mut buf)
+    }
+
+    /// A feasible witness must satisfy every (unscaled) row to the tolerance.
+    fn assert_witness(rows: &[HalfSpace], limit: Option<Input>) -> Input {
+        match verdict(rows, limit) {
+            Feasibility::Feasible { witness } => {
+                for h in rows {
+                    let l = Line::from_half_space(h);
+                    assert!(
+                        l.violation([witness[0], witness[1]]) <= 1e-7,
+                        "{witness} violates {h:?}"
+                    );
+                }
+                if let Some(lim) = limit {
+                    assert!(witness[0].abs() <= lim[0] + 1e-9 && witness[1].abs() <= lim[1] + 1e-9);
+                }
+                witness
+            }
+            Feasibility::Infeasible => panic!("{rows:?} should be feasible"),
+        }
+    }
+
+    #[test]
+    fn empty_set_of_rows_is_feasible() {
+        assert_eq!(
+            verdict(&[], None),
+            Feasibility::Feasible {
+                witness: Input::zeros()
+            }
+        );
+    }
+
+    #[test]
+    fn scaling_matches_the_qp_rows() {
+        let l = Line::from_half_space(&hs(3.0, 4.0, 10.0));
+        assert_eq!(l.a, [0.6, 0.8]);
+        assert!((l.b - 2.0).abs() < 1e-15);
+        assert_eq!(Line::from_half_space(&hs(0.0, 0.0, 0.3)).b, 1.0);
+        assert_eq!(Line::from_half_space(&hs(0.0, 0.0, -0.3)).b, -1.0);
+        assert_eq!(Line::from_half_space(&hs(f64::NAN, 1.0, 0.3)).b, 1.0);
+        assert_eq!(Line::from_half_space(&hs(1.0, 1.0, f64::NAN)).b, -1.0);
+    }
+
+    #[test]
+    fn degenerate_rows() {
+        // 0·u ≤ −1 can never hold; 0·u ≤ 1 always holds
+        assert_eq!(
+            verdict(&[hs(0.0, 0.0, -0.1)], None),
+            Feasibility::Infeasible
+        );
+        assert!(verdict(&[hs(0.0, 0.0, 0.1), hs(1.0, 0.0, -3.0)], None).is_feasible());
+        // a NaN offset is a violated row (as in the QP)
+        assert_eq!(
+            verdict(&[hs(1.0, 0.0, f64::NAN)], None),
+            Feasibility::Infeasible
+        );
+    }
+
+    #[test]
+    fn parallel_strips() {
+        // 1 ≤ u_y ≤ 2: non-empty strip (no vertex among the rows themselves)
+        let w = assert_witness(&[hs(0.0, -1.0, -1.0), hs(0.0, 2.0, 4.0)], None);
+        assert!(w[1] >= 1.0 - 1e-9 && w[1] <= 2.0 + 1e-9);
+        // u_y ≥ 2 and u_y ≤ 1: empty
+        assert_eq!(
+            verdict(&[hs(0.0, -1.0, -2.0), hs(0.0, 1.0, 1.0)], None),
+            Feasibility::Infeasible
+        );
+        // same direction, both hold somewhere
+        assert!(verdict(&[hs(0.0, 1.0, -5.0), hs(0.0, 3.0, 2.0)], None).is_feasible());
+    }
+
+    #[test]
+    fn degenerate_single_point_and_segment() {
+        // u_x = 1 and u_y = −0.5 as four half-planes: exactly one point
+        let rows = [
+            hs(1.0, 0.0, 1.0),
+            hs(-1.0, 0.0, -1.0),
+            hs(0.0, 1.0, -0.5),
+            hs(0.0, -1.0, 0.5),
+        ];
+        let w = assert_witness(&rows, None);
+        assert!((w - Input::new(1.0, -0.5)).norm() < 1e-12, "{w}");
+        // the line u_x + u_y = 1 (two opposite half-planes), unbounded segment
+        let rows = [hs(1.0, 1.0, 1.0), hs(-1.0, -1.0, -1.0)];
+        assert_witness(&rows, None);
+        // three lines through one point, as a triangle of zero area
+        let rows = [hs(1.0, 0.0, 0.0), hs(0.0, 1.0, 0.0), hs(-1.0, -1.0, 0.0)];
+        let w = assert_witness(&rows, None);
+        assert!(w.norm() < 1e-12, "{w}");
+        // the same shifted by 1e-3 inward-out: empty
+        let rows = [hs(1.0, 0.0, 0.0), hs(0.0, 1.0, 0.0), hs(-1.0, -1.0, -1e-3)];
+        assert_eq!(verdict(&rows, None), Feasibility::Infeasible);
+    }
+
+    #[test]
+    fn box_edges() {
+        let lim = Some(Input::new(1.0, 2.0));
+        // u_x ≥ 1: exactly on the box edge — feasible
+        let w = assert_witness(&[hs(-1.0, 0.0, -1.0)], lim);
+        assert!((w[0] - 1.0).abs() < 1e-12);
+        // u_x ≥ 1 + 1e-6: outside the box (far beyond the tolerance)
+        assert_eq!(
+            verdict(&[hs(-1.0, 0.0, -1.0 - 1e-6)], lim),
+            Feasibility::Infeasible
+        );
+        // without a box the same row is feasible
+        assert!(verdict(&[hs(-1.0, 0.0, -1.0 - 1e-6)], None).is_feasible());
+        // u_x + u_y ≥ 3: the box corner (1, 2) only
+        let w = assert_witness(&[hs(-1.0, -1.0, -3.0)], lim);
+        assert!((w - Input::new(1.0, 2.0)).norm() < 1e-12, "{w}");
+        assert_eq!(
+            verdict(&[hs(-1.0, -1.0, -3.0 - 1e-6)], lim),
+            Feasibility::Infeasible
+        );
+        // a zero-width box is the single point 0
+        assert!(verdict(&[hs(1.0, 1.0, 0.0)], Some(Input::zeros())).is_feasible());
+        assert_eq!(
+            verdict(&[hs(1.0, 1.0, -1e-3)], Some(Input::zeros())),
+            Feasibility::Infeasible
+        );
+        // a negative box is empty
+        assert_eq!(
+            verdict(&[], Some(Input::new(-1.0, 1.0))),
+            Feasibility::Infeasible
+        );
+    }
+
+    #[test]
+    fn unbounded_without_box() {
+        // a wedge far from the origin: u_x ≥ 1e3, u_y ≥ 1e3
+        let w = assert_witness(&[hs(-1.0, 0.0, -1e3), hs(0.0, -1.0, -1e3)], None);
+        assert!(w[0] >= 1e3 - 1e-6 && w[1] >= 1e3 - 1e-6);
+        // a half-plane alone, and a thin wedge of angle 1e-3 rad ending 2e3 m/s² out
+        assert_witness(&[hs(0.3, -0.7, -50.0)], None);
+        let e: f64 = 1e-3;
+        let rows = [hs(1.0, 0.0, -1.0), hs(-e.cos(), e.sin(), -1.0)];
+        let w = assert_witness(&rows, None);
+        assert!(w[1] < -1.9e3, "{w}");
+        // with a 2 m/s² box the same wedge is out of reach
+        assert_eq!(
+            verdict(&rows, Some(Input::new(2.0, 2.0))),
+            Feasibility::Infeasible
+        );
+        // beyond the virtual box: documented limit (every feasible input has |u_x| > 1e6)
+        assert_eq!(
+            verdict(&[hs(-1.0, 0.0, -2e6)], None),
+            Feasibility::Infeasible
+        );
+    }
+
+    #[test]
+    fn triangle_inside_and_outside() {
+        // u_y ≥ 0, u_y ≤ 1 − |u_x|: a triangle
+        let tri = [hs(0.0, -1.0, 0.0), hs(1.0, 1.0, 1.0), hs(-1.0, 1.0, 1.0)];
+        assert_witness(&tri, None);
+        let mut more = tri.to_vec();
+        more.push(hs(0.0, -1.0, -1.0 - 1e-6)); // u_y ≥ 1 + 1e-6: above the apex
+        assert_eq!(verdict(&more, None), Feasibility::Infeasible);
+        more.pop();
+        more.push(hs(0.0, -1.0, -1.0)); // u_y ≥ 1: the apex only
+        let w = assert_witness(&more, None);
+        assert!((w - Input::new(0.0, 1.0)).norm() < 1e-12, "{w}");
+    }
+}
