@@ -1,4 +1,4 @@
-//! One full `paper_turtlebot` run (20 s simulated: 5000 physics ticks at 250 Hz, 1000 control
+//! One full `paper_turtlebot` run (20 s simulated: 4000 physics ticks at 200 Hz, 1000 control
 //! steps at 50 Hz), with recording off and on. Real-time factor = 20 s / median.
 
 use std::path::PathBuf;
