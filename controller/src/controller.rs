@@ -185,7 +185,11 @@ impl Controller {
     /// Validate the configuration and build the controller.
     pub fn new(cfg: ControllerConfig) -> Result<Self, ConfigError> {
         let q = cfg.model.channels();
-        validate_fault_patterns(&cfg.fault_patterns, q)?;
+        // Baseline and nominal use only the all-channel filter: fault patterns are optional for
+        // them (a world with one receiver has none); FT-CBF-CLF needs m ≥ 1.
+        if cfg.kind == ControllerKind::FtCbfClf || !cfg.fault_patterns.is_empty() {
+            validate_fault_patterns(&cfg.fault_patterns, q)?;
+        }
         let m = cfg.fault_patterns.len();
         if cfg.gamma.len() != m {
             return Err(ConfigError::Length {

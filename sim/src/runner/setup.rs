@@ -243,8 +243,8 @@ impl ControlSetup {
         let theta = match (file.control.theta, &computed) {
             (Param::Value(t), _) => vec![t],
             (Param::Auto, Some(p)) if !p.theta.is_empty() => p.theta.clone(),
-            // m < 2: no pairs, θ unused.
-            (Param::Auto, _) => vec![f64::INFINITY],
+            // m < 2: no pairs, so no θ_ij (C(m,2) = 0 values).
+            (Param::Auto, _) => Vec::new(),
         };
         let delta = file.control.delta.unwrap_or(f64::INFINITY);
 

@@ -13,7 +13,7 @@ pub use schema::*;
 
 use crate::attacks::validate_attacks;
 use crate::obstacles::Obstacle;
-use crate::robot::{LoadOptions, RobotDescription};
+use crate::robot::{DriveLimits, LoadOptions, RobotDescription};
 use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 
 /// Why a world file cannot be used. Every variant names the file; validation errors also name the
@@ -208,6 +208,11 @@ impl Validator<'_> {
                     ));
                 }
                 self.non_negative("physics.friction", file.physics.friction)?;
+                if let Some(l) = file.robot.as_ref().and_then(|r| r.limits) {
+                    self.positive("robot.limits.v_max", l.v_max)?;
+                    self.positive("robot.limits.omega_max", l.omega_max)?;
+                    self.positive("robot.limits.wheel_speed_max", l.wheel_speed_max)?;
+                }
                 let st = file.robot.as_ref().map(|r| r.start).unwrap_or_default();
                 self.finite("robot.start", &[st.x, st.y, st.theta])?;
                 file.physics.dt
@@ -372,6 +377,13 @@ impl Validator<'_> {
             }
         }
 
+        if file.control.controller == ControllerKindSpec::FtCbfClf && patterns.is_empty() {
+            return Err(self.err(
+                "fault_patterns",
+                "control.controller = \"ft-cbf-clf\" needs at least one [[fault_patterns]] entry (the sets of \
+                 channels that may fail together); use controller = \"baseline\" for a world without them",
+            ));
+        }
         if let Some(e) = &file.expect {
             for (key, o) in [
                 ("expect", Some(e.own())),
@@ -400,7 +412,11 @@ impl Validator<'_> {
         let opts = LoadOptions {
             package_paths: r.package_paths.iter().map(|p| base.join(p)).collect(),
             wheel_joints: r.wheels.clone().map(|[l, rr]| (l, rr)),
-            limits: None,
+            limits: r.limits.map(|l| DriveLimits {
+                v_max: l.v_max,
+                omega_max: l.omega_max,
+                wheel_speed_max: l.wheel_speed_max,
+            }),
         };
         RobotDescription::from_file(&urdf, &opts).map_err(|e| self.err("robot.urdf", e.to_string()))
     }

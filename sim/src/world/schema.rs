@@ -79,6 +79,21 @@ pub struct RobotSection {
     pub start: StartPose,
     /// Names of the left and right drive-wheel joints (default: found from the continuous joints).
     pub wheels: Option<[String; 2]>,
+    /// Drive limits, for URDFs whose wheel joints carry no `<limit velocity>` (the ROS
+    /// TurtleBot3 files do not). Default: derived from the wheel joints' limits.
+    pub limits: Option<LimitsSpec>,
+}
+
+/// `[robot] limits = { v_max, omega_max, wheel_speed_max }`
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsSpec {
+    /// Maximum forward speed |v| [m/s].
+    pub v_max: f64,
+    /// Maximum yaw rate |ω| [rad/s].
+    pub omega_max: f64,
+    /// Maximum wheel angular speed [rad/s].
+    pub wheel_speed_max: f64,
 }
 
 /// A planar pose.

@@ -1,0 +1,46 @@
+//! A world file can drive a TurtleBot3 URDF as ROS ships it: its wheel joints carry no speed
+//! limits, so the world's `[robot] limits` supply them; missing visual meshes are warnings.
+
+use std::path::PathBuf;
+
+use ftcbf_sim::runner::{run, RunOptions};
+use ftcbf_sim::world::{Override, World};
+
+fn path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_ros/ros_burger.toml")
+}
+
+#[test]
+fn ros_urdf_runs_with_limits_from_the_world() {
+    let w = World::load(&path(), &[]).expect("loads");
+    let robot = w.robot.as_ref().expect("rapier world");
+    assert!(
+        (robot.limits.omega_max - 2.84).abs() < 1e-12,
+        "limits from the world file"
+    );
+    assert!((robot.wheels.geometry.radius - 0.033).abs() < 1e-9);
+    assert!(
+        !robot.warnings.is_empty(),
+        "missing visual meshes are reported as warnings"
+    );
+    let s = run(&w, &RunOptions::default()).expect("runs");
+    assert!(s.safe && !s.collided, "{s:?}");
+    assert!(
+        s.goal_reached,
+        "reaches (1, 0) within 12 s: {:?}",
+        s.final_state
+    );
+}
+
+#[test]
+fn bad_limits_name_their_key() {
+    let e = World::load(
+        &path(),
+        &[Override {
+            key: "robot.limits.omega_max".into(),
+            value: -1.0,
+        }],
+    )
+    .expect_err("negative limit");
+    assert!(e.to_string().contains("robot.limits.omega_max"), "{e}");
+}
