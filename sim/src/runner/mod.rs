@@ -22,7 +22,7 @@ use ftcbf_controller::policy::{DropReason, QpOutcome, Stage, Verdict};
 
 use crate::attacks::AttackStack;
 use crate::observe::{ChannelView, EstimateView, Frame, Observer};
-use crate::sensors::{stream_rng, Quantity, SensorSuite};
+use crate::sensors::{Quantity, SensorSuite};
 use crate::state::TruthState;
 use crate::summary::{
     AttackWindow, CollisionEvent, NamedValue, RunSummary, StepCounts, ViolationEvent,
@@ -91,13 +91,17 @@ fn stage_name(o: &QpOutcome) -> &'static str {
 }
 
 fn count_stage(c: &mut StepCounts, o: &QpOutcome) {
-    match stage_name(o) {
-        "step1" => c.step1 += 1,
-        "clf_relaxed" => c.clf_relaxed += 1,
-        "step2" => c.step2 += 1,
-        "step3" => c.step3 += 1,
-        _ => c.infeasible += 1,
-    }
+    let counter = match o {
+        QpOutcome::Feasible { stage, .. } => match stage {
+            Stage::Step1 => &mut c.step1,
+            Stage::ClfRelaxation => &mut c.clf_relaxed,
+            Stage::Step2 => &mut c.step2,
+            Stage::Step3 => &mut c.step3,
+            Stage::Fallback => &mut c.infeasible,
+        },
+        QpOutcome::InfeasibleAfterStep3 { .. } => &mut c.infeasible,
+    };
+    *counter += 1;
 }
 
 /// Runs `world`, showing every control step to `observer` (the recorder, a test).
@@ -434,9 +438,4 @@ pub fn run_observed(
         attacks_outside_fault_patterns: !outside.is_empty(),
         final_state: [end.x, end.y, end.vx, end.vy],
     })
-}
-
-/// A process-noise stream for the linear plant, independent of every sensor stream.
-pub(crate) fn plant_rng(seed: u64) -> rand_chacha::ChaCha20Rng {
-    stream_rng(seed, "plant", "process_noise")
 }

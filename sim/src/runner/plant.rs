@@ -11,10 +11,10 @@ use rand_distr::StandardNormal;
 use crate::drive::{Drive, DriveConfig};
 use crate::obstacles::ObstacleBarrier;
 use crate::physics::{PhysicsConfig, PhysicsWorld, Pose2};
+use crate::sensors::stream_rng;
 use crate::state::TruthState;
 use crate::world::{Dynamics, World};
 
-use super::plant_rng;
 use super::setup::obstacle_barrier_config;
 
 /// The simulated plant.
@@ -112,7 +112,8 @@ impl Plant {
                     u: Input::zeros(),
                     t: 0.0,
                     dt: lin.dt,
-                    rng: plant_rng(seed),
+                    // Its own stream, independent of every sensor stream.
+                    rng: stream_rng(seed, "plant", "process_noise"),
                     obstacles: world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect(),
                 })
             }
