@@ -74,6 +74,8 @@ pub struct Scene {
     pub barriers: Vec<String>,
     /// Attack labels, in the order of [`Frame::attacks_active`].
     pub attacks: Vec<String>,
+    /// Per attack (in [`Scene::attacks`] order), the channels it targets.
+    pub attack_channels: Vec<Vec<String>>,
 }
 
 /// One estimator's view at a control step.
@@ -100,6 +102,8 @@ pub struct ChannelView {
     /// one-step innovation z = (received − c x̂⁻)/√(c P⁻ cᵀ + r), before the update (NaN when
     /// the channel is not in the linear model or not fresh). |z| ≤ 3 is a 3σ detector's "normal".
     pub detector_z: f64,
+    /// The controller threw this reading out (non-finite or beyond its plausible range).
+    pub rejected: bool,
 }
 
 /// One control step.

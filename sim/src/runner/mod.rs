@@ -198,6 +198,7 @@ pub fn run_observed(
             received: 0.0,
             fresh: false,
             detector_z: f64::NAN,
+            rejected: false,
         };
         file.sensors.len()
     ];
@@ -279,6 +280,11 @@ pub fn run_observed(
         let u = out.u;
         count_stage(&mut steps, &out.qp);
         rejected += out.rejected.count as u64;
+        if observer.is_some() {
+            for (v, c) in channels_view.iter_mut().zip(&setup.channel_of_sensor) {
+                v.rejected = c.is_some_and(|c| out.rejected.channels.get(c) == Some(&true));
+            }
+        }
 
         if observer.is_some() {
             note.clear();

@@ -239,5 +239,11 @@ pub fn build_scene(
         filters: filters.to_vec(),
         barriers: setup.barrier_names.clone(),
         attacks: attacks.iter().map(|(l, _, _)| l.clone()).collect(),
+        attack_channels: world
+            .file
+            .attacks
+            .iter()
+            .map(|a| a.channels.clone())
+            .collect(),
     }
 }

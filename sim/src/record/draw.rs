@@ -1,0 +1,365 @@
+//! Static drawing of the scene: colours, entity names, the ground sized to the world, shapes
+//! standing on the floor, and safe-set lines cut to the ground.
+
+use crate::observe::{Geometry, Placed, Scene};
+
+/// Margin around the scene's extent when sizing the ground [m].
+const GROUND_MARGIN: f32 = 0.3;
+
+/// An opaque colour (const; rerun's `Color::from_rgb` is not).
+const fn rgb(r: u8, g: u8, b: u8) -> rerun::Color {
+    rerun::Color(rerun::datatypes::Rgba32(
+        (r as u32) << 24 | (g as u32) << 16 | (b as u32) << 8 | 0xff,
+    ))
+}
+
+/// One colour per estimator (index in [`Scene::filters`]), used in the 3D view and every plot.
+pub(crate) fn palette(i: usize) -> rerun::Color {
+    const C: [[u8; 3]; 8] = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [148, 103, 189],
+        [23, 190, 207],
+        [227, 119, 194],
+        [188, 189, 34],
+        [140, 86, 75],
+    ];
+    let [r, g, b] = C[i % C.len()];
+    rerun::Color::from_rgb(r, g, b)
+}
+
+/// The name of [`palette`]`(i)`, for titles.
+pub(crate) fn colour_name(i: usize) -> &'static str {
+    const N: [&str; 8] = [
+        "blue", "orange", "green", "purple", "cyan", "pink", "olive", "brown",
+    ];
+    N[i % N.len()]
+}
+
+/// Colours for what is not an estimator (channels, control signals, attacks): dark tones
+/// that the estimator palette does not use.
+pub(crate) fn other(i: usize) -> rerun::Color {
+    const C: [[u8; 3]; 4] = [[70, 70, 160], [160, 90, 40], [40, 120, 100], [120, 40, 90]];
+    let [r, g, b] = C[i % C.len()];
+    rerun::Color::from_rgb(r, g, b)
+}
+
+/// Ground truth in the 3D view and the plots.
+pub(crate) const TRUTH: rerun::Color = rgb(20, 20, 20);
+/// The clean sensor signal.
+pub(crate) const CLEAN: rerun::Color = rgb(120, 120, 120);
+/// What the controller received.
+pub(crate) const RECEIVED: rerun::Color = rgb(214, 39, 40);
+/// Attack windows.
+pub(crate) const ATTACK: rerun::Color = rgb(255, 150, 150);
+/// Safe-set boundaries.
+pub(crate) const SAFE_SET: rerun::Color = rgb(214, 39, 40);
+/// Goal region.
+pub(crate) const GOAL: rerun::Color = rgb(44, 160, 44);
+/// Marks for values clipped to a plot's range, and rejected readings.
+pub(crate) const MARK: rerun::Color = rgb(230, 0, 230);
+
+/// An entity-path segment: ASCII letters, digits, `_` and `-` kept, any other run of characters
+/// becomes one `_`, no `_` at either end (nothing the viewer has to escape).
+pub(crate) fn seg(name: &str) -> String {
+    let mut s = String::with_capacity(name.len());
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+            s.push(c);
+        } else if !s.ends_with('_') {
+            s.push('_');
+        }
+    }
+    let t = s.trim_matches('_');
+    if t.is_empty() {
+        "_".into()
+    } else {
+        t.to_string()
+    }
+}
+
+/// Axis-aligned rectangle on the ground, (min x, min y, max x, max y) [m].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Rect {
+    pub lo: [f32; 2],
+    pub hi: [f32; 2],
+}
+
+impl Rect {
+    fn around(p: [f32; 2]) -> Self {
+        Self { lo: p, hi: p }
+    }
+    fn add(&mut self, p: [f32; 2], r: [f32; 2]) {
+        if p.iter().chain(&r).all(|v| v.is_finite()) {
+            self.lo = [self.lo[0].min(p[0] - r[0]), self.lo[1].min(p[1] - r[1])];
+            self.hi = [self.hi[0].max(p[0] + r[0]), self.hi[1].max(p[1] + r[1])];
+        }
+    }
+    fn padded(self, m: f32) -> Self {
+        Self {
+            lo: [self.lo[0] - m, self.lo[1] - m],
+            hi: [self.hi[0] + m, self.hi[1] + m],
+        }
+    }
+    /// Cuts the segment a–b to the rectangle (Liang–Barsky); `None` when it misses.
+    pub(crate) fn clip(&self, a: [f32; 3], b: [f32; 3]) -> Option<([f32; 3], [f32; 3])> {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        for k in 0..2 {
+            for (p, q) in [(-d[k], a[k] - self.lo[k]), (d[k], self.hi[k] - a[k])] {
+                if p == 0.0 {
+                    if q < 0.0 {
+                        return None;
+                    }
+                } else {
+                    let r = q / p;
+                    if p < 0.0 {
+                        t0 = t0.max(r);
+                    } else {
+                        t1 = t1.min(r);
+                    }
+                }
+            }
+        }
+        let at = |t: f32| [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * (b[2] - a[2])];
+        (t0 <= t1).then(|| (at(t0), at(t1)))
+    }
+}
+
+/// Half extents (x, y) of a shape's footprint on the ground, for a shape turned by `yaw`
+/// (bounding circle for anything not a box).
+fn footprint(g: &Geometry, yaw: f32) -> [f32; 2] {
+    match g {
+        Geometry::Cuboid { half_extents: h } => {
+            let (s, c) = (yaw.sin().abs(), yaw.cos().abs());
+            [c * h[0] + s * h[1], s * h[0] + c * h[1]]
+        }
+        Geometry::Ball { radius } | Geometry::Cylinder { radius, .. } => [*radius; 2],
+        Geometry::Capsule {
+            radius,
+            half_height,
+        } => [radius + half_height; 2],
+        Geometry::Mesh { .. } => [0.0; 2],
+    }
+}
+
+/// Yaw of a quaternion (x, y, z, w) [rad].
+fn yaw(q: [f32; 4]) -> f32 {
+    let [x, y, z, w] = q;
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+}
+
+/// The part of the ground the run uses: start, goal, obstacles, and closed safe-set
+/// outlines (open lines, i.e. half-planes, are cut to this rectangle instead), with a margin.
+pub(crate) fn scene_extent(scene: &Scene, start: [f32; 2]) -> Rect {
+    let mut r = Rect::around(start);
+    let ([gx, gy], gr) = scene.goal;
+    r.add([gx, gy], [gr; 2]);
+    for ob in &scene.obstacles {
+        match &ob.geometry {
+            // Meshes (cones, hulls, 6 m wall patches) count by their origin only, so a wall
+            // patch does not stretch the ground.
+            Geometry::Mesh { .. } => r.add([ob.translation[0], ob.translation[1]], [0.0; 2]),
+            g => r.add(
+                [ob.translation[0], ob.translation[1]],
+                footprint(g, yaw(ob.rotation)),
+            ),
+        }
+    }
+    for (_, pts) in &scene.safe_set_outlines {
+        if pts.len() > 2 {
+            for p in pts {
+                r.add([p[0], p[1]], [0.0; 2]);
+            }
+        }
+    }
+    r.padded(GROUND_MARGIN)
+}
+
+/// How far a shape of `p` reaches below its origin along world z (0 for meshes, which parry
+/// stores in their world pose). Only upright shapes are considered (tilted ones are drawn as given).
+fn depth_below_origin(p: &Placed) -> f32 {
+    let [x, y, _, _] = p.rotation;
+    if x.abs() > 1e-4 || y.abs() > 1e-4 {
+        return 0.0;
+    }
+    match &p.geometry {
+        Geometry::Cuboid { half_extents } => half_extents[2],
+        Geometry::Ball { radius } => *radius,
+        Geometry::Cylinder { half_height, .. } => *half_height,
+        Geometry::Capsule {
+            radius,
+            half_height,
+        } => radius + half_height,
+        Geometry::Mesh { .. } => 0.0,
+    }
+}
+
+/// An obstacle as drawn: one that reaches below the floor (z = 0) while its centre is above
+/// −depth is lifted to stand on it. The planar problem ignores z; this only fixes the picture.
+pub(crate) fn standing(p: &Placed) -> Placed {
+    let mut q = p.clone();
+    let bottom = p.translation[2] - depth_below_origin(p);
+    if bottom < 0.0 && p.translation[2] >= -1e-6 {
+        q.translation[2] -= bottom;
+    }
+    q
+}
+
+/// Logs a placed shape (transform and solid shape) as static data under `base/<name>`.
+pub(crate) fn log_placed(
+    rec: &rerun::RecordingStream,
+    base: &str,
+    p: &Placed,
+    color: rerun::Color,
+) -> Result<(), rerun::RecordingStreamError> {
+    let path = format!("{base}/{}", seg(&p.name));
+    rec.log_static(
+        path.as_str(),
+        &rerun::Transform3D::from_translation_rotation(
+            p.translation,
+            rerun::Quaternion::from_xyzw(p.rotation),
+        ),
+    )?;
+    let solid = rerun::FillMode::Solid;
+    match &p.geometry {
+        Geometry::Cuboid { half_extents } => rec.log_static(
+            path.as_str(),
+            &rerun::Boxes3D::from_half_sizes([*half_extents])
+                .with_colors([color])
+                .with_fill_mode(solid),
+        ),
+        Geometry::Ball { radius } => rec.log_static(
+            path.as_str(),
+            &rerun::Ellipsoids3D::from_radii([*radius])
+                .with_colors([color])
+                .with_fill_mode(solid),
+        ),
+        Geometry::Cylinder {
+            radius,
+            half_height,
+        } => rec.log_static(
+            path.as_str(),
+            &rerun::Cylinders3D::from_lengths_and_radii([2.0 * half_height], [*radius])
+                .with_colors([color])
+                .with_fill_mode(solid),
+        ),
+        Geometry::Capsule {
+            radius,
+            half_height,
+        } => rec.log_static(
+            path.as_str(),
+            // rerun capsules run between two end points: give them, centred on the origin.
+            &rerun::Capsules3D::from_endpoints_and_radii(
+                [[0.0, 0.0, -half_height]],
+                [[0.0, 0.0, *half_height]],
+                [*radius],
+            )
+            .with_colors([color])
+            .with_fill_mode(solid),
+        ),
+        Geometry::Mesh {
+            vertices,
+            triangles,
+        } => rec.log_static(
+            path.as_str(),
+            &rerun::Mesh3D::new(vertices.iter().copied())
+                .with_triangle_indices(triangles.iter().copied())
+                .with_albedo_factor(color.0),
+        ),
+    }
+}
+
+/// A circle of radius `r` around `c` at height `z`, as a closed polyline.
+pub(crate) fn circle(c: [f32; 2], r: f32, z: f32) -> Vec<[f32; 3]> {
+    (0..=64)
+        .map(|k| {
+            let a = k as f32 / 64.0 * std::f32::consts::TAU;
+            [c[0] + r * a.cos(), c[1] + r * a.sin(), z]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_need_no_escaping() {
+        assert_eq!(seg("gnss1_x"), "gnss1_x");
+        assert_eq!(
+            seg("bias+drift[gnss1_x, gnss2_y]"),
+            "bias_drift_gnss1_x_gnss2_y"
+        );
+        assert_eq!(seg("ε/δ"), "_");
+        assert_eq!(seg("a b"), "a_b");
+    }
+
+    #[test]
+    fn half_plane_lines_are_cut_to_the_ground() {
+        let r = Rect {
+            lo: [-1.0, -1.0],
+            hi: [2.0, 1.0],
+        };
+        let (a, b) = r.clip([-6.0, 0.5, 0.0], [6.0, 0.5, 0.0]).unwrap();
+        assert!((a[0] + 1.0).abs() < 1e-6 && (b[0] - 2.0).abs() < 1e-6);
+        assert!((a[1] - 0.5).abs() < 1e-6 && (b[1] - 0.5).abs() < 1e-6);
+        assert!(r.clip([-6.0, 3.0, 0.0], [6.0, 3.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn pillars_stand_on_the_floor() {
+        let pillar = Placed {
+            name: "p".into(),
+            geometry: Geometry::Cylinder {
+                radius: 0.1,
+                half_height: 0.25,
+            },
+            translation: [1.0, 2.0, 0.0],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        };
+        assert_eq!(standing(&pillar).translation, [1.0, 2.0, 0.25]);
+        let crate_ = Placed {
+            geometry: Geometry::Cuboid {
+                half_extents: [0.1, 0.1, 0.1],
+            },
+            translation: [0.0, 0.0, 0.1],
+            ..pillar.clone()
+        };
+        assert_eq!(standing(&crate_).translation, [0.0, 0.0, 0.1]);
+    }
+
+    #[test]
+    fn the_ground_frames_goal_and_obstacles_not_half_plane_lines() {
+        let scene = Scene {
+            goal: ([2.5, 0.6], 0.1),
+            safe_set_outlines: vec![("wall".into(), vec![[-6.0, 1.0, 0.0], [6.0, 1.0, 0.0]])],
+            ..Scene::default()
+        };
+        let r = scene_extent(&scene, [0.0, 0.0]);
+        assert!((r.hi[0] - (2.6 + GROUND_MARGIN)).abs() < 1e-6);
+        assert!((r.lo[0] + GROUND_MARGIN).abs() < 1e-6);
+        assert!((r.hi[1] - (0.7 + GROUND_MARGIN)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_long_wall_widens_the_ground_along_its_length_only() {
+        let wall = Placed {
+            name: "wall".into(),
+            geometry: Geometry::Cuboid {
+                half_extents: [2.5, 0.05, 0.15],
+            },
+            translation: [1.5, 0.55, 0.15],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        };
+        let scene = Scene {
+            obstacles: vec![wall],
+            goal: ([3.0, 0.0], 0.1),
+            ..Scene::default()
+        };
+        let r = scene_extent(&scene, [0.0, 0.0]);
+        assert!((r.lo[0] - (-1.0 - GROUND_MARGIN)).abs() < 1e-5, "{r:?}");
+        assert!((r.hi[1] - (0.6 + GROUND_MARGIN)).abs() < 1e-5, "{r:?}");
+    }
+}

@@ -1,0 +1,380 @@
+//! Headless rerun recording of a run to an `.rrd` file (feature `record`), with a default
+//! blueprint so the viewer shows the run, with no clicking, as [`layout`] describes.
+//!
+//! Entity paths (stable; segments hold only ASCII letters, digits, `_` and `-`):
+//! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor),
+//!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`;
+//! - `world/robot/<link>` — link pose over time, its collision shapes (static) below it (the
+//!   catalogue URDFs have no visual meshes, so collision primitives are drawn);
+//! - `world/estimates/<filter>` — each estimator's position over time (colour and radius
+//!   static); `world/trails/{truth,<filter>}` — paths growing with time (a point every
+//!   [`TRAIL_EVERY`] control steps);
+//! - plots, as [`plots`] describes: `barriers/<barrier>/{truth,<filter>,zero,clipped}`,
+//!   `sensors/<channel>/{clean,received,rejected,attack_window,clipped}`, `detector/<channel>`,
+//!   `residues/<filter>`, `clf/<filter>` (V/V₀), `control/{v,omega,u_x,u_y}`, `attacks/<label>`;
+//! - `events/policy` (stage changes and dropped constraints; WARN when infeasible, naming the
+//!   tightest constraint), `events/safety` (WARN: collisions and violations, naming the obstacle
+//!   or set), `events/attacks` (WARN at a window's start, INFO at its end).
+//!
+//! One colour per estimator ([`draw::palette`]) in the 3D view and in every plot.
+//! Timelines: `sim_time` (seconds) and `step` (control step). The application id and the
+//! recording name are `ftcbf-<world>-<controller>-seed<N>`, so each world/controller/seed has its
+//! own stored layout in the viewer; log time is not recorded. The blueprint's view ids are random
+//! (rerun's API), so two files of the same run differ there and nowhere in the data.
+//!
+//! Cost: positions, transforms and series are buffered and sent once, as columns, by
+//! [`Recorder::finish`]; only trails and events are logged as the run goes.
+
+mod draw;
+mod events;
+mod layout;
+mod plots;
+
+use std::path::Path;
+
+use rerun::{RecordingStream, RecordingStreamBuilder};
+
+use crate::observe::{Frame, Observer, Scene};
+use draw::{log_placed, palette, seg, Rect, GOAL, SAFE_SET, TRUTH};
+use plots::Plots;
+
+pub use plots::{MIN_SPAN, RESIDUE_MAX, V_RATIO_MAX, Z_MAX};
+
+/// Trails get a point, and are re-logged, every this many control steps.
+pub const TRAIL_EVERY: u64 = 10;
+
+/// Why a recording could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The file could not be created.
+    #[error("cannot create the recording {path}: {message}")]
+    Create {
+        /// The .rrd path.
+        path: String,
+        /// The SDK's message.
+        message: String,
+    },
+    /// The SDK failed while logging or flushing.
+    #[error("recording {path}: {message}")]
+    Write {
+        /// The .rrd path.
+        path: String,
+        /// The SDK's message.
+        message: String,
+    },
+}
+
+/// A robot link's name, translations and quaternions (x, y, z, w) at every step.
+type LinkTrack = (String, Vec<[f32; 3]>, Vec<[f32; 4]>);
+
+/// Writes a run to an `.rrd` file. Logging errors are kept and reported by [`Recorder::finish`].
+pub struct Recorder {
+    rec: RecordingStream,
+    path: String,
+    scene: Scene,
+    plots: Plots,
+    ground: Option<Rect>,
+    time: Vec<f64>,
+    steps: Vec<i64>,
+    /// Per estimator, its position at every step.
+    positions: Vec<Vec<[f32; 3]>>,
+    /// Per link, (translation, quaternion xyzw) at every step.
+    links: Vec<LinkTrack>,
+    /// Truth first, then one per estimator.
+    trails: Vec<Vec<[f32; 3]>>,
+    last_policy: String,
+    last_attacks: Vec<bool>,
+    first_error: Option<String>,
+}
+
+impl Recorder {
+    /// Creates `path` (and its directory) and a stream named by `recording_id`
+    /// (`<world>-<controller>-seed<N>`): recording id, recording name and application id.
+    pub fn create(path: &Path, recording_id: &str) -> Result<Self, RecordError> {
+        let p = path.display().to_string();
+        let create_err = |message: String| RecordError::Create {
+            path: p.clone(),
+            message,
+        };
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| create_err(e.to_string()))?;
+        }
+        let app = rerun::ApplicationId::try_new(format!("ftcbf-{}", seg(recording_id)))
+            .map_err(|e| create_err(e.to_string()))?;
+        let rec = RecordingStreamBuilder::new(app)
+            .recording_id(recording_id)
+            .recording_name(recording_id)
+            .enabled(true)
+            .save(path)
+            .map_err(|e| create_err(e.to_string()))?;
+        rec.set_log_time_enabled(false);
+        Ok(Self {
+            rec,
+            path: p,
+            scene: Scene::default(),
+            plots: Plots::default(),
+            ground: None,
+            time: Vec::new(),
+            steps: Vec::new(),
+            positions: Vec::new(),
+            links: Vec::new(),
+            trails: Vec::new(),
+            last_policy: String::new(),
+            last_attacks: Vec::new(),
+            first_error: None,
+        })
+    }
+
+    fn keep<T, E: std::fmt::Display>(&mut self, r: Result<T, E>) {
+        if let Err(e) = r {
+            self.first_error.get_or_insert_with(|| e.to_string());
+        }
+    }
+
+    /// The ground and the safe sets, sized to the scene and the start (first frame).
+    fn log_ground(&mut self, start: [f32; 2]) {
+        let r = draw::scene_extent(&self.scene, start);
+        self.ground = Some(r);
+        let c = [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, -0.005];
+        let h = [(r.hi[0] - r.lo[0]) / 2.0, (r.hi[1] - r.lo[1]) / 2.0, 0.005];
+        let res = self.rec.log_static(
+            "world/ground",
+            &rerun::Boxes3D::from_centers_and_half_sizes([c], [h])
+                .with_colors([rerun::Color::from_rgb(225, 225, 220)])
+                .with_fill_mode(rerun::FillMode::Solid),
+        );
+        self.keep(res);
+        for (name, pts) in self.scene.safe_set_outlines.clone() {
+            let pts = match pts.as_slice() {
+                [a, b] => match r.clip(*a, *b) {
+                    Some((a, b)) => vec![a, b],
+                    None => continue,
+                },
+                _ => pts,
+            };
+            let res = self.rec.log_static(
+                format!("world/safe_sets/{}", seg(&name)).as_str(),
+                &rerun::LineStrips3D::new([pts])
+                    .with_colors([SAFE_SET])
+                    .with_radii([0.006f32])
+                    .with_labels([name.as_str()]),
+            );
+            self.keep(res);
+        }
+    }
+
+    /// Re-logs every trail (at the current time), so it grows with time.
+    fn log_trails(&mut self) {
+        for (i, pts) in self.trails.iter().enumerate() {
+            let (path, color) = match i {
+                0 => ("world/trails/truth".to_string(), TRUTH),
+                _ => (
+                    format!("world/trails/{}", seg(&self.scene.filters[i - 1])),
+                    palette(i - 1),
+                ),
+            };
+            let r = self.rec.log(
+                path.as_str(),
+                &rerun::LineStrips3D::new([pts.clone()])
+                    .with_colors([color])
+                    .with_radii([if i == 0 { 0.006f32 } else { 0.004 }]),
+            );
+            if let Err(e) = r {
+                self.first_error.get_or_insert_with(|| e.to_string());
+            }
+        }
+    }
+
+    /// Sends the buffered positions and link poses as columns.
+    fn send_poses(&mut self) -> Result<(), String> {
+        let times = || {
+            [
+                rerun::TimeColumn::new_duration_secs("sim_time", self.time.iter().copied()),
+                rerun::TimeColumn::new_sequence("step", self.steps.iter().copied()),
+            ]
+        };
+        let e = |e: &dyn std::fmt::Display| e.to_string();
+        for (i, pos) in self.positions.iter().enumerate() {
+            let cols = rerun::Points3D::update_fields()
+                .with_positions(pos.iter().copied())
+                .columns_of_unit_batches()
+                .map_err(|x| e(&x))?;
+            let path = format!("world/estimates/{}", seg(&self.scene.filters[i]));
+            self.rec
+                .send_columns(path.as_str(), times(), cols)
+                .map_err(|x| e(&x))?;
+        }
+        for (name, tr, q) in &self.links {
+            let cols = rerun::Transform3D::update_fields()
+                .with_many_translation(tr.iter().copied())
+                .with_many_quaternion(q.iter().map(|q| rerun::Quaternion::from_xyzw(*q)))
+                .columns_of_unit_batches()
+                .map_err(|x| e(&x))?;
+            let path = format!("world/robot/{}", seg(name));
+            self.rec
+                .send_columns(path.as_str(), times(), cols)
+                .map_err(|x| e(&x))?;
+        }
+        Ok(())
+    }
+
+    /// Flushes and closes the file; reports the first logging error, if any.
+    pub fn finish(mut self) -> Result<(), RecordError> {
+        self.log_trails();
+        let r = self.send_poses();
+        self.keep(r);
+        let r = std::mem::take(&mut self.plots).send(&self.rec);
+        self.keep(r);
+        let r = self.rec.flush_blocking();
+        self.keep(r);
+        self.rec.disconnect();
+        match self.first_error {
+            Some(message) => Err(RecordError::Write {
+                path: self.path,
+                message,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Events of this frame: policy changes, safety events, attack windows starting/ending.
+    fn log_events(&mut self, f: &Frame<'_>) {
+        let mut results = Vec::new();
+        let (key, policy) = events::policy_line(&self.scene, f);
+        if key != self.last_policy {
+            let level = if f.decided_by == "infeasible" {
+                rerun::TextLogLevel::WARN
+            } else {
+                rerun::TextLogLevel::INFO
+            };
+            results.push(self.rec.log(
+                "events/policy",
+                &rerun::TextLog::new(policy.as_str()).with_level(level),
+            ));
+            self.last_policy = key;
+        }
+        for e in f.events {
+            results.push(self.rec.log(
+                "events/safety",
+                &rerun::TextLog::new(e.as_str()).with_level(rerun::TextLogLevel::WARN),
+            ));
+        }
+        self.last_attacks.resize(f.attacks_active.len(), false);
+        for (a, &on) in f.attacks_active.iter().enumerate() {
+            if on != self.last_attacks[a] {
+                let line = events::attack_line(&self.scene, a, on, f.t);
+                let level = if on {
+                    rerun::TextLogLevel::WARN
+                } else {
+                    rerun::TextLogLevel::INFO
+                };
+                results.push(self.rec.log(
+                    "events/attacks",
+                    &rerun::TextLog::new(line).with_level(level),
+                ));
+                self.last_attacks[a] = on;
+            }
+        }
+        for r in results {
+            self.keep(r);
+        }
+    }
+}
+
+impl Observer for Recorder {
+    fn scene(&mut self, scene: &Scene) {
+        self.scene = scene.clone();
+        self.plots = Plots::new(scene);
+        let r = layout::blueprint(scene).send(
+            &self.rec,
+            rerun::blueprint::BlueprintActivation {
+                // What `RecordingStreamBuilder::with_default_blueprint` sets: the user's own
+                // layout edits win. Sent here because the layout needs the scene's names.
+                make_active: false,
+                make_default: true,
+            },
+        );
+        self.keep(r);
+        let r = self
+            .rec
+            .log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP());
+        self.keep(r);
+        for ob in &scene.obstacles {
+            let r = log_placed(
+                &self.rec,
+                "world/obstacles",
+                &draw::standing(ob),
+                rerun::Color::from_rgb(130, 130, 150),
+            );
+            self.keep(r);
+        }
+        let ([gx, gy], gr) = scene.goal;
+        let r = self.rec.log_static(
+            "world/goal",
+            &rerun::LineStrips3D::new([draw::circle([gx, gy], gr, 0.003)])
+                .with_colors([GOAL])
+                .with_radii([0.008f32])
+                .with_labels(["goal"]),
+        );
+        self.keep(r);
+        for (link, shapes) in &scene.robot_links {
+            let base = format!("world/robot/{}", seg(link));
+            for s in shapes {
+                let r = log_placed(&self.rec, &base, s, rerun::Color::from_rgb(70, 70, 70));
+                self.keep(r);
+            }
+        }
+        for (i, f) in scene.filters.iter().enumerate() {
+            let r = self.rec.log_static(
+                format!("world/estimates/{}", seg(f)).as_str(),
+                &rerun::Points3D::update_fields()
+                    .with_colors([palette(i)])
+                    .with_radii([0.03f32]),
+            );
+            self.keep(r);
+        }
+        self.positions = vec![Vec::new(); scene.filters.len()];
+        self.trails = vec![Vec::new(); scene.filters.len() + 1];
+    }
+
+    fn frame(&mut self, f: &Frame<'_>) {
+        self.rec.set_duration_secs("sim_time", f.t);
+        self.rec.set_time_sequence("step", f.step as i64);
+        let truth = [f.truth.x as f32, f.truth.y as f32];
+        if self.ground.is_none() {
+            self.log_ground(truth);
+        }
+        self.time.push(f.t);
+        self.steps.push(f.step as i64);
+        if self.links.is_empty() {
+            self.links = f
+                .link_poses
+                .iter()
+                .map(|(n, _, _)| (n.clone(), Vec::new(), Vec::new()))
+                .collect();
+        }
+        for ((_, tr, q), (_, p, r)) in self.links.iter_mut().zip(f.link_poses) {
+            tr.push(*p);
+            q.push(*r);
+        }
+        let est = |e: &crate::observe::EstimateView| [e.x[0] as f32, e.x[1] as f32, 0.02];
+        let finite = |p: &[f32; 3]| p.iter().all(|v| v.is_finite());
+        for (pos, e) in self.positions.iter_mut().zip(f.estimates) {
+            pos.push(est(e));
+        }
+        if f.step.is_multiple_of(TRAIL_EVERY) {
+            if let Some(t) = self.trails.first_mut() {
+                t.push([truth[0], truth[1], 0.004]);
+            }
+            for (t, e) in self.trails.iter_mut().skip(1).zip(f.estimates) {
+                let p = est(e);
+                if finite(&p) {
+                    t.push(p);
+                }
+            }
+            self.log_trails();
+        }
+        self.plots.push(f);
+        self.log_events(f);
+    }
+}
