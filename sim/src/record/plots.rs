@@ -395,6 +395,6 @@ mod tests {
     #[test]
     fn a_flat_reference_still_gets_a_range() {
         assert_eq!(widened(Some((1.0, 1.0))), (0.5, 1.5));
-        assert_eq!(widened(None), (-1.0, 1.0));
+        assert_eq!(widened(None), (-1.5, 1.5));
     }
 }
