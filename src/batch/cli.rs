@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::{
-    io, merge, run_sweep, table, BatchPlan, BatchResult, Execution, ParamOverride, PreparedWorld,
-    Shard, Sweep, CONFIDENCE,
+    figure, io, merge, run_sweep, table, BatchPlan, BatchResult, Execution, ParamOverride,
+    PreparedWorld, Shard, Sweep, CONFIDENCE,
 };
 
 /// Loads the world with the given overrides and returns its info and trial runner (wired by
@@ -143,7 +143,11 @@ pub fn batch_command(args: &BatchArgs, prepare: &PrepareFn<'_>) -> anyhow::Resul
     let (results, text) = run_batch_args(args, prepare, true)?;
     print!("{text}");
     io::write_outputs(&args.out, &results)?;
-    for p in &args.out {
+    for p in args
+        .out
+        .iter()
+        .chain(&figure::write_next_to(&args.out, &results)?)
+    {
         eprintln!("wrote {}", p.display());
     }
     Ok(())
@@ -155,7 +159,11 @@ pub fn merge_command(args: &MergeArgs) -> anyhow::Result<()> {
     let results = merge::merge(&args.files, args.allow_incomplete)?;
     print!("{}", report(&results));
     io::write_outputs(&args.out, &results)?;
-    for p in &args.out {
+    for p in args
+        .out
+        .iter()
+        .chain(&figure::write_next_to(&args.out, &results)?)
+    {
         eprintln!("wrote {}", p.display());
     }
     Ok(())

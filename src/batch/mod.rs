@@ -22,6 +22,7 @@
 //! (shard merging), `table` (human-readable tables), `cli` (clap arguments and the commands).
 
 mod cli;
+mod figure;
 mod io;
 mod merge;
 mod plan;

@@ -54,7 +54,10 @@ pub(crate) fn blueprint(scene: &Scene) -> Blueprint {
         )
     }));
     let stats = Tabs::new([
-        plot("Step-3 residue per estimator".into(), "/residues".into()),
+        plot(
+            "Step-3 residue per estimator, log10".into(),
+            "/residues".into(),
+        ),
         plot(
             "detector statistic z per channel (|z| ≤ 3 normal)".into(),
             "/detector".into(),

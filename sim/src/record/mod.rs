@@ -38,7 +38,7 @@ use crate::observe::{Frame, Observer, Scene};
 use draw::{log_placed, palette, seg, Rect, GOAL, SAFE_SET, TRUTH};
 use plots::Plots;
 
-pub use plots::{MIN_SPAN, RESIDUE_MAX, V_RATIO_MAX, Z_MAX};
+pub use plots::{MIN_SPAN, RESIDUE_FLOOR, RESIDUE_MAX, V_RATIO_MAX, Z_MAX};
 
 /// Trails get a point, and are re-logged, every this many control steps.
 pub const TRAIL_EVERY: u64 = 10;

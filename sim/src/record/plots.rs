@@ -6,7 +6,8 @@
 //!   each side; received and rejected readings are cut to it;
 //! - a barrier: the true h's range widened the same way; h on the estimates is cut to it;
 //! - V on an estimate is shown as V/V₀ (V₀ = its first value), cut to [0, [`V_RATIO_MAX`]];
-//! - Step-3 residues are cut to [0, [`RESIDUE_MAX`]], detector statistics to ±[`Z_MAX`].
+//! - Step-3 residues are drawn as log10, cut to [−6, 6]
+//!   ([`RESIDUE_FLOOR`], [`RESIDUE_MAX`]); detector statistics are cut to ±[`Z_MAX`].
 
 use crate::observe::{Frame, Scene};
 
@@ -16,8 +17,11 @@ use super::draw::{other, palette, seg, ATTACK, CLEAN, MARK, RECEIVED, TRUTH};
 pub const MIN_SPAN: f64 = 0.5;
 /// Upper end of the V/V₀ plot.
 pub const V_RATIO_MAX: f64 = 10.0;
-/// Upper end of the residue plot [measurement units, m for positions].
-pub const RESIDUE_MAX: f64 = 10.0;
+/// Residues are plotted as log10(residue), cut to [log10 RESIDUE_FLOOR, log10 RESIDUE_MAX]
+/// (they span decades: noise-level for clean estimators, large for attacked ones).
+pub const RESIDUE_MAX: f64 = 1e6;
+/// Lower end of the residue plot (before the logarithm).
+pub const RESIDUE_FLOOR: f64 = 1e-6;
 /// Detector statistic plot range ±Z_MAX (|z| ≤ 3 is a 3σ detector's "normal").
 pub const Z_MAX: f64 = 10.0;
 
@@ -290,7 +294,9 @@ impl Plots {
             out.push((v, self.filters[i].clone(), Look::Line(palette(i), 1.5)));
         }
         for (i, mut r) in std::mem::take(&mut self.residues).into_iter().enumerate() {
-            r.clip((0.0, RESIDUE_MAX), &mut r_marks);
+            r.v.iter_mut()
+                .for_each(|x| *x = x.max(RESIDUE_FLOOR).log10());
+            r.clip((RESIDUE_FLOOR.log10(), RESIDUE_MAX.log10()), &mut r_marks);
             out.push((r, self.filters[i].clone(), Look::Line(palette(i), 1.5)));
         }
         let mut z_marks = Series::new("detector/clipped".into());
