@@ -348,11 +348,19 @@ mod tests {
         let f = figure(pts, Some("attacks[0].value"));
         let s = svg(&f).expect("svg");
         assert!(s.contains("attacks[0].value"));
-        assert_eq!(
-            s.matches("<polyline").count() >= 2,
-            true,
-            "one line per controller"
-        );
+        for colour in ["#1F77B4", "#FF7F0E"] {
+            let lines: Vec<&str> = s
+                .lines()
+                .filter(|l| l.starts_with("<polyline") && l.contains(colour))
+                .collect();
+            assert_eq!(lines.len(), 1, "one line for controller {colour}");
+            assert_eq!(lines[0].matches(',').count(), 3, "through 3 sweep values");
+            let bars = s
+                .lines()
+                .filter(|l| l.starts_with("<line") && l.contains(colour))
+                .count();
+            assert_eq!(bars, 9, "an interval (3 strokes) at each of 3 values");
+        }
         // Controllers at one sweep value are drawn side by side, not on top of each other.
         let xa = f.x_of(&f.points[0], 0, 2, 0.01);
         let xb = f.x_of(&f.points[1], 1, 2, 0.01);
