@@ -207,6 +207,31 @@ pub(crate) fn standing(p: &Placed) -> Placed {
     q
 }
 
+/// Height of a half-space wall as drawn [m].
+const WALL_HEIGHT: f32 = 0.3;
+
+/// A mesh given in world coordinates (identity placement) that reaches outside the ground —
+/// a half-space's wall patch — is cut to the ground and [`WALL_HEIGHT`]: its vertices are
+/// clamped to the box, so a 6 m patch becomes a wall along the ground's edge or across it.
+/// Anything else is returned as is.
+pub(crate) fn cut_to_ground(p: &Placed, r: &Rect) -> Placed {
+    let mut q = p.clone();
+    let identity = p.translation == [0.0; 3] && p.rotation == [0.0, 0.0, 0.0, 1.0];
+    if let (true, Geometry::Mesh { vertices, .. }) = (identity, &mut q.geometry) {
+        let outside = vertices
+            .iter()
+            .any(|v| v[0] < r.lo[0] || v[0] > r.hi[0] || v[1] < r.lo[1] || v[1] > r.hi[1]);
+        if outside {
+            for v in vertices.iter_mut() {
+                v[0] = v[0].clamp(r.lo[0], r.hi[0]);
+                v[1] = v[1].clamp(r.lo[1], r.hi[1]);
+                v[2] = v[2].clamp(0.0, WALL_HEIGHT);
+            }
+        }
+    }
+    q
+}
+
 /// Logs a placed shape (transform and solid shape) as static data under `base/<name>`.
 pub(crate) fn log_placed(
     rec: &rerun::RecordingStream,
@@ -328,6 +353,33 @@ mod tests {
             ..pillar.clone()
         };
         assert_eq!(standing(&crate_).translation, [0.0, 0.0, 0.1]);
+    }
+
+    #[test]
+    fn a_half_space_patch_becomes_a_low_wall_on_the_ground() {
+        let r = Rect {
+            lo: [-1.0, -1.0],
+            hi: [2.0, 1.0],
+        };
+        let patch = Placed {
+            name: "wall".into(),
+            geometry: Geometry::Mesh {
+                vertices: vec![
+                    [3.0, -0.3, 3.0],
+                    [3.0, -0.3, -3.0],
+                    [-3.0, -0.3, -3.0],
+                    [-3.0, -0.3, 3.0],
+                ],
+                triangles: vec![[0, 1, 2], [0, 2, 3]],
+            },
+            translation: [0.0; 3],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        };
+        let Geometry::Mesh { vertices, .. } = cut_to_ground(&patch, &r).geometry else {
+            panic!("still a mesh")
+        };
+        assert_eq!(vertices[0], [2.0, -0.3, WALL_HEIGHT]);
+        assert_eq!(vertices[2], [-1.0, -0.3, 0.0]);
     }
 
     #[test]

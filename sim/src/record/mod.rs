@@ -2,7 +2,8 @@
 //! blueprint so the viewer shows the run, with no clicking, as [`layout`] describes.
 //!
 //! Entity paths (stable; segments hold only ASCII letters, digits, `_` and `-`):
-//! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor),
+//! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor;
+//!   a half-space's wall patch cut to the ground, 0.3 m high),
 //!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`;
 //! - `world/robot/<link>` — link pose over time, its collision shapes (static) below it (the
 //!   catalogue URDFs have no visual meshes, so collision primitives are drawn);
@@ -70,6 +71,9 @@ type LinkTrack = (String, Vec<[f32; 3]>, Vec<[f32; 4]>);
 /// Writes a run to an `.rrd` file. Logging errors are kept and reported by [`Recorder::finish`].
 pub struct Recorder {
     rec: RecordingStream,
+    file: std::path::PathBuf,
+    app: rerun::ApplicationId,
+    recording_id: String,
     path: String,
     scene: Scene,
     plots: Plots,
@@ -88,8 +92,10 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Creates `path` (and its directory) and a stream named by `recording_id`
-    /// (`<world>-<controller>-seed<N>`): recording id, recording name and application id.
+    /// Checks that `path` (and its directory) can be created and names the stream by
+    /// `recording_id` (`<world>-<controller>-seed<N>`): recording id, recording name and
+    /// application id. The file is written once the scene is known ([`Observer::scene`]),
+    /// because the default blueprint needs the scene's names.
     pub fn create(path: &Path, recording_id: &str) -> Result<Self, RecordError> {
         let p = path.display().to_string();
         let create_err = |message: String| RecordError::Create {
@@ -99,17 +105,14 @@ impl Recorder {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| create_err(e.to_string()))?;
         }
+        std::fs::File::create(path).map_err(|e| create_err(e.to_string()))?;
         let app = rerun::ApplicationId::try_new(format!("ftcbf-{}", seg(recording_id)))
             .map_err(|e| create_err(e.to_string()))?;
-        let rec = RecordingStreamBuilder::new(app)
-            .recording_id(recording_id)
-            .recording_name(recording_id)
-            .enabled(true)
-            .save(path)
-            .map_err(|e| create_err(e.to_string()))?;
-        rec.set_log_time_enabled(false);
         Ok(Self {
-            rec,
+            rec: RecordingStream::disabled(),
+            file: path.to_path_buf(),
+            app,
+            recording_id: recording_id.to_string(),
             path: p,
             scene: Scene::default(),
             plots: Plots::default(),
@@ -125,13 +128,31 @@ impl Recorder {
         })
     }
 
+    /// Opens the file stream with the scene's default blueprint (`with_default_blueprint`: the
+    /// viewer shows it unless the user has edited the layout of this application id).
+    fn open(&mut self, scene: &Scene) {
+        let rec = RecordingStreamBuilder::new(self.app.clone())
+            .recording_id(self.recording_id.as_str())
+            .recording_name(self.recording_id.as_str())
+            .with_default_blueprint(layout::blueprint(scene))
+            .enabled(true)
+            .save(&self.file);
+        match rec {
+            Ok(rec) => {
+                rec.set_log_time_enabled(false);
+                self.rec = rec;
+            }
+            Err(e) => self.keep::<(), _>(Err(e)),
+        }
+    }
+
     fn keep<T, E: std::fmt::Display>(&mut self, r: Result<T, E>) {
         if let Err(e) = r {
             self.first_error.get_or_insert_with(|| e.to_string());
         }
     }
 
-    /// The ground and the safe sets, sized to the scene and the start (first frame).
+    /// The ground, the obstacles and the safe sets, sized to the scene and the start (first frame).
     fn log_ground(&mut self, start: [f32; 2]) {
         let r = draw::scene_extent(&self.scene, start);
         self.ground = Some(r);
@@ -144,6 +165,17 @@ impl Recorder {
                 .with_fill_mode(rerun::FillMode::Solid),
         );
         self.keep(res);
+        for ob in &self.scene.obstacles {
+            let res = log_placed(
+                &self.rec,
+                "world/obstacles",
+                &draw::cut_to_ground(&draw::standing(ob), &r),
+                rerun::Color::from_rgb(130, 130, 150),
+            );
+            if let Err(e) = res {
+                self.first_error.get_or_insert_with(|| e.to_string());
+            }
+        }
         for (name, pts) in self.scene.safe_set_outlines.clone() {
             let pts = match pts.as_slice() {
                 [a, b] => match r.clip(*a, *b) {
@@ -220,6 +252,9 @@ impl Recorder {
 
     /// Flushes and closes the file; reports the first logging error, if any.
     pub fn finish(mut self) -> Result<(), RecordError> {
+        if !self.rec.is_enabled() && self.first_error.is_none() {
+            self.first_error = Some("the run ended before its scene was recorded".into());
+        }
         self.log_trails();
         let r = self.send_poses();
         self.keep(r);
@@ -285,29 +320,11 @@ impl Observer for Recorder {
     fn scene(&mut self, scene: &Scene) {
         self.scene = scene.clone();
         self.plots = Plots::new(scene);
-        let r = layout::blueprint(scene).send(
-            &self.rec,
-            rerun::blueprint::BlueprintActivation {
-                // What `RecordingStreamBuilder::with_default_blueprint` sets: the user's own
-                // layout edits win. Sent here because the layout needs the scene's names.
-                make_active: false,
-                make_default: true,
-            },
-        );
-        self.keep(r);
+        self.open(scene);
         let r = self
             .rec
             .log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP());
         self.keep(r);
-        for ob in &scene.obstacles {
-            let r = log_placed(
-                &self.rec,
-                "world/obstacles",
-                &draw::standing(ob),
-                rerun::Color::from_rgb(130, 130, 150),
-            );
-            self.keep(r);
-        }
         let ([gx, gy], gr) = scene.goal;
         let r = self.rec.log_static(
             "world/goal",
