@@ -281,6 +281,21 @@ pub struct RobotBody {
     pub inertia: Matrix3<f64>,
     /// Collision shapes.
     pub colliders: Vec<RobotCollider>,
+    /// Visual meshes found on disk (drawing only; physics never reads them).
+    pub visuals: Vec<RobotVisual>,
+}
+
+/// A URDF `<visual>` mesh of a link, loaded for drawing (STL, scaled to metres).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotVisual {
+    /// URDF link it belongs to.
+    pub link: String,
+    /// Mesh frame in the body frame.
+    pub pose_in_body: Isometry3<f64>,
+    /// Vertices in the mesh frame [m].
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles as vertex indices.
+    pub indices: Vec<[u32; 3]>,
 }
 
 /// Kind of a movable joint.
@@ -610,6 +625,7 @@ fn build(
         com: Vector3::zeros(),
         inertia: Matrix3::zeros(),
         colliders: Vec::new(),
+        visuals: Vec::new(),
     });
     body_joint.push(None);
     info[root] = Some(LinkInfo {
@@ -671,6 +687,7 @@ fn build(
                         com: Vector3::zeros(),
                         inertia: Matrix3::zeros(),
                         colliders: Vec::new(),
+                        visuals: Vec::new(),
                     });
                     body_joint.push(Some(ji));
                     joint_of_urdf.insert(ji, joints.len());
@@ -744,13 +761,11 @@ fn build(
             });
         }
         for vis in &link.visual {
-            if let urdf_rs::Geometry::Mesh { filename, .. } = &vis.geometry {
-                if resolve_mesh_path(filename, base_dir, &opts.package_paths).is_none() {
-                    warnings.push(format!(
-                        "{origin}: visual mesh `{filename}` of link `{}` not found (ignored)",
-                        link.name
-                    ));
-                }
+            let vpose = pose * iso_from_pose(&vis.origin);
+            match visual_mesh(&vis.geometry, &link.name, vpose, base_dir, opts) {
+                Ok(Some(v)) => bodies[b].visuals.push(v),
+                Ok(None) => {}
+                Err(w) => warnings.push(format!("{origin}: {w}")),
             }
         }
     }
@@ -905,6 +920,38 @@ fn collision_shape(
             CollisionShape::Mesh { vertices, indices }
         }
     })
+}
+
+/// The STL mesh of a `<visual>` (`Ok(None)` for primitives, which the collision shapes already
+/// show); a missing or unreadable file is a warning (`Err`), never a load error.
+fn visual_mesh(
+    g: &urdf_rs::Geometry,
+    link: &str,
+    pose_in_body: Isometry3<f64>,
+    base_dir: Option<&Path>,
+    opts: &LoadOptions,
+) -> Result<Option<RobotVisual>, String> {
+    let urdf_rs::Geometry::Mesh { filename, scale } = g else {
+        return Ok(None);
+    };
+    let what = |m: &str| format!("visual mesh `{filename}` of link `{link}` {m} (ignored)");
+    let path = resolve_mesh_path(filename, base_dir, &opts.package_paths)
+        .ok_or_else(|| what("not found"))?;
+    let scale = scale.map(|s| s.0).unwrap_or([1.0; 3]);
+    if !scale.iter().all(|v| v.is_finite() && *v != 0.0) {
+        return Err(what(&format!("has a bad scale {scale:?}")));
+    }
+    let (vertices, indices) =
+        read_stl(&path).map_err(|m| what(&format!("unreadable ({}: {m})", path.display())))?;
+    Ok(Some(RobotVisual {
+        link: link.to_string(),
+        pose_in_body,
+        vertices: vertices
+            .into_iter()
+            .map(|v| [v[0] * scale[0], v[1] * scale[1], v[2] * scale[2]])
+            .collect(),
+        indices,
+    }))
 }
 
 /// Resolves a mesh filename (`package://`, `file://`, absolute or relative) to an existing file.

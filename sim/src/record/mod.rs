@@ -5,8 +5,8 @@
 //! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor;
 //!   a half-space's wall patch cut to the ground, 0.3 m high),
 //!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`;
-//! - `world/robot/<link>` — link pose over time, its collision shapes (static) below it (the
-//!   catalogue URDFs have no visual meshes, so collision primitives are drawn);
+//! - `world/robot/<link>` — link pose over time, its shapes (static) below it: the body's URDF
+//!   visual meshes where they were found, its collision shapes otherwise;
 //! - `world/estimates/<filter>` — each estimator's position over time (colour and radius
 //!   static); `world/trails/{truth,<filter>}` — paths growing with time (a point every
 //!   [`TRAIL_EVERY`] control steps);

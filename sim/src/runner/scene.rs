@@ -5,7 +5,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::observe::{Geometry, Placed, Scene};
 use crate::obstacles::{Obstacle, ShapeSpec};
-use crate::robot::CollisionShape;
+use crate::robot::{CollisionShape, RobotVisual};
 use crate::world::{SafeSetSpec, World};
 
 use super::setup::ControlSetup;
@@ -139,6 +139,26 @@ fn collider_geometry(shape: &CollisionShape) -> Geometry {
     }
 }
 
+/// A body's URDF visual meshes as drawable shapes (drawn instead of its collision shapes).
+fn visual_shapes(visuals: &[RobotVisual]) -> Vec<Placed> {
+    visuals
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let t = v.pose_in_body.translation.vector;
+            Placed {
+                name: format!("{}_visual_{i}", v.link),
+                geometry: Geometry::Mesh {
+                    vertices: v.vertices.iter().map(|p| p.map(|x| x as f32)).collect(),
+                    triangles: v.indices.clone(),
+                },
+                translation: [t.x as f32, t.y as f32, t.z as f32],
+                rotation: quat_xyzw(&v.pose_in_body.rotation),
+            }
+        })
+        .collect()
+}
+
 fn outline(spec: &SafeSetSpec) -> Vec<[f32; 3]> {
     const Z: f32 = 0.004;
     match spec {
@@ -198,6 +218,9 @@ pub fn build_scene(
             r.bodies
                 .iter()
                 .map(|b| {
+                    if !b.visuals.is_empty() {
+                        return (b.name.clone(), visual_shapes(&b.visuals));
+                    }
                     let shapes = b
                         .colliders
                         .iter()
