@@ -22,6 +22,7 @@ pub mod constraints;
 pub mod controller;
 pub mod estimator;
 pub mod feasibility;
+pub mod interface;
 pub mod lyapunov;
 pub mod model;
 pub mod params;
@@ -35,6 +36,7 @@ pub use barrier::{
 pub use controller::{
     ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, RejectedReadings,
 };
+pub use interface::{ControlLaw, Decision, Readings};
 pub use estimator::{EstimatorBank, FilterRole, KalmanFilter};
 pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
