@@ -36,7 +36,7 @@ pub use cli::{batch_command, merge_command, BatchArgs, MergeArgs, PrepareFn};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{BatchResult, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict};
-pub use run::run_sweep;
+pub use run::{run_batch, run_sweep};
 
 /// Confidence level of every interval in a batch summary.
 pub const CONFIDENCE: f64 = 0.95;
