@@ -96,13 +96,25 @@ fn batch_json_matches_its_golden_bit_for_bit() {
     std::fs::create_dir_all(&dir).expect("temp dir");
     let out = dir.join("batch.json");
     let o = Command::new(env!("CARGO_BIN_EXE_ftcbf"))
-        .args(["batch", "worlds/paper_linear.toml", "--trials", "8", "--seed", "3"])
+        .args([
+            "batch",
+            "worlds/paper_linear.toml",
+            "--trials",
+            "8",
+            "--seed",
+            "3",
+        ])
         .args(["-j", "1", "--out"])
         .arg(&out)
         .current_dir(root())
         .output()
         .expect("the binary runs");
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let text = std::fs::read_to_string(&out).expect("batch JSON written");
     let got: Value = serde_json::from_str(&text).expect("valid JSON");
     let want = golden("batch_paper_linear.json");

@@ -36,8 +36,8 @@ pub use barrier::{
 pub use controller::{
     ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, RejectedReadings,
 };
-pub use interface::{ControlLaw, Decision, Readings};
 pub use estimator::{EstimatorBank, FilterRole, KalmanFilter};
+pub use interface::{ControlLaw, Decision, Readings};
 pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
 pub use policy::{DecisionRecord, QpOutcome, SafeAction, Stage};

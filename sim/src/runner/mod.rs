@@ -95,7 +95,6 @@ pub enum RunError {
     Option(String),
 }
 
-
 /// Runs `world` headlessly and returns its summary.
 pub fn run(world: &World, opts: &RunOptions) -> Result<RunSummary, RunError> {
     let mut sim = Simulation::new(world, opts)?;
@@ -219,7 +218,9 @@ impl<'w> Simulation<'w> {
             .map_err(|e| start_err("attacks", e.to_string()))?;
         let law = make(&setup.config).map_err(|e| start_err("controller", e))?;
         let plant = Plant::new(world, seed).map_err(|e| start_err("plant", e))?;
-        Ok(Self::assemble(world, seed, duration, setup, suite, attacks, law, plant))
+        Ok(Self::assemble(
+            world, seed, duration, setup, suite, attacks, law, plant,
+        ))
     }
 
     // One argument per component built (and checked) by `with_law`.

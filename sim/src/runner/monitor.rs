@@ -99,7 +99,11 @@ impl Monitor {
         }
         if !world.obstacles.is_empty() {
             plant.clearances(&mut self.clearances);
-            let m = self.clearances.iter().copied().fold(f64::INFINITY, f64::min);
+            let m = self
+                .clearances
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min);
             self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
         }
     }
