@@ -88,7 +88,6 @@ pub(crate) mod testutil {
     use super::*;
     use anyhow::anyhow;
 
-    pub use super::run::run_batch;
     use ftcbf_sim::summary::{CollisionEvent, NamedValue, StepCounts, ViolationEvent};
 
     /// Uniform [0, 1) from a seed and a stream tag.
