@@ -15,6 +15,7 @@
 //!     equal to (6.4) up to the factor v²/(v² + v_soft²) (within 1 % for |v| ≥ 10·v_soft),
 //!     and bounded by |a⊥| / (2·v_soft) (the maximum of v/(v²+v_soft²) is at |v| = v_soft).
 //!     At rest it commands no turn: a lateral acceleration first builds forward speed.
+//!
 //!   Then |ω| ≤ ω_max, and |Δω| ≤ dω_max·dt when a rate limit is set.
 //! - Closed loop on the measured speed: [`Compensator::observe_speed`] pulls the integrator
 //!   towards a measured/estimated forward speed with gain k ∈ [0, 1] (k = 1 replaces it), and
