@@ -1,6 +1,6 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
-mod batch;
+use ftcbf::batch;
 mod cli;
 
 use std::io::IsTerminal;

@@ -15,13 +15,16 @@
 //! [`lyapunov`] (the CLF of eq. 6.6), [`constraints`] (Ω of eq. 4.3, Υ of eq. 5.2),
 //! [`qp`] (problem 5.3 through clarabel), [`policy`] (Steps 1–3 with a decision record),
 //! [`params`] (γ, θ, χ² quantiles, checks of Lemma 1 / Prop. 1 / Thm. 5) and
-//! [`controller`] (the top-level FT-CBF-CLF, baseline and nominal controllers).
+//! [`controller`] (the top-level FT-CBF-CLF, baseline and nominal controllers) and
+//! [`drive`] (the compensator 6.3–6.4 turning u into a body command (v, ω)).
 
 pub mod barrier;
 pub mod constraints;
 pub mod controller;
+pub mod drive;
 pub mod estimator;
 pub mod feasibility;
+pub mod interface;
 pub mod lyapunov;
 pub mod model;
 pub mod params;
@@ -36,6 +39,7 @@ pub use controller::{
     ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, RejectedReadings,
 };
 pub use estimator::{EstimatorBank, FilterRole, KalmanFilter};
+pub use interface::{ControlLaw, Decision, Readings};
 pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
 pub use policy::{DecisionRecord, QpOutcome, SafeAction, Stage};

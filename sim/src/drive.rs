@@ -2,20 +2,16 @@
 //! compensator (6.3)–(6.4) → wheel angular speeds from the URDF's wheel radius and separation.
 //! [`crate::physics::PhysicsWorld::set_wheel_speeds`] turns wheel speeds into joint-motor targets.
 //!
-//! Compensator (world frame, θ = heading):
-//! - (6.3) v integrates the acceleration along the heading: v ← v + (u₁cosθ + u₂sinθ)·dt,
-//!   then |v| ≤ v_max.
-//! - (6.4) ω = (u₂cosθ − u₁sinθ) / v. **Guard near v = 0**: the denominator is floored,
-//!   ω = a⊥ / (s · max(|v|, v_floor)) with s = sign(v) (s = +1 at v = 0). Away from the floor this
-//!   is (6.4) exactly; at rest a lateral acceleration turns the robot towards it (ω bounded by
-//!   |a⊥|/v_floor) instead of dividing by zero, and the forward speed is still integrated from
-//!   the along-heading part only. Then |ω| ≤ ω_max.
-//! - Non-finite u, θ or dt (e.g. a corrupted estimate upstream) leave v unchanged and give ω = 0.
+//! The compensator itself is [`ftcbf_controller::drive::Compensator`] (it is part of the control
+//! law); this module owns the wheel kinematics and configures the compensator with the
+//! `Floor` low-speed law of (6.4) (ω = a⊥ / (s·max(|v|, v_floor))) and no rate limits.
 //!
 //! Wheel kinematics (r = radius, L = separation): ω_left = (v − ωL/2)/r, ω_right = (v + ωL/2)/r;
 //! if either exceeds the wheel-speed limit both are scaled down by the same factor (the path's
 //! curvature is kept).
 
+pub use ftcbf_controller::drive::BodyCommand;
+use ftcbf_controller::drive::{Compensator, CompensatorConfig, CompensatorError, LowSpeedLaw};
 use ftcbf_controller::Input;
 
 use crate::robot::{DriveLimits, WheelGeometry};
@@ -53,22 +49,12 @@ impl Default for DriveConfig {
     }
 }
 
-/// A body-frame velocity command.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct BodyCommand {
-    /// Forward speed [m/s].
-    pub v: f64,
-    /// Yaw rate [rad/s].
-    pub omega: f64,
-}
-
 /// The compensator state and the wheel kinematics.
 #[derive(Debug, Clone)]
 pub struct Drive {
     geometry: WheelGeometry,
     limits: DriveLimits,
-    cfg: DriveConfig,
-    v: f64,
+    compensator: Compensator,
 }
 
 fn check(key: &'static str, value: f64) -> Result<(), DriveError> {
@@ -103,31 +89,41 @@ impl Drive {
                 value: cfg.v_initial,
             });
         }
+        let mut compensator = Compensator::new(CompensatorConfig {
+            v_max: limits.v_max,
+            omega_max: limits.omega_max,
+            dv_max: None,
+            domega_max: None,
+            low_speed: LowSpeedLaw::Floor {
+                v_floor: cfg.v_floor,
+            },
+            speed_gain: 1.0,
+        })
+        .map_err(
+            |CompensatorError::InvalidValue {
+                 key,
+                 expected,
+                 value,
+             }| {
+                DriveError::InvalidValue {
+                    key,
+                    expected,
+                    value,
+                }
+            },
+        )?;
+        compensator.reset(cfg.v_initial);
         Ok(Self {
             geometry: *geometry,
             limits: *limits,
-            cfg,
-            v: cfg.v_initial.clamp(-limits.v_max, limits.v_max),
+            compensator,
         })
     }
 
     /// One compensator step: integrates (6.3) over `dt` [s] and applies (6.4) with the guard.
     /// `u` is the world-frame acceleration [m/s²], `theta` the heading [rad].
     pub fn command(&mut self, u: Input, theta: f64, dt: f64) -> BodyCommand {
-        if !(u[0].is_finite() && u[1].is_finite() && theta.is_finite() && dt.is_finite()) {
-            return BodyCommand {
-                v: self.v,
-                omega: 0.0,
-            };
-        }
-        let (s, c) = theta.sin_cos();
-        let a_par = u[0] * c + u[1] * s;
-        let a_perp = u[1] * c - u[0] * s;
-        self.v = (self.v + a_par * dt.max(0.0)).clamp(-self.limits.v_max, self.limits.v_max);
-        let sign = if self.v < 0.0 { -1.0 } else { 1.0 };
-        let denom = sign * self.v.abs().max(self.cfg.v_floor);
-        let omega = (a_perp / denom).clamp(-self.limits.omega_max, self.limits.omega_max);
-        BodyCommand { v: self.v, omega }
+        self.compensator.command(u, theta, dt)
     }
 
     /// Wheel angular speeds (left, right) [rad/s] for a body command, saturated at the wheel
@@ -159,16 +155,12 @@ impl Drive {
 
     /// The compensator's current forward speed (the state of (6.3)) [m/s].
     pub fn speed(&self) -> f64 {
-        self.v
+        self.compensator.current().v
     }
 
     /// Resets the integrator of (6.3) to `v` [m/s] (clamped to the limits; non-finite → 0).
     pub fn reset(&mut self, v: f64) {
-        self.v = if v.is_finite() {
-            v.clamp(-self.limits.v_max, self.limits.v_max)
-        } else {
-            0.0
-        };
+        self.compensator.reset(v);
     }
 
     /// The wheel geometry.

@@ -427,8 +427,39 @@ fn load(
     build(&robot, origin, base_dir, opts)
 }
 
-/// Rejects xacro leftovers with the line, enclosing element name and attribute.
+/// Blanks XML comments, CDATA sections and processing instructions (keeping newlines, so line
+/// numbers still count), because text inside them is never markup: a commented
+/// `<xacro:include filename="$(find pkg)/…"/>` is not a leftover. Each construct ends at its
+/// first terminator (`-->`, `]]>`, `?>`) as XML 1.0 §2.5–2.7 defines; an unterminated one blanks
+/// the rest, and the URDF parser then reports the malformed XML.
+fn mask_non_markup(text: &str) -> String {
+    const KINDS: [(&str, &str); 3] = [("<!--", "-->"), ("<![CDATA[", "]]>"), ("<?", "?>")];
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some((start, (_, close))) = KINDS
+        .iter()
+        .filter_map(|k| rest.find(k.0).map(|i| (i, *k)))
+        .min_by_key(|(i, _)| *i)
+    {
+        out.push_str(&rest[..start]);
+        let body = &rest[start..];
+        let end = body.find(close).map_or(body.len(), |e| e + close.len());
+        out.extend(
+            body[..end]
+                .chars()
+                .map(|c| if c == '\n' { '\n' } else { ' ' }),
+        );
+        rest = &body[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// Rejects xacro leftovers with the line, enclosing element name and attribute. Comments, CDATA
+/// and processing instructions are not searched (see [`mask_non_markup`]).
 fn check_xacro(text: &str, origin: &str) -> Result<(), RobotError> {
+    let masked = mask_non_markup(text);
+    let text = masked.as_str();
     // `xmlns:xacro` alone is not a leftover: xacro keeps the namespace declaration in its output.
     let markers = ["<xacro:", "${", "$("];
     let Some(pos) = markers.iter().filter_map(|m| text.find(m)).min() else {

@@ -465,3 +465,38 @@ fn xacro_namespace_declaration_alone_is_accepted() {
     let r = RobotDescription::from_urdf_str(&text, &LoadOptions::default()).unwrap();
     assert_eq!(r.name, "t");
 }
+
+#[test]
+fn xacro_text_in_comments_and_processing_instructions_is_not_a_leftover() {
+    // As ROS packages ship them: a commented include with `$(find …)` and a multi-line commented
+    // block of `<xacro:property>` lines; a processing instruction mentioning `${…}`.
+    let header = r#"<!-- <xacro:include filename="$(find my_description)/urdf/common.xacro"/> -->
+  <!--
+    <xacro:property name="wheel_radius" value="0.05"/>
+    <xacro:property name="track" value="${2 * 0.1}"/>
+  -->
+  <?editor note="${not markup}"?>
+"#;
+    let text = robot(&format!(
+        "{header}{}{WHEELS}",
+        base(r#"<box size="0.2 0.2 0.1"/>"#)
+    ));
+    let r = RobotDescription::from_urdf_str(&text, &LoadOptions::default())
+        .unwrap_or_else(|e| panic!("comments must not count as xacro: {e}"));
+    assert_eq!(r.name, "t");
+
+    // A real leftover after those comments is still found, on its own line (line 9: two header
+    // lines, six comment/PI lines, then `<link name="${namespace}base">`).
+    let text = robot(&format!(
+        "{header}{}{WHEELS}",
+        base(r#"<box size="0.2 0.2 0.1"/>"#)
+            .replace(r#"<link name="base">"#, r#"<link name="${namespace}base">"#)
+    ));
+    let e = RobotDescription::from_urdf_str(&text, &LoadOptions::default()).unwrap_err();
+    assert!(matches!(e, RobotError::Xacro { line: 9, .. }), "{e:?}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("${namespace}") && msg.contains("attribute `name`"),
+        "{msg}"
+    );
+}

@@ -130,6 +130,63 @@ fn shard_label(s: Option<Shard>) -> String {
     s.map_or_else(|| "unsharded".to_string(), |s| format!("shard {s}"))
 }
 
+/// A shard file holds exactly the trials of its shard.
+fn check_shard(name: &str, part: &StoredResult, own: &BatchResult) -> anyhow::Result<()> {
+    if let Some(s) = part.plan.shard {
+        if let Some(r) = own.records.iter().find(|r| !s.contains(r.trial)) {
+            return Err(anyhow!(
+                "`{name}`: trial {} does not belong to its shard {s}",
+                r.trial
+            ));
+        }
+        let expected = s.trials(part.plan.trials).count() as u64;
+        if own.trials_covered != expected {
+            return Err(anyhow!(
+                "`{name}`: shard {s} of {} trials should hold {expected} trials but holds {} (truncated file?)",
+                part.plan.trials,
+                own.trials_covered
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// "incomplete cover: …", naming the first missing trial and, when every file is a shard of the
+/// same N, the missing shards.
+fn incomplete_cover_message(
+    parts: &[(&str, &StoredResult)],
+    owner: &BTreeMap<u64, usize>,
+    total: u64,
+) -> String {
+    let covered = owner.len() as u64;
+    let first_missing = (0..total).find(|k| !owner.contains_key(k)).unwrap_or(0);
+    let mut msg = format!(
+        "incomplete cover: {} of {total} trials missing (first missing trial: {first_missing})",
+        total - covered
+    );
+    // When every file is a shard of the same N, name the missing shards.
+    let counts: Vec<Option<u64>> = parts
+        .iter()
+        .map(|(_, p)| p.plan.shard.map(|s| s.count))
+        .collect();
+    if let Some(Some(n)) = counts
+        .first()
+        .copied()
+        .filter(|_| counts.windows(2).all(|w| w[0] == w[1]))
+    {
+        let missing: Vec<String> = (1..=n)
+            .filter(|k| {
+                !parts
+                    .iter()
+                    .any(|(_, p)| p.plan.shard.map(|s| s.index) == Some(*k))
+            })
+            .map(|k| format!("{k}/{n}"))
+            .collect();
+        msg.push_str(&format!("; missing shard(s): {}", missing.join(", ")));
+    }
+    msg
+}
+
 fn merge_point(
     parts: &[(&str, &StoredResult)],
     allow_incomplete: bool,
@@ -146,22 +203,7 @@ fn merge_point(
         // Each file must be consistent on its own (seeds, controllers, one record each).
         let own = BatchResult::from_records(part.plan.clone(), part.records.clone(), Vec::new())
             .with_context(|| format!("`{name}` is inconsistent"))?;
-        if let Some(s) = part.plan.shard {
-            if let Some(r) = own.records.iter().find(|r| !s.contains(r.trial)) {
-                return Err(anyhow!(
-                    "`{name}`: trial {} does not belong to its shard {s}",
-                    r.trial
-                ));
-            }
-            let expected = s.trials(part.plan.trials).count() as u64;
-            if own.trials_covered != expected {
-                return Err(anyhow!(
-                    "`{name}`: shard {s} of {} trials should hold {expected} trials but holds {} (truncated file?)",
-                    part.plan.trials,
-                    own.trials_covered
-                ));
-            }
-        }
+        check_shard(name, part, &own)?;
         for r in own.records.iter().step_by(part.plan.controllers.len()) {
             if let Some(&j) = owner.get(&r.trial) {
                 return Err(anyhow!(
@@ -180,31 +222,7 @@ fn merge_point(
     let covered = owner.len() as u64;
     let mut warnings = Vec::new();
     if covered < total {
-        let first_missing = (0..total).find(|k| !owner.contains_key(k)).unwrap_or(0);
-        let mut msg = format!(
-            "incomplete cover: {} of {total} trials missing (first missing trial: {first_missing})",
-            total - covered
-        );
-        // When every file is a shard of the same N, name the missing shards.
-        let counts: Vec<Option<u64>> = parts
-            .iter()
-            .map(|(_, p)| p.plan.shard.map(|s| s.count))
-            .collect();
-        if let Some(Some(n)) = counts
-            .first()
-            .copied()
-            .filter(|_| counts.windows(2).all(|w| w[0] == w[1]))
-        {
-            let missing: Vec<String> = (1..=n)
-                .filter(|k| {
-                    !parts
-                        .iter()
-                        .any(|(_, p)| p.plan.shard.map(|s| s.index) == Some(*k))
-                })
-                .map(|k| format!("{k}/{n}"))
-                .collect();
-            msg.push_str(&format!("; missing shard(s): {}", missing.join(", ")));
-        }
+        let msg = incomplete_cover_message(parts, &owner, total);
         if !allow_incomplete {
             return Err(anyhow!(
                 "{msg} (pass --allow-incomplete to summarise the trials present)"

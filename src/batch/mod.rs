@@ -37,7 +37,7 @@ pub use cli::{batch_command, merge_command, BatchArgs, MergeArgs, PrepareFn};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{BatchResult, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict};
-pub use run::run_sweep;
+pub use run::{run_batch, run_sweep};
 
 /// Confidence level of every interval in a batch summary.
 pub const CONFIDENCE: f64 = 0.95;
@@ -89,7 +89,6 @@ pub(crate) mod testutil {
     use super::*;
     use anyhow::anyhow;
 
-    pub use super::run::run_batch;
     use ftcbf_sim::summary::{CollisionEvent, NamedValue, StepCounts, ViolationEvent};
 
     /// Uniform [0, 1) from a seed and a stream tag.

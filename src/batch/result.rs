@@ -314,34 +314,8 @@ impl BatchResult {
         warnings: Vec<String>,
     ) -> anyhow::Result<BatchResult> {
         plan.validate()?;
+        check_records(&plan, &records)?;
         let order = |c: &str| plan.controllers.iter().position(|p| p == c);
-        for r in &records {
-            if order(&r.controller).is_none() {
-                return Err(anyhow!(
-                    "trial {}: controller `{}` is not in the plan",
-                    r.trial,
-                    r.controller
-                ));
-            }
-            if r.trial >= plan.trials {
-                return Err(anyhow!(
-                    "trial index {} is out of range (the batch has {} trials)",
-                    r.trial,
-                    plan.trials
-                ));
-            }
-            let want = trial_seed(plan.base_seed, r.trial);
-            if r.seed != want {
-                return Err(anyhow!(
-                    "trial {} ({}): seed {} is not the batch seed {} for base seed {}",
-                    r.trial,
-                    r.controller,
-                    r.seed,
-                    want,
-                    plan.base_seed
-                ));
-            }
-        }
         records.sort_by_key(|r| (r.trial, order(&r.controller)));
         let nc = plan.controllers.len();
         if !records.len().is_multiple_of(nc) {
@@ -368,29 +342,7 @@ impl BatchResult {
             .enumerate()
             .map(|(i, c)| summarize(&plan, c, records.iter().skip(i).step_by(nc)))
             .collect::<anyhow::Result<Vec<_>>>()?;
-        let paired = (1..nc)
-            .map(|j| {
-                let mut p = PairedComparison {
-                    first: plan.controllers[0].clone(),
-                    second: plan.controllers[j].clone(),
-                    both_safe: 0,
-                    only_first_safe: 0,
-                    only_second_safe: 0,
-                    neither_safe: 0,
-                    p_value: 1.0,
-                };
-                for chunk in records.chunks(nc) {
-                    match (chunk[0].safe, chunk[j].safe) {
-                        (true, true) => p.both_safe += 1,
-                        (true, false) => p.only_first_safe += 1,
-                        (false, true) => p.only_second_safe += 1,
-                        (false, false) => p.neither_safe += 1,
-                    }
-                }
-                p.p_value = stats::mcnemar_exact_p(p.only_first_safe, p.only_second_safe);
-                p
-            })
-            .collect();
+        let paired = (1..nc).map(|j| paired(&plan, &records, j)).collect();
         Ok(BatchResult {
             plan,
             trials_covered,
@@ -400,6 +352,65 @@ impl BatchResult {
             records,
         })
     }
+}
+
+/// Every record's controller is in the plan, its trial index is below N, and its seed is the
+/// batch seed of that trial.
+fn check_records(plan: &BatchPlan, records: &[TrialRecord]) -> anyhow::Result<()> {
+    let order = |c: &str| plan.controllers.iter().position(|p| p == c);
+    for r in records {
+        if order(&r.controller).is_none() {
+            return Err(anyhow!(
+                "trial {}: controller `{}` is not in the plan",
+                r.trial,
+                r.controller
+            ));
+        }
+        if r.trial >= plan.trials {
+            return Err(anyhow!(
+                "trial index {} is out of range (the batch has {} trials)",
+                r.trial,
+                plan.trials
+            ));
+        }
+        let want = trial_seed(plan.base_seed, r.trial);
+        if r.seed != want {
+            return Err(anyhow!(
+                "trial {} ({}): seed {} is not the batch seed {} for base seed {}",
+                r.trial,
+                r.controller,
+                r.seed,
+                want,
+                plan.base_seed
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The first controller of the plan against controller `j`, trial by trial (`records` sorted
+/// by trial, then plan order, whole trials only).
+fn paired(plan: &BatchPlan, records: &[TrialRecord], j: usize) -> PairedComparison {
+    let nc = plan.controllers.len();
+    let mut p = PairedComparison {
+        first: plan.controllers[0].clone(),
+        second: plan.controllers[j].clone(),
+        both_safe: 0,
+        only_first_safe: 0,
+        only_second_safe: 0,
+        neither_safe: 0,
+        p_value: 1.0,
+    };
+    for chunk in records.chunks(nc) {
+        match (chunk[0].safe, chunk[j].safe) {
+            (true, true) => p.both_safe += 1,
+            (true, false) => p.only_first_safe += 1,
+            (false, true) => p.only_second_safe += 1,
+            (false, false) => p.neither_safe += 1,
+        }
+    }
+    p.p_value = stats::mcnemar_exact_p(p.only_first_safe, p.only_second_safe);
+    p
 }
 
 fn rate(k: u64, n: u64) -> f64 {

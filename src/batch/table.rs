@@ -96,8 +96,18 @@ fn point_label(res: &BatchResult) -> String {
 /// The full report of one batch: header, safety table, policy-step table, worst trials, paired
 /// comparisons, warnings.
 pub fn summary_text(res: &BatchResult) -> String {
-    let p = &res.plan;
     let mut out = String::new();
+    plan_header(res, &mut out);
+    safety_table(res, &mut out);
+    steps_table(res, &mut out);
+    worst_table(res, &mut out);
+    paired_and_warnings(res, &mut out);
+    out
+}
+
+/// World, trials, seed, shard and the claim under test.
+fn plan_header(res: &BatchResult, out: &mut String) {
+    let p = &res.plan;
     let _ = write!(out, "World `{}` ({})", p.world, p.world_file);
     let point = point_label(res);
     if !point.is_empty() {
@@ -120,7 +130,11 @@ pub fn summary_text(res: &BatchResult) -> String {
         _ => out.push_str("; the world states no claim (no epsilon)\n"),
     }
     out.push('\n');
+}
 
+/// Safety, verdict, collisions, goals per controller.
+fn safety_table(res: &BatchResult, out: &mut String) {
+    let p = &res.plan;
     let conf = format!("P(safe) [{:.0}% CI]", p.confidence * 100.0);
     let headers = [
         "controller",
@@ -164,7 +178,11 @@ pub fn summary_text(res: &BatchResult) -> String {
     {
         out.push_str("(*) some attacks lie outside the declared fault patterns: the claim does not cover them\n");
     }
+}
 
+/// Which policy step decided, summed over trials.
+fn steps_table(res: &BatchResult, out: &mut String) {
+    use Align::{Left, Right};
     out.push_str("\nPolicy steps (control steps, summed over trials)\n");
     let headers = [
         "controller",
@@ -196,7 +214,11 @@ pub fn summary_text(res: &BatchResult) -> String {
         })
         .collect();
     out.push_str(&render(&headers, &align, &rows));
+}
 
+/// The worst trials, with their seeds for re-running.
+fn worst_table(res: &BatchResult, out: &mut String) {
+    use Align::{Left, Right};
     out.push_str("\nWorst trials (unsafe first, then smallest barrier value; re-run with `ftcbf run --seed SEED`)\n");
     let headers = [
         "controller",
@@ -226,7 +248,10 @@ pub fn summary_text(res: &BatchResult) -> String {
         })
         .collect();
     out.push_str(&render(&headers, &align, &rows));
+}
 
+/// The McNemar comparisons and any warnings.
+fn paired_and_warnings(res: &BatchResult, out: &mut String) {
     if !res.paired.is_empty() {
         out.push_str("\nPaired comparison on the same seeds (exact McNemar test)\n");
         for c in &res.paired {
@@ -248,7 +273,6 @@ pub fn summary_text(res: &BatchResult) -> String {
     for w in &res.warnings {
         let _ = writeln!(out, "\nwarning: {w}");
     }
-    out
 }
 
 /// One table for a sweep: rows = sweep value × controller.

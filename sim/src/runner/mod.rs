@@ -10,28 +10,51 @@
 //! `ticks_per_control` plant steps with that input held. Safe sets are checked on the truth after
 //! every plant step; contacts after every physics step.
 //!
-//! [`run`] is the one library call the CLI, the regression suite and `ftcbf batch` share.
+//! [`Simulation`] is that loop, one control step per [`Simulation::step`]; it drives any
+//! [`ControlLaw`] (the FT-CBF-CLF controller, the baseline, the nominal controller, or a
+//! user-written law). [`run`] — a loop over it — is the one library call the CLI, the
+//! regression suite and `ftcbf batch` share; [`run_observed`] shows every step's
+//! [`Frame`] to an [`Observer`] (the recorder).
+//!
+//! ```no_run
+//! use ftcbf_sim::runner::{RunOptions, Simulation};
+//! use ftcbf_sim::world::World;
+//!
+//! let world = World::load(std::path::Path::new("worlds/paper_linear.toml"), &[])?;
+//! let mut sim = Simulation::new(&world, &RunOptions::default())?;
+//! while let Some(frame) = sim.step() {
+//!     if !frame.events.is_empty() {
+//!         println!("t = {:.2} s: {:?}", frame.t, frame.events);
+//!     }
+//! }
+//! println!("safe: {}", sim.summary().safe);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
+mod monitor;
 mod plant;
 mod scene;
 pub mod setup;
+mod view;
 
-use ftcbf_controller::controller::Controller;
+use ftcbf_controller::controller::{Controller, ControllerConfig};
 use ftcbf_controller::estimator::FilterRole;
-use ftcbf_controller::policy::{DropReason, QpOutcome, Stage, Verdict};
+use ftcbf_controller::interface::{ControlLaw, Readings};
+use ftcbf_controller::policy::{QpOutcome, Stage};
+use ftcbf_controller::Input;
 
 use crate::attacks::AttackStack;
-use crate::observe::{ChannelView, EstimateView, Frame, Observer};
+use crate::observe::{Frame, Observer, Scene};
 use crate::sensors::{Quantity, SensorSuite};
-use crate::state::TruthState;
-use crate::summary::{
-    AttackWindow, CollisionEvent, NamedValue, RunSummary, StepCounts, ViolationEvent,
-};
-use crate::world::{ControllerKindSpec, GoalMetric, World};
+use crate::summary::{AttackWindow, RunSummary, StepCounts};
+use crate::world::{ControllerKindSpec, World};
+
+use monitor::Monitor;
+use view::StepView;
 
 pub use plant::Plant;
 pub use scene::build_scene;
-use setup::{controller_name, ControlSetup};
+use setup::ControlSetup;
 
 /// Per-run choices that override the world file.
 #[derive(Debug, Clone, Default)]
@@ -74,10 +97,32 @@ pub enum RunError {
 
 /// Runs `world` headlessly and returns its summary.
 pub fn run(world: &World, opts: &RunOptions) -> Result<RunSummary, RunError> {
-    run_observed(world, opts, None)
+    let mut sim = Simulation::new(world, opts)?;
+    sim.run_to_end();
+    Ok(sim.summary())
 }
 
-fn stage_name(o: &QpOutcome) -> &'static str {
+/// Runs `world`, showing the scene and then every control step to `observer` (the recorder, a
+/// test).
+pub fn run_observed(
+    world: &World,
+    opts: &RunOptions,
+    observer: Option<&mut dyn Observer>,
+) -> Result<RunSummary, RunError> {
+    let mut sim = Simulation::new(world, opts)?;
+    let Some(obs) = observer else {
+        sim.run_to_end();
+        return Ok(sim.summary());
+    };
+    sim.set_link_poses(true);
+    obs.scene(&sim.scene());
+    while let Some(frame) = sim.step() {
+        obs.frame(&frame);
+    }
+    Ok(sim.summary())
+}
+
+pub(crate) fn stage_name(o: &QpOutcome) -> &'static str {
     match o {
         QpOutcome::Feasible { stage, .. } => match stage {
             Stage::Step1 => "step1",
@@ -104,63 +149,334 @@ fn count_stage(c: &mut StepCounts, o: &QpOutcome) {
     *counter += 1;
 }
 
-/// Runs `world`, showing every control step to `observer` (the recorder, a test).
-pub fn run_observed(
-    world: &World,
-    opts: &RunOptions,
-    mut observer: Option<&mut dyn Observer>,
-) -> Result<RunSummary, RunError> {
-    let file = &world.file;
-    let seed = opts.seed.unwrap_or(file.seed);
-    let kind = opts.controller.unwrap_or(file.control.controller);
-    let duration = opts.duration.unwrap_or(file.duration);
-    if !(duration.is_finite() && duration > 0.0) {
-        return Err(RunError::Option(format!(
-            "--duration: expected a finite number of seconds > 0, found {duration}"
-        )));
-    }
-    let wname = world.path.display().to_string();
-    let start_err = |what: &'static str, message: String| RunError::Start {
-        world: wname.clone(),
-        what,
-        message,
-    };
+/// One closed-loop run of a world, stepped by the caller: [`Simulation::step`] advances one
+/// control period (sensors → attacks → control law → drive → plant ticks) and returns that
+/// step's [`Frame`]; [`Simulation::summary`] reports what was measured so far. The same world,
+/// options and law give the same frames and summary, bit for bit.
+pub struct Simulation<'w> {
+    world: &'w World,
+    seed: u64,
+    control_dt: f64,
+    n_steps: u64,
+    k: u64,
+    setup: ControlSetup,
+    suite: SensorSuite,
+    attacks: AttackStack,
+    law: Box<dyn ControlLaw>,
+    plant: Plant,
+    heading_channel: Option<usize>,
+    heading: f64,
+    filters: Vec<String>,
+    windows: Vec<(String, f64, Option<f64>)>,
+    attack_windows: Vec<AttackWindow>,
+    y: Vec<f64>,
+    fresh: Vec<bool>,
+    monitor: Monitor,
+    steps: StepCounts,
+    rejected: u64,
+    view: StepView,
+    link_poses: bool,
+}
 
-    let control_dt = world.control_dt();
-    let setup = ControlSetup::new(world, kind)?;
-    let mut suite = SensorSuite::new(&file.sensors, control_dt, seed)
-        .map_err(|e| start_err("sensors", e.to_string()))?;
-    let mut attacks = AttackStack::new(&file.attacks, &suite, seed)
-        .map_err(|e| start_err("attacks", e.to_string()))?;
-    let barriers = setup.config.barriers.clone();
-    let mut controller = Controller::new(setup.config.clone())
-        .map_err(|e| start_err("controller", e.to_string()))?;
-    let mut plant = Plant::new(world, seed).map_err(|e| start_err("plant", e))?;
-    let heading_channel = file
-        .sensors
-        .iter()
-        .position(|s| s.measures == Quantity::Heading);
-    let baseline = controller.bank().baseline_index();
-    // Filters named after the world's fault patterns: drop_<F(r_i)>, drop_<F(r_i)>+<F(r_j)>, all.
+impl<'w> Simulation<'w> {
+    /// A run of `world` with the controller the options (or the world file) name.
+    pub fn new(world: &'w World, opts: &RunOptions) -> Result<Self, RunError> {
+        Self::with_law(world, opts, |config| {
+            Controller::new(config.clone())
+                .map(|c| Box::new(c) as Box<dyn ControlLaw>)
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    /// A run of `world` driven by the law `make` builds from the controller configuration the
+    /// world implies (linear model and its channels, barriers, goal, input limit). The
+    /// configuration is that of `opts.controller` or the world's controller kind.
+    pub fn with_law(
+        world: &'w World,
+        opts: &RunOptions,
+        make: impl FnOnce(&ControllerConfig) -> Result<Box<dyn ControlLaw>, String>,
+    ) -> Result<Self, RunError> {
+        let file = &world.file;
+        let seed = opts.seed.unwrap_or(file.seed);
+        let kind = opts.controller.unwrap_or(file.control.controller);
+        let duration = opts.duration.unwrap_or(file.duration);
+        if !(duration.is_finite() && duration > 0.0) {
+            return Err(RunError::Option(format!(
+                "--duration: expected a finite number of seconds > 0, found {duration}"
+            )));
+        }
+        let start_err = |what: &'static str, message: String| RunError::Start {
+            world: world.path.display().to_string(),
+            what,
+            message,
+        };
+        let control_dt = world.control_dt();
+        let setup = ControlSetup::new(world, kind)?;
+        let suite = SensorSuite::new(&file.sensors, control_dt, seed)
+            .map_err(|e| start_err("sensors", e.to_string()))?;
+        let attacks = AttackStack::new(&file.attacks, &suite, seed)
+            .map_err(|e| start_err("attacks", e.to_string()))?;
+        let law = make(&setup.config).map_err(|e| start_err("controller", e))?;
+        let plant = Plant::new(world, seed).map_err(|e| start_err("plant", e))?;
+        Ok(Self::assemble(
+            world, seed, duration, setup, suite, attacks, law, plant,
+        ))
+    }
+
+    // One argument per component built (and checked) by `with_law`.
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        world: &'w World,
+        seed: u64,
+        duration: f64,
+        setup: ControlSetup,
+        suite: SensorSuite,
+        attacks: AttackStack,
+        law: Box<dyn ControlLaw>,
+        plant: Plant,
+    ) -> Self {
+        let file = &world.file;
+        let control_dt = world.control_dt();
+        let heading_channel = file
+            .sensors
+            .iter()
+            .position(|s| s.measures == Quantity::Heading);
+        let filters = filter_labels(world, law.as_ref());
+        let windows = attacks.windows();
+        let attack_windows = attack_windows(&attacks, &windows, world);
+        let monitor = Monitor::new(world, &setup);
+        let view = StepView::new(
+            file.sensors.len(),
+            filters.len(),
+            monitor.barriers(),
+            windows.len(),
+        );
+        let q = setup.sensor_of_channel.len();
+        Self {
+            world,
+            seed,
+            control_dt,
+            n_steps: (duration / control_dt).round().max(1.0) as u64,
+            k: 0,
+            heading: plant.truth().theta,
+            setup,
+            suite,
+            attacks,
+            law,
+            plant,
+            heading_channel,
+            filters,
+            windows,
+            attack_windows,
+            y: vec![0.0; q],
+            fresh: vec![false; q],
+            monitor,
+            steps: StepCounts::default(),
+            rejected: 0,
+            view,
+            link_poses: false,
+        }
+    }
+
+    /// Also report the robot's link poses in every [`Frame`] (off by default: it costs a
+    /// string per link and step; the recorder needs it).
+    pub fn set_link_poses(&mut self, on: bool) {
+        self.link_poses = on;
+    }
+
+    /// The static scene (obstacles, robot shapes, safe-set outlines, series names).
+    pub fn scene(&self) -> Scene {
+        build_scene(self.world, &self.setup, &self.filters, &self.windows)
+    }
+
+    /// The channel layout and controller configuration derived from the world.
+    pub fn setup(&self) -> &ControlSetup {
+        &self.setup
+    }
+
+    /// Control steps taken so far, and in the whole run.
+    pub fn progress(&self) -> (u64, u64) {
+        (self.k, self.n_steps)
+    }
+
+    /// Advances one control step and returns it; `None` once the run's duration is over.
+    pub fn step(&mut self) -> Option<Frame<'_>> {
+        if self.k >= self.n_steps {
+            return None;
+        }
+        let t = self.k as f64 * self.control_dt;
+        self.sense(t);
+        let u = self.decide(t);
+        self.actuate(u);
+        self.k += 1;
+        Some(self.frame(t, self.k - 1))
+    }
+
+    /// Steps until the end of the run.
+    pub fn run_to_end(&mut self) {
+        while self.step().is_some() {}
+    }
+
+    /// Sensors sample the truth, attacks rewrite the samples (a stealthy attacker reads the
+    /// law's all-channel filter prediction), the channels the law reads are copied out.
+    fn sense(&mut self, t: f64) {
+        let mut truth = self.plant.truth();
+        truth.t = t;
+        self.view.truth = truth;
+        self.view.events.clear();
+        let samples = self.suite.sample(&truth);
+        for (v, s) in self.view.channels.iter_mut().zip(samples.iter()) {
+            v.clean = s.value;
+        }
+        let bank = self.law.estimators();
+        let map = &self.setup.channel_of_sensor;
+        let detector = |ch: usize| {
+            let b = bank?;
+            let c = map.get(ch).copied().flatten()?;
+            b.predicted_measurement(b.baseline_index(), c)
+        };
+        self.attacks.apply(t, samples, &detector);
+        for (c, &si) in self.setup.sensor_of_channel.iter().enumerate() {
+            self.y[c] = samples[si].value;
+            self.fresh[c] = samples[si].fresh;
+        }
+        if let Some(s) = self.heading_channel.map(|h| samples[h]) {
+            if s.fresh && s.value.is_finite() {
+                self.heading = s.value;
+            }
+        }
+        self.view.received(samples, map, bank);
+    }
+
+    /// The law's step; counts the deciding policy stage and the rejected readings.
+    fn decide(&mut self, t: f64) -> Input {
+        let readings = Readings {
+            t,
+            dt: self.control_dt,
+            y: &self.y,
+            fresh: &self.fresh,
+        };
+        let decision = self.law.step(&readings);
+        if let Some(out) = decision.record {
+            count_stage(&mut self.steps, &out.qp);
+            self.rejected += out.rejected.count as u64;
+            let map = &self.setup.channel_of_sensor;
+            for (v, c) in self.view.channels.iter_mut().zip(map) {
+                v.rejected = c.is_some_and(|c| out.rejected.channels.get(c) == Some(&true));
+            }
+        }
+        self.view.decision(decision.record, &self.filters);
+        let u = decision.u;
+        self.view.u = [u[0], u[1]];
+        self.view.estimates(self.law.estimators());
+        self.view.attacks_active.iter_mut().for_each(|a| *a = false);
+        for i in self.attacks.active(t) {
+            if let Some(a) = self.view.attacks_active.get_mut(i) {
+                *a = true;
+            }
+        }
+        u
+    }
+
+    /// Holds `u` through the drive for one control period of plant ticks, checking the truth.
+    fn actuate(&mut self, u: Input) {
+        self.view.body_cmd = self.plant.apply_input(&u, self.heading, self.control_dt);
+        for _ in 0..self.world.ticks_per_control {
+            self.plant.tick();
+            self.monitor
+                .after_tick(&self.plant, self.world, &mut self.view.events);
+        }
+        self.monitor
+            .after_step(&self.plant, self.world, &mut self.view.barrier_truth);
+        if self.link_poses {
+            self.plant.link_poses(&mut self.view.link_poses);
+        }
+    }
+
+    fn frame(&self, t: f64, step: u64) -> Frame<'_> {
+        let v = &self.view;
+        Frame {
+            t,
+            step,
+            truth: &v.truth,
+            channels: &v.channels,
+            estimates: &v.estimates,
+            barrier_values: &v.barrier_values,
+            barrier_truth: &v.barrier_truth,
+            u: v.u,
+            body_cmd: v.body_cmd,
+            decided_by: match v.decided_by {
+                Some(stage) => stage,
+                None => self.law.name(),
+            },
+            decision_note: &v.note,
+            attacks_active: &v.attacks_active,
+            link_poses: &v.link_poses,
+            events: &v.events,
+        }
+    }
+
+    /// What the run measured so far (the whole run after [`Simulation::run_to_end`]).
+    pub fn summary(&self) -> RunSummary {
+        let m = &self.monitor;
+        let end = self.plant.truth();
+        let collided = m.first_collision.is_some();
+        RunSummary {
+            world: self.world.name.clone(),
+            seed: self.seed,
+            controller: self.law.name().to_string(),
+            duration: self.k as f64 * self.control_dt,
+            safe: !collided && m.first_violation.is_none(),
+            collided,
+            first_collision: m.first_collision.clone(),
+            first_violation: m.first_violation.clone(),
+            min_barrier: m.min_barrier(),
+            min_clearance: m.min_clearance,
+            goal_reached: m.time_to_goal.is_some(),
+            time_to_goal: m.time_to_goal,
+            steps: self.steps,
+            control_steps: self.k,
+            rejected_readings: self.rejected,
+            attacks_outside_fault_patterns: self
+                .attack_windows
+                .iter()
+                .any(|w| w.outside_fault_patterns),
+            attack_windows: self.attack_windows.clone(),
+            final_state: [end.x, end.y, end.vx, end.vy],
+        }
+    }
+}
+
+/// Estimator labels named after the world's fault patterns: drop_<F(r_i)>,
+/// drop_<F(r_i)>+<F(r_j)>, all (none for a law without a bank).
+fn filter_labels(world: &World, law: &dyn ControlLaw) -> Vec<String> {
+    let Some(bank) = law.estimators() else {
+        return Vec::new();
+    };
     let pname = |i: usize| {
-        file.fault_patterns
+        world
+            .file
+            .fault_patterns
             .get(i)
             .map_or_else(|| format!("r{}", i + 1), |p| p.name.clone())
     };
-    let filters: Vec<String> = controller
-        .bank()
-        .filters()
+    bank.filters()
         .iter()
         .map(|f| match f.role() {
             FilterRole::DropPattern(i) => format!("drop_{}", pname(i)),
             FilterRole::DropPair(i, j) => format!("drop_{}+{}", pname(i), pname(j)),
             FilterRole::Baseline => "all".to_string(),
         })
-        .collect();
+        .collect()
+}
 
-    let windows = attacks.windows();
+fn attack_windows(
+    attacks: &AttackStack,
+    windows: &[(String, f64, Option<f64>)],
+    world: &World,
+) -> Vec<AttackWindow> {
     let outside = attacks.outside_fault_patterns(&world.patterns);
-    let attack_windows: Vec<AttackWindow> = windows
+    windows
         .iter()
         .enumerate()
         .map(|(i, (label, start, end))| AttackWindow {
@@ -169,279 +485,5 @@ pub fn run_observed(
             end: *end,
             outside_fault_patterns: outside.contains(&i),
         })
-        .collect();
-
-    if let Some(obs) = observer.as_deref_mut() {
-        obs.scene(&build_scene(world, &setup, &filters, &windows));
-    }
-
-    let q = setup.sensor_of_channel.len();
-    let nb = barriers.len();
-    let mut y = vec![0.0; q];
-    let mut fresh = vec![false; q];
-    let mut min_barrier = vec![f64::INFINITY; nb];
-    let mut barrier_truth = vec![0.0; nb];
-    let mut clearances: Vec<f64> = Vec::new();
-    let mut min_clearance: Option<f64> = None;
-    let mut first_collision: Option<CollisionEvent> = None;
-    let mut first_violation: Option<ViolationEvent> = None;
-    let mut time_to_goal: Option<f64> = None;
-    let mut steps = StepCounts::default();
-    let mut rejected: u64 = 0;
-    let mut heading = plant.truth().theta;
-    let mut in_contact = vec![false; world.obstacles.len()];
-
-    // Observer-only buffers.
-    let mut channels_view = vec![
-        ChannelView {
-            clean: 0.0,
-            received: 0.0,
-            fresh: false,
-            detector_z: f64::NAN,
-            rejected: false,
-        };
-        file.sensors.len()
-    ];
-    let mut estimates_view = vec![
-        EstimateView {
-            x: [0.0; 4],
-            residue: 0.0,
-            clf: 0.0
-        };
-        filters.len()
-    ];
-    let mut attacks_active = vec![false; windows.len()];
-    let mut link_poses: Vec<(String, [f32; 3], [f32; 4])> = Vec::new();
-    let mut events: Vec<String> = Vec::new();
-    let mut note = String::new();
-
-    let n_steps = (duration / control_dt).round().max(1.0) as u64;
-    let goal = file.goal.center;
-    let goal_r = file.goal.radius;
-    let in_goal = |t: &TruthState| match file.goal.metric {
-        GoalMetric::Position => (t.x - goal[0]).hypot(t.y - goal[1]) <= goal_r,
-        GoalMetric::State => {
-            let d = [t.x - goal[0], t.y - goal[1], t.vx, t.vy];
-            d.iter().map(|v| v * v).sum::<f64>().sqrt() <= goal_r
-        }
-    };
-
-    for k in 0..n_steps {
-        let t = k as f64 * control_dt;
-        let mut truth = plant.truth();
-        truth.t = t;
-        events.clear();
-
-        // Sensors, then attacks (the stealthy attacker reads the all-channel filter's prediction).
-        let samples = suite.sample(&truth);
-        if observer.is_some() {
-            for (v, s) in channels_view.iter_mut().zip(samples.iter()) {
-                v.clean = s.value;
-            }
-        }
-        {
-            let bank = controller.bank();
-            let map = &setup.channel_of_sensor;
-            let detector = |ch: usize| {
-                map.get(ch)
-                    .copied()
-                    .flatten()
-                    .and_then(|c| bank.predicted_measurement(baseline, c))
-            };
-            attacks.apply(t, samples, &detector);
-        }
-        for (c, &si) in setup.sensor_of_channel.iter().enumerate() {
-            y[c] = samples[si].value;
-            fresh[c] = samples[si].fresh;
-        }
-        if let Some(h) = heading_channel {
-            let s = samples[h];
-            if s.fresh && s.value.is_finite() {
-                heading = s.value;
-            }
-        }
-        if observer.is_some() {
-            let bank = controller.bank();
-            for (si, (v, s)) in channels_view.iter_mut().zip(samples.iter()).enumerate() {
-                v.received = s.value;
-                v.fresh = s.fresh;
-                v.detector_z = match setup.channel_of_sensor[si] {
-                    Some(c) if s.fresh => bank
-                        .predicted_measurement(baseline, c)
-                        .map_or(f64::NAN, |(mean, std)| (s.value - mean) / std),
-                    _ => f64::NAN,
-                };
-            }
-        }
-
-        // Controller.
-        controller.step(&y, &fresh, control_dt);
-        let out = controller.output();
-        let u = out.u;
-        count_stage(&mut steps, &out.qp);
-        rejected += out.rejected.count as u64;
-        if observer.is_some() {
-            for (v, c) in channels_view.iter_mut().zip(&setup.channel_of_sensor) {
-                v.rejected = c.is_some_and(|c| out.rejected.channels.get(c) == Some(&true));
-            }
-        }
-
-        if observer.is_some() {
-            note.clear();
-            for d in &out.decision.decisions {
-                if let Verdict::Dropped { stage, reason } = d.verdict {
-                    let who = filters.get(d.unit).map_or("?", |s| s.as_str());
-                    let why = match reason {
-                        DropReason::PairwiseDeviation {
-                            other,
-                            distance,
-                            theta,
-                            deviation_from_pair,
-                        } => format!(
-                            "‖x̂_{who} − x̂_{}‖ = {distance:.4} > θ = {theta:.4} and ‖x̂_{who} − x̂_pair‖ = {deviation_from_pair:.4} > θ/2",
-                            filters.get(other).map_or("?", |s| s.as_str())
-                        ),
-                        DropReason::LargestResidue { residue, flagged } => format!(
-                            "largest residue {residue:.4}{}",
-                            if flagged { " (flagged: rejected reading)" } else { "" }
-                        ),
-                    };
-                    note.push_str(&format!("{who} dropped at {stage:?}: {why}; "));
-                }
-            }
-            if let QpOutcome::InfeasibleAfterStep3 {
-                action,
-                max_cbf_violation,
-            } = out.qp
-            {
-                note.push_str(&format!(
-                    "infeasible after Step 3: safe action {action:?}, max CBF violation {max_cbf_violation:.4} m/s²"
-                ));
-            }
-            let bank = controller.bank();
-            for (i, f) in bank.filters().iter().enumerate() {
-                let x = f.estimate();
-                estimates_view[i] = EstimateView {
-                    x: [x[0], x[1], x[2], x[3]],
-                    residue: f.residue_norm(),
-                    clf: out.v_values.get(i).copied().unwrap_or(f64::NAN),
-                };
-            }
-            attacks_active.iter_mut().for_each(|a| *a = false);
-            for i in attacks.active(t) {
-                if let Some(a) = attacks_active.get_mut(i) {
-                    *a = true;
-                }
-            }
-        }
-
-        // Drive and plant.
-        let body_cmd = plant.apply_input(&u, heading, control_dt);
-        for _ in 0..world.ticks_per_control {
-            plant.tick();
-            let tt = plant.truth();
-            let x = tt.planar();
-            for (j, b) in barriers.iter().enumerate().take(setup.safe_sets) {
-                let h = b.eval(&x).value;
-                if h < min_barrier[j] {
-                    min_barrier[j] = h;
-                }
-                if h < 0.0 && first_violation.is_none() {
-                    first_violation = Some(ViolationEvent {
-                        t: tt.t,
-                        set: setup.barrier_names[j].clone(),
-                        value: h,
-                    });
-                    events.push(format!(
-                        "safety violation: left {} at t = {:.3} s (h = {h:.4})",
-                        setup.barrier_names[j], tt.t
-                    ));
-                }
-            }
-            for (oi, touching) in in_contact.iter_mut().enumerate() {
-                let now = plant.in_contact(oi);
-                if now && !*touching {
-                    let name = world.obstacles[oi].name.clone();
-                    events.push(format!("collision with {name} at t = {:.3} s", tt.t));
-                    if first_collision.is_none() {
-                        first_collision = Some(CollisionEvent {
-                            t: tt.t,
-                            obstacle: name,
-                        });
-                    }
-                }
-                *touching = now;
-            }
-            if time_to_goal.is_none() && in_goal(&tt) {
-                time_to_goal = Some(tt.t);
-            }
-        }
-
-        // Per control step: obstacle barriers on the truth, clearances.
-        let tt = plant.truth();
-        let x = tt.planar();
-        for j in setup.safe_sets..nb {
-            let h = barriers[j].eval(&x).value;
-            min_barrier[j] = min_barrier[j].min(h);
-        }
-        if !world.obstacles.is_empty() {
-            plant.clearances(&mut clearances);
-            let m = clearances.iter().copied().fold(f64::INFINITY, f64::min);
-            min_clearance = Some(min_clearance.map_or(m, |c: f64| c.min(m)));
-        }
-
-        if let Some(obs) = observer.as_deref_mut() {
-            for (j, b) in barriers.iter().enumerate() {
-                barrier_truth[j] = b.eval(&x).value;
-            }
-            plant.link_poses(&mut link_poses);
-            obs.frame(&Frame {
-                t,
-                step: k,
-                truth: &truth,
-                channels: &channels_view,
-                estimates: &estimates_view,
-                barrier_values: &controller.output().h_values,
-                barrier_truth: &barrier_truth,
-                u: [u[0], u[1]],
-                body_cmd,
-                decided_by: stage_name(&controller.output().qp),
-                decision_note: &note,
-                attacks_active: &attacks_active,
-                link_poses: &link_poses,
-                events: &events,
-            });
-        }
-    }
-
-    let end = plant.truth();
-    let collided = first_collision.is_some();
-    Ok(RunSummary {
-        world: world.name.clone(),
-        seed,
-        controller: controller_name(kind).to_string(),
-        duration: n_steps as f64 * control_dt,
-        safe: !collided && first_violation.is_none(),
-        collided,
-        first_collision,
-        first_violation,
-        min_barrier: setup
-            .barrier_names
-            .iter()
-            .zip(min_barrier)
-            .map(|(name, value)| NamedValue {
-                name: name.clone(),
-                value,
-            })
-            .collect(),
-        min_clearance,
-        goal_reached: time_to_goal.is_some(),
-        time_to_goal,
-        steps,
-        control_steps: n_steps,
-        rejected_readings: rejected,
-        attack_windows,
-        attacks_outside_fault_patterns: !outside.is_empty(),
-        final_state: [end.x, end.y, end.vx, end.vy],
-    })
+        .collect()
 }

@@ -24,6 +24,31 @@ fn mesh_from(vertices: Vec<parry3d::math::Vector>, triangles: Vec<[u32; 3]>) -> 
     }
 }
 
+/// A square patch of a half-space's wall plane, centred on its point, drawn from both sides.
+fn half_space_patch(ob: &Obstacle, rot: &UnitQuaternion<f64>, normal: &[f64; 3]) -> Placed {
+    let spec = &ob.spec;
+    let f = |v: f64| v as f32;
+    let n = *rot * Vector3::from(*normal).normalize();
+    let helper = if n.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    let a = n.cross(&helper).normalize() * HALF_SPACE_PATCH;
+    let b = n.cross(&a).normalize() * HALF_SPACE_PATCH;
+    let c = Vector3::from(spec.position);
+    let corners = [c + a + b, c + a - b, c - a - b, c - a + b];
+    Placed {
+        name: ob.name.clone(),
+        geometry: Geometry::Mesh {
+            vertices: corners.iter().map(|p| [f(p.x), f(p.y), f(p.z)]).collect(),
+            triangles: vec![[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]],
+        },
+        translation: [0.0; 3],
+        rotation: [0.0, 0.0, 0.0, 1.0],
+    }
+}
+
 fn obstacle_geometry(ob: &Obstacle) -> Placed {
     let spec = &ob.spec;
     let rot = UnitQuaternion::from_euler_angles(spec.rpy[0], spec.rpy[1], spec.rpy[2]);
@@ -86,28 +111,7 @@ fn obstacle_geometry(ob: &Obstacle) -> Placed {
             Some(m) => in_shape_pose(mesh_from(m.vertices().to_vec(), m.indices().to_vec())),
             None => in_shape_pose(Geometry::Ball { radius: 0.0 }),
         },
-        ShapeSpec::HalfSpace { normal } => {
-            // A square patch of the wall plane, centred on its point.
-            let n = rot * Vector3::from(*normal).normalize();
-            let helper = if n.z.abs() < 0.9 {
-                Vector3::z()
-            } else {
-                Vector3::x()
-            };
-            let a = n.cross(&helper).normalize() * HALF_SPACE_PATCH;
-            let b = n.cross(&a).normalize() * HALF_SPACE_PATCH;
-            let c = Vector3::from(spec.position);
-            let corners = [c + a + b, c + a - b, c - a - b, c - a + b];
-            Placed {
-                name: ob.name.clone(),
-                geometry: Geometry::Mesh {
-                    vertices: corners.iter().map(|p| [f(p.x), f(p.y), f(p.z)]).collect(),
-                    triangles: vec![[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]],
-                },
-                translation: [0.0; 3],
-                rotation: [0.0, 0.0, 0.0, 1.0],
-            }
-        }
+        ShapeSpec::HalfSpace { normal } => half_space_patch(ob, &rot, normal),
     }
 }
 

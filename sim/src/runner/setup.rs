@@ -151,47 +151,8 @@ impl ControlSetup {
     /// Builds the controller configuration for `world` run with `kind`.
     pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
         let file = &world.file;
-        let err = |key: &str, message: String| RunError::Setup {
-            world: world.path.display().to_string(),
-            key: key.to_string(),
-            message,
-        };
-
-        // Channels the linear model observes, in sensor order.
-        let mut c_rows = Vec::new();
-        let mut r = Vec::new();
-        let mut sensor_of_channel = Vec::new();
-        let mut channel_of_sensor = vec![None; file.sensors.len()];
-        for (si, s) in file.sensors.iter().enumerate() {
-            if let Some(row) = observation_row(s.measures) {
-                channel_of_sensor[si] = Some(c_rows.len());
-                sensor_of_channel.push(si);
-                c_rows.push(row);
-                r.push((s.noise_std * s.noise_std).max(MIN_VARIANCE));
-            }
-        }
-        let mut patterns = Vec::with_capacity(world.patterns.len());
-        for (pi, p) in world.patterns.iter().enumerate() {
-            let mut mapped = Vec::with_capacity(p.len());
-            for &si in p {
-                match channel_of_sensor[si] {
-                    Some(ci) => mapped.push(ci),
-                    None => {
-                        return Err(err(
-                            &format!("fault_patterns[{pi}].channels"),
-                            format!(
-                                "channel \"{}\" measures {}, which the controller's linear model does not use; \
-                                 fault patterns may only hold x, y, vx and vy channels",
-                                file.sensors[si].name,
-                                file.sensors[si].measures.as_str()
-                            ),
-                        ))
-                    }
-                }
-            }
-            patterns.push(mapped);
-        }
-
+        let ch = Channels::of(world);
+        let patterns = model_patterns(world, &ch.channel_of_sensor)?;
         let q_intensity = file.control.process_noise.unwrap_or(match file.dynamics {
             Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
             Dynamics::Rapier => DEFAULT_RAPIER_PROCESS_NOISE,
@@ -199,11 +160,11 @@ impl ControlSetup {
         let model = LinearModel::new(
             LinearModel::double_integrator_f(),
             LinearModel::double_integrator_g(),
-            c_rows,
+            ch.c_rows,
             StateMatrix::identity() * q_intensity,
-            r,
+            ch.r,
         )
-        .map_err(|e| err("sensors", e.to_string()))?;
+        .map_err(|e| setup_err(world, "sensors", e.to_string()))?;
 
         // Barriers: closed-form safe sets, then obstacles.
         let mut barriers = safe_set_barriers(world);
@@ -214,65 +175,9 @@ impl ControlSetup {
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
 
-        // Parameters.
-        let control_dt = world.control_dt();
-        let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
-        let needs_auto =
-            matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
-        let computed = needs_auto.then(|| {
-            FtParameters::compute_from(
-                &model,
-                &patterns,
-                control_dt,
-                file.control.epsilon,
-                horizon,
-                &(StateMatrix::identity() * P0_VARIANCE),
-            )
-        });
-        let m = patterns.len();
-        let gamma = match (file.control.gamma, &computed) {
-            (Param::Value(g), _) => vec![g; m],
-            (Param::Auto, Some(p)) => p.gamma.clone(),
-            (Param::Auto, None) => unreachable!("computed when auto"),
-        };
-        let gamma_baseline = match (file.control.gamma, &computed) {
-            (Param::Value(g), _) => g,
-            (Param::Auto, Some(p)) => p.gamma_baseline,
-            (Param::Auto, None) => unreachable!("computed when auto"),
-        };
-        let theta = match (file.control.theta, &computed) {
-            (Param::Value(t), _) => vec![t],
-            (Param::Auto, Some(p)) if !p.theta.is_empty() => p.theta.clone(),
-            // m < 2: no pairs, so no θ_ij (C(m,2) = 0 values).
-            (Param::Auto, _) => Vec::new(),
-        };
-        let delta = file.control.delta.unwrap_or(f64::INFINITY);
-
-        let (start_x, start_y) = match (&file.robot, &file.linear) {
-            (Some(r), _) => (r.start.x, r.start.y),
-            (None, Some(l)) => (l.x0[0], l.x0[1]),
-            (None, None) => (0.0, 0.0),
-        };
-        let x0 = match &file.linear {
-            Some(l) => State::new(l.x0[0], l.x0[1], l.x0[2], l.x0[3]),
-            None => State::new(start_x, start_y, 0.0, 0.0),
-        };
+        let params = parameters(world, &model, &patterns);
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
-        let mut clf = ClfConfig::paper(0.0);
-        clf.rho = file.control.clf.rho;
-        clf.v_bar = match file.control.clf.v_bar {
-            Some(v) => v,
-            None => {
-                // The largest V-level set inside the goal ball ‖x − x_g‖ ≤ d: inside it the CLF
-                // rows rest (Y_t(V̄) of §5.1). With noise the stochastic CLF condition (5.1)
-                // cannot hold at the goal itself (its Itô term is a positive constant while
-                // ∇V → 0), so without a V̄ > 0 the rows would demand ever larger inputs there.
-                let v = QuadraticClf::new(&model.f, &model.g, goal, file.goal.radius, &clf)
-                    .map_err(|e| err("control.clf", e.to_string()))?;
-                v.p_d.symmetric_eigenvalues().min() * file.goal.radius * file.goal.radius
-            }
-        };
-
+        let clf = clf_config(world, &model, goal)?;
         let config = ControllerConfig {
             kind: controller_kind(kind),
             model,
@@ -280,32 +185,171 @@ impl ControlSetup {
             barriers,
             goal,
             goal_radius: file.goal.radius,
-            gamma: gamma.clone(),
-            gamma_baseline,
-            theta: theta.clone(),
-            delta,
+            gamma: params.gamma.clone(),
+            gamma_baseline: params.gamma_baseline,
+            theta: params.theta.clone(),
+            delta: params.delta,
             cbf_gain: file.control.cbf_gain,
             clf,
             input_cost: Matrix2::identity(),
             input_limit: file.control.input_limit.map(|l| Input::new(l, l)),
-            x0,
+            x0: initial_estimate(world),
             p0: StateMatrix::identity() * P0_VARIANCE,
             max_abs_reading: MAX_ABS_READING,
         };
         Ok(Self {
             config,
-            sensor_of_channel,
-            channel_of_sensor,
+            sensor_of_channel: ch.sensor_of_channel,
+            channel_of_sensor: ch.channel_of_sensor,
             barrier_names,
             safe_sets,
-            params: ParamReport {
-                gamma,
-                gamma_baseline,
-                theta,
-                delta,
-                computed,
-                epsilon: file.control.epsilon,
-            },
+            params,
         })
     }
+}
+
+fn setup_err(world: &World, key: &str, message: String) -> RunError {
+    RunError::Setup {
+        world: world.path.display().to_string(),
+        key: key.to_string(),
+        message,
+    }
+}
+
+/// The channels the linear model observes, in sensor order.
+struct Channels {
+    c_rows: Vec<RowVector4<f64>>,
+    r: Vec<f64>,
+    sensor_of_channel: Vec<usize>,
+    channel_of_sensor: Vec<Option<usize>>,
+}
+
+impl Channels {
+    fn of(world: &World) -> Self {
+        let sensors = &world.file.sensors;
+        let mut ch = Channels {
+            c_rows: Vec::new(),
+            r: Vec::new(),
+            sensor_of_channel: Vec::new(),
+            channel_of_sensor: vec![None; sensors.len()],
+        };
+        for (si, s) in sensors.iter().enumerate() {
+            if let Some(row) = observation_row(s.measures) {
+                ch.channel_of_sensor[si] = Some(ch.c_rows.len());
+                ch.sensor_of_channel.push(si);
+                ch.c_rows.push(row);
+                ch.r.push((s.noise_std * s.noise_std).max(MIN_VARIANCE));
+            }
+        }
+        ch
+    }
+}
+
+/// The world's fault patterns as controller channel indices.
+fn model_patterns(
+    world: &World,
+    channel_of_sensor: &[Option<usize>],
+) -> Result<Vec<Vec<usize>>, RunError> {
+    let sensors = &world.file.sensors;
+    let mut patterns = Vec::with_capacity(world.patterns.len());
+    for (pi, p) in world.patterns.iter().enumerate() {
+        let mut mapped = Vec::with_capacity(p.len());
+        for &si in p {
+            match channel_of_sensor[si] {
+                Some(ci) => mapped.push(ci),
+                None => {
+                    return Err(setup_err(
+                        world,
+                        &format!("fault_patterns[{pi}].channels"),
+                        format!(
+                            "channel \"{}\" measures {}, which the controller's linear model does not use; \
+                             fault patterns may only hold x, y, vx and vy channels",
+                            sensors[si].name,
+                            sensors[si].measures.as_str()
+                        ),
+                    ))
+                }
+            }
+        }
+        patterns.push(mapped);
+    }
+    Ok(patterns)
+}
+
+/// γ_i, γ of the all-channel filter, θ_ij and δ: given, or computed per §4.3 (`auto`).
+fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> ParamReport {
+    let file = &world.file;
+    let control_dt = world.control_dt();
+    let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
+    let needs_auto =
+        matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
+    let computed = needs_auto.then(|| {
+        FtParameters::compute_from(
+            model,
+            patterns,
+            control_dt,
+            file.control.epsilon,
+            horizon,
+            &(StateMatrix::identity() * P0_VARIANCE),
+        )
+    });
+    let m = patterns.len();
+    let gamma = match (file.control.gamma, &computed) {
+        (Param::Value(g), _) => vec![g; m],
+        (Param::Auto, Some(p)) => p.gamma.clone(),
+        (Param::Auto, None) => unreachable!("computed when auto"),
+    };
+    let gamma_baseline = match (file.control.gamma, &computed) {
+        (Param::Value(g), _) => g,
+        (Param::Auto, Some(p)) => p.gamma_baseline,
+        (Param::Auto, None) => unreachable!("computed when auto"),
+    };
+    let theta = match (file.control.theta, &computed) {
+        (Param::Value(t), _) => vec![t],
+        (Param::Auto, Some(p)) if !p.theta.is_empty() => p.theta.clone(),
+        // m < 2: no pairs, so no θ_ij (C(m,2) = 0 values).
+        (Param::Auto, _) => Vec::new(),
+    };
+    ParamReport {
+        gamma,
+        gamma_baseline,
+        theta,
+        delta: file.control.delta.unwrap_or(f64::INFINITY),
+        computed,
+        epsilon: file.control.epsilon,
+    }
+}
+
+/// The filters' initial estimate: the linear plant's x0, or the robot's start at rest.
+fn initial_estimate(world: &World) -> State {
+    let file = &world.file;
+    let (start_x, start_y) = match (&file.robot, &file.linear) {
+        (Some(r), _) => (r.start.x, r.start.y),
+        (None, Some(l)) => (l.x0[0], l.x0[1]),
+        (None, None) => (0.0, 0.0),
+    };
+    match &file.linear {
+        Some(l) => State::new(l.x0[0], l.x0[1], l.x0[2], l.x0[3]),
+        None => State::new(start_x, start_y, 0.0, 0.0),
+    }
+}
+
+/// The CLF: the world's ρ, and V̄ given or derived from the goal radius.
+fn clf_config(world: &World, model: &LinearModel, goal: State) -> Result<ClfConfig, RunError> {
+    let file = &world.file;
+    let mut clf = ClfConfig::paper(0.0);
+    clf.rho = file.control.clf.rho;
+    clf.v_bar = match file.control.clf.v_bar {
+        Some(v) => v,
+        None => {
+            // The largest V-level set inside the goal ball ‖x − x_g‖ ≤ d: inside it the CLF
+            // rows rest (Y_t(V̄) of §5.1). With noise the stochastic CLF condition (5.1)
+            // cannot hold at the goal itself (its Itô term is a positive constant while
+            // ∇V → 0), so without a V̄ > 0 the rows would demand ever larger inputs there.
+            let v = QuadraticClf::new(&model.f, &model.g, goal, file.goal.radius, &clf)
+                .map_err(|e| setup_err(world, "control.clf", e.to_string()))?;
+            v.p_d.symmetric_eigenvalues().min() * file.goal.radius * file.goal.radius
+        }
+    };
+    Ok(clf)
 }

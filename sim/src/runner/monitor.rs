@@ -1,0 +1,139 @@
+//! What a run measures on the truth: barrier minima, the first safe-set violation, contacts,
+//! clearances and the goal. Fed after every plant tick and once per control step.
+
+use std::sync::Arc;
+
+use ftcbf_controller::Barrier;
+
+use crate::state::TruthState;
+use crate::summary::{CollisionEvent, NamedValue, ViolationEvent};
+use crate::world::{GoalMetric, World};
+
+use super::plant::Plant;
+use super::setup::ControlSetup;
+
+/// Safety and goal bookkeeping of one run.
+pub(super) struct Monitor {
+    barriers: Vec<Arc<dyn Barrier>>,
+    names: Vec<String>,
+    /// The first `safe_sets` barriers are closed-form safe sets (checked every tick).
+    safe_sets: usize,
+    min_barrier: Vec<f64>,
+    in_contact: Vec<bool>,
+    clearances: Vec<f64>,
+    pub(super) min_clearance: Option<f64>,
+    pub(super) first_collision: Option<CollisionEvent>,
+    pub(super) first_violation: Option<ViolationEvent>,
+    pub(super) time_to_goal: Option<f64>,
+}
+
+impl Monitor {
+    pub(super) fn new(world: &World, setup: &ControlSetup) -> Self {
+        let barriers = setup.config.barriers.clone();
+        Self {
+            min_barrier: vec![f64::INFINITY; barriers.len()],
+            barriers,
+            names: setup.barrier_names.clone(),
+            safe_sets: setup.safe_sets,
+            in_contact: vec![false; world.obstacles.len()],
+            clearances: Vec::new(),
+            min_clearance: None,
+            first_collision: None,
+            first_violation: None,
+            time_to_goal: None,
+        }
+    }
+
+    /// After one plant tick: safe sets on the truth, contacts (with an event when one starts),
+    /// the goal.
+    pub(super) fn after_tick(&mut self, plant: &Plant, world: &World, events: &mut Vec<String>) {
+        let tt = plant.truth();
+        let x = tt.planar();
+        for (j, b) in self.barriers.iter().enumerate().take(self.safe_sets) {
+            let h = b.eval(&x).value;
+            if h < self.min_barrier[j] {
+                self.min_barrier[j] = h;
+            }
+            if h < 0.0 && self.first_violation.is_none() {
+                let set = &self.names[j];
+                self.first_violation = Some(ViolationEvent {
+                    t: tt.t,
+                    set: set.clone(),
+                    value: h,
+                });
+                events.push(format!(
+                    "safety violation: left {set} at t = {:.3} s (h = {h:.4})",
+                    tt.t
+                ));
+            }
+        }
+        for (oi, touching) in self.in_contact.iter_mut().enumerate() {
+            let now = plant.in_contact(oi);
+            if now && !*touching {
+                let name = world.obstacles[oi].name.clone();
+                events.push(format!("collision with {name} at t = {:.3} s", tt.t));
+                if self.first_collision.is_none() {
+                    self.first_collision = Some(CollisionEvent {
+                        t: tt.t,
+                        obstacle: name,
+                    });
+                }
+            }
+            *touching = now;
+        }
+        if self.time_to_goal.is_none() && in_goal(world, &tt) {
+            self.time_to_goal = Some(tt.t);
+        }
+    }
+
+    /// After the control step's last tick: obstacle barriers and clearances on the truth, and
+    /// h(x_true) of every barrier into `barrier_truth`.
+    pub(super) fn after_step(&mut self, plant: &Plant, world: &World, barrier_truth: &mut [f64]) {
+        let x = plant.truth().planar();
+        for (j, b) in self.barriers.iter().enumerate() {
+            let h = b.eval(&x).value;
+            barrier_truth[j] = h;
+            if j >= self.safe_sets {
+                self.min_barrier[j] = self.min_barrier[j].min(h);
+            }
+        }
+        if !world.obstacles.is_empty() {
+            plant.clearances(&mut self.clearances);
+            let m = self
+                .clearances
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min);
+            self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
+        }
+    }
+
+    /// Number of barriers (safe sets, then obstacles).
+    pub(super) fn barriers(&self) -> usize {
+        self.barriers.len()
+    }
+
+    /// The smallest h(x_true) so far, per barrier.
+    pub(super) fn min_barrier(&self) -> Vec<NamedValue> {
+        self.names
+            .iter()
+            .zip(&self.min_barrier)
+            .map(|(name, &value)| NamedValue {
+                name: name.clone(),
+                value,
+            })
+            .collect()
+    }
+}
+
+fn in_goal(world: &World, t: &TruthState) -> bool {
+    let goal = &world.file.goal;
+    let [gx, gy] = goal.center;
+    match goal.metric {
+        GoalMetric::Position => (t.x - gx).hypot(t.y - gy) <= goal.radius,
+        GoalMetric::State => {
+            let d = [t.x - gx, t.y - gy, t.vx, t.vy];
+            d.iter().map(|v| v * v).sum::<f64>().sqrt() <= goal.radius
+        }
+    }
+}
