@@ -31,6 +31,22 @@ pub enum DriveError {
     },
 }
 
+/// The compensator validates v_max, omega_max and v_floor; its errors read as the drive's.
+impl From<CompensatorError> for DriveError {
+    fn from(e: CompensatorError) -> Self {
+        let CompensatorError::InvalidValue {
+            key,
+            expected,
+            value,
+        } = e;
+        DriveError::InvalidValue {
+            key,
+            expected,
+            value,
+        }
+    }
+}
+
 /// Configuration of the compensator.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DriveConfig {
@@ -78,10 +94,7 @@ impl Drive {
     ) -> Result<Self, DriveError> {
         check("wheel radius", geometry.radius)?;
         check("wheel separation", geometry.separation)?;
-        check("v_max", limits.v_max)?;
-        check("omega_max", limits.omega_max)?;
         check("wheel_speed_max", limits.wheel_speed_max)?;
-        check("v_floor", cfg.v_floor)?;
         if !cfg.v_initial.is_finite() {
             return Err(DriveError::InvalidValue {
                 key: "v_initial",
@@ -98,20 +111,7 @@ impl Drive {
                 v_floor: cfg.v_floor,
             },
             speed_gain: 1.0,
-        })
-        .map_err(
-            |CompensatorError::InvalidValue {
-                 key,
-                 expected,
-                 value,
-             }| {
-                DriveError::InvalidValue {
-                    key,
-                    expected,
-                    value,
-                }
-            },
-        )?;
+        })?;
         compensator.reset(cfg.v_initial);
         Ok(Self {
             geometry: *geometry,

@@ -1,7 +1,7 @@
 //! The static scene of a run, for an observer: obstacles and robot links with their true
 //! shapes, safe-set outlines, the goal, and the names of every logged series.
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::observe::{Geometry, Placed, Scene};
 use crate::obstacles::{Obstacle, ShapeSpec};
@@ -149,18 +149,24 @@ fn visual_shapes(visuals: &[RobotVisual]) -> Vec<Placed> {
         .iter()
         .enumerate()
         .map(|(i, v)| {
-            let t = v.pose_in_body.translation.vector;
-            Placed {
-                name: format!("{}_visual_{i}", v.link),
-                geometry: Geometry::Mesh {
-                    vertices: v.vertices.iter().map(|p| p.map(|x| x as f32)).collect(),
-                    triangles: v.indices.clone(),
-                },
-                translation: [t.x as f32, t.y as f32, t.z as f32],
-                rotation: quat_xyzw(&v.pose_in_body.rotation),
-            }
+            let mesh = Geometry::Mesh {
+                vertices: v.vertices.iter().map(|p| p.map(|x| x as f32)).collect(),
+                triangles: v.indices.clone(),
+            };
+            placed(format!("{}_visual_{i}", v.link), mesh, &v.pose_in_body)
         })
         .collect()
+}
+
+/// A shape at a pose in its body's frame.
+fn placed(name: String, geometry: Geometry, pose_in_body: &Isometry3<f64>) -> Placed {
+    let t = pose_in_body.translation.vector;
+    Placed {
+        name,
+        geometry,
+        translation: [t.x as f32, t.y as f32, t.z as f32],
+        rotation: quat_xyzw(&pose_in_body.rotation),
+    }
 }
 
 fn outline(spec: &SafeSetSpec) -> Vec<[f32; 3]> {
@@ -230,13 +236,8 @@ pub fn build_scene(
                         .iter()
                         .enumerate()
                         .map(|(i, c)| {
-                            let t = c.pose_in_body.translation.vector;
-                            Placed {
-                                name: format!("{}_{i}", c.link),
-                                geometry: collider_geometry(&c.shape),
-                                translation: [t.x as f32, t.y as f32, t.z as f32],
-                                rotation: quat_xyzw(&c.pose_in_body.rotation),
-                            }
+                            let name = format!("{}_{i}", c.link);
+                            placed(name, collider_geometry(&c.shape), &c.pose_in_body)
                         })
                         .collect();
                     (b.name.clone(), shapes)
