@@ -9,8 +9,8 @@
 //!   m events per sample (filter i and the m − 1 pair filters x̂_ij), `ε' = ε/(N m)`.
 //! * θ_ij: `‖x̂_i − x̂_ij‖ ≤ ‖x̂_i − x‖ + ‖x̂_ij − x‖ ≤ γ_i + γ_ij`, so θ_ij/2 =
 //!   max(γ_i, γ_j) + γ_ij makes the Step-2 test of the fault-free filter pass on that event.
-//! * χ² quantiles come from a regularised incomplete gamma function implemented here
-//!   (series and continued fraction, Lanczos log-gamma) — no statistics crate.
+//! * χ² quantiles, the regularised incomplete gamma function and log-gamma come from `statrs`
+//!   (thin wrappers here keep the NaN conventions the callers rely on).
 
 use std::fmt;
 
@@ -20,42 +20,20 @@ use crate::model::LinearModel;
 use crate::types::{Input, InputMatrix, State, StateMatrix};
 
 // ------------------------------------------------------------------------------------------
-// Special functions
+// Special functions (statrs)
 // ------------------------------------------------------------------------------------------
 
-/// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, 9 terms; relative error ~1e-15); NaN for
-/// x ≤ 0 or NaN.
+/// ln Γ(x) for x > 0 (statrs' Lanczos approximation); NaN for x ≤ 0 or NaN. The project's one
+/// log-gamma: the batch statistics use it too.
 pub fn ln_gamma(x: f64) -> f64 {
-    const G: f64 = 7.0;
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
     if x.is_nan() || x <= 0.0 {
         return f64::NAN;
     }
-    if x < 0.5 {
-        // reflection
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + G + 0.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+    statrs::function::gamma::ln_gamma(x)
 }
 
-/// Regularised lower incomplete gamma P(a, x) = γ(a, x)/Γ(a), a > 0, x ≥ 0.
+/// Regularised lower incomplete gamma P(a, x) = γ(a, x)/Γ(a), a > 0, x ≥ 0 (NaN for a ≤ 0 or
+/// NaN arguments; 0 for x ≤ 0; 1 for x = ∞).
 pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
     if a.is_nan() || a <= 0.0 || x.is_nan() {
         return f64::NAN;
@@ -66,48 +44,7 @@ pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
     if x.is_infinite() {
         return 1.0;
     }
-    let log_prefix = a * x.ln() - x - ln_gamma(a);
-    if x < a + 1.0 {
-        // series: γ(a,x) = x^a e^{-x} Σ x^n / (a (a+1) … (a+n))
-        let mut term = 1.0 / a;
-        let mut sum = term;
-        let mut ap = a;
-        for _ in 0..10_000 {
-            ap += 1.0;
-            term *= x / ap;
-            sum += term;
-            if term.abs() < sum.abs() * 1e-16 {
-                break;
-            }
-        }
-        (log_prefix.exp() * sum).clamp(0.0, 1.0)
-    } else {
-        // continued fraction for Q(a,x) (modified Lentz)
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        (1.0 - log_prefix.exp() * h).clamp(0.0, 1.0)
-    }
+    statrs::function::gamma::gamma_lr(a, x).clamp(0.0, 1.0)
 }
 
 /// χ² cumulative distribution with `k` degrees of freedom.
@@ -115,33 +52,17 @@ pub fn chi_square_cdf(k: u32, x: f64) -> f64 {
     regularized_gamma_p(k as f64 / 2.0, x / 2.0)
 }
 
-/// χ² quantile: the x with `chi_square_cdf(k, x) = p`, for 0 < p < 1 (NaN otherwise).
-/// Bracketing then bisection to relative precision 1e-13.
+/// χ² quantile: the x with `chi_square_cdf(k, x) = p`, for 0 < p < 1 (NaN otherwise, and for
+/// k = 0), from statrs' χ² distribution.
 pub fn chi_square_quantile(k: u32, p: f64) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
     if k == 0 || !(p > 0.0 && p < 1.0) {
         return f64::NAN;
     }
-    let mut lo = 0.0;
-    let mut hi = (k as f64).max(1.0);
-    while chi_square_cdf(k, hi) < p {
-        lo = hi;
-        hi *= 2.0;
-        if hi > 1e12 {
-            return f64::INFINITY;
-        }
+    match ChiSquared::new(f64::from(k)) {
+        Ok(d) => d.inverse_cdf(p),
+        Err(_) => f64::NAN,
     }
-    for _ in 0..300 {
-        let mid = 0.5 * (lo + hi);
-        if chi_square_cdf(k, mid) < p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo <= 1e-13 * hi {
-            break;
-        }
-    }
-    0.5 * (lo + hi)
 }
 
 // ------------------------------------------------------------------------------------------
