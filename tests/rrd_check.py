@@ -4,14 +4,23 @@
 
 - the file carries a blueprint for the recording's own application id (`ftcbf-<world>-…`),
   with one 3D view, a text log and time-series views (barriers, sensors, residues, control);
+- the 3D view's eye is set in the blueprint (`EyeControls3D`: position, look target, up = +z):
+  it looks down at ≥ 45° on a target inside the ground, and no obstacle stands between the eye
+  and the robot along ≥ 90 % of the true path (rays to the robot's middle, 0.1 m up, against
+  each obstacle's bounding box);
 - every `/world/estimates/<filter>` has *temporal* positions (no static position that would hide
   them) that change over time, and the robot's links move;
 - h on the truth and on each estimate is plotted for every barrier, with the zero line;
 - no value of a plotted series lies outside the documented plot range (|v| < 1e6).
 
-Usage: rrd_check.py FILE.rrd WORLD   (exit status 1 with a message on the first failure)
+With `--visual-meshes N`: at least N robot shapes are URDF visual meshes (`Mesh3D` entities
+named `<link>_visual_<i>` under `/world/robot`).
+
+Usage: rrd_check.py FILE.rrd WORLD [--visual-meshes N]
+(exit status 1 with a message on the first failure)
 """
 
+import math
 import sys
 
 import pyarrow.compute as pc
@@ -46,6 +55,130 @@ def check_blueprint(reader, world):
     if classes.count("3D") != 1 or classes.count("TextLog") != 1 or classes.count("TimeSeries") < 5:
         fail(f"blueprint views are {sorted(classes)}")
     print(f"rrd_check: blueprint for {app}: {len(classes)} views ({classes.count('TimeSeries')} plots)")
+    return eye_of_3d_view(table)
+
+
+def first(table, name):
+    """The first non-null value of a column (a list of instances), or None."""
+    for v in table.column(name).to_pylist():
+        if v:
+            return v
+    return None
+
+
+def eye_of_3d_view(table):
+    """(position, look_target) of the 3D view's EyeControls3D property in the blueprint."""
+    view = None
+    for name in columns(table, ":ViewBlueprint:class_identifier"):
+        if first(table, name) == ["3D"]:
+            view = name.split(":")[0]
+    eye = {}
+    for field in ("position", "look_target", "eye_up"):
+        name = f"{view}/EyeControls3D:EyeControls3D:{field}"
+        if name not in table.schema.names or first(table, name) is None:
+            fail(f"the 3D view {view} has no EyeControls3D {field} in the blueprint")
+        eye[field] = first(table, name)[0]
+    if [round(x, 6) for x in eye["eye_up"]] != [0.0, 0.0, 1.0]:
+        fail(f"eye_up is {eye['eye_up']}, not +z")
+    pos, target = eye["position"], eye["look_target"]
+    d = [pos[i] - target[i] for i in range(3)]
+    elevation = math.degrees(math.atan2(d[2], math.hypot(d[0], d[1])))
+    if elevation < 45.0:
+        fail(f"the eye {pos} looks at {target} from only {elevation:.1f}° above the ground")
+    print(f"rrd_check: 3D eye at {[round(x, 2) for x in pos]} looking at "
+          f"{[round(x, 2) for x in target]}, {elevation:.1f}° above the ground")
+    return pos, target
+
+
+def rotate(q, v):
+    """v turned by the unit quaternion q = (x, y, z, w)."""
+    x, y, z, w = q
+    tx, ty, tz = 2 * (y * v[2] - z * v[1]), 2 * (z * v[0] - x * v[2]), 2 * (x * v[1] - y * v[0])
+    return [v[0] + w * tx + y * tz - z * ty, v[1] + w * ty + z * tx - x * tz, v[2] + w * tz + x * ty - y * tx]
+
+
+def obstacle_boxes(store):
+    """World-frame axis-aligned bounding boxes (lo, hi) of every obstacle as drawn."""
+    # Static-only entities yield no rows on their own: read them with the moving robot.
+    table = store.reader("step", contents=["/world/**"]).to_arrow_table()
+    names = {n.split(":")[0] for n in table.schema.names if n.startswith(("/world/obstacles/", "/world/ground"))}
+    boxes, ground = [], None
+    for ent in sorted(names):
+        col = lambda c: first(table, f"{ent}:{c}") if f"{ent}:{c}" in table.schema.names else None
+        if ent == "/world/ground":
+            c, h = col("Boxes3D:centers")[0], col("Boxes3D:half_sizes")[0]
+            ground = ([c[0] - h[0], c[1] - h[1]], [c[0] + h[0], c[1] + h[1]])
+            continue
+        local = None
+        if col("Boxes3D:half_sizes"):
+            h = col("Boxes3D:half_sizes")[0]
+            local = [[s * h[0], t * h[1], u * h[2]] for s in (-1, 1) for t in (-1, 1) for u in (-1, 1)]
+        elif col("Ellipsoids3D:half_sizes"):
+            h = col("Ellipsoids3D:half_sizes")[0]
+            local = [[s * h[0], t * h[1], u * h[2]] for s in (-1, 1) for t in (-1, 1) for u in (-1, 1)]
+        elif col("Cylinders3D:radii"):
+            r, ln = col("Cylinders3D:radii")[0], col("Cylinders3D:lengths")[0]
+            local = [[s * r, t * r, u * ln / 2] for s in (-1, 1) for t in (-1, 1) for u in (-1, 1)]
+        elif col("Capsules3D:radii"):
+            r, ln = col("Capsules3D:radii")[0], col("Capsules3D:lengths")[0]
+            local = [[s * r, t * r, u * (ln / 2 + r)] for s in (-1, 1) for t in (-1, 1) for u in (-1, 1)]
+        elif col("Mesh3D:vertex_positions"):
+            local = col("Mesh3D:vertex_positions")
+        if local is None:
+            continue
+        tr = col("Transform3D:translation") or [[0.0, 0.0, 0.0]]
+        q = col("Transform3D:quaternion") or [[0.0, 0.0, 0.0, 1.0]]
+        pts = [[a + b for a, b in zip(rotate(q[0], p), tr[0])] for p in local]
+        boxes.append((ent, [min(p[i] for p in pts) for i in range(3)], [max(p[i] for p in pts) for i in range(3)]))
+    if ground is None:
+        fail("no /world/ground")
+    return boxes, ground
+
+
+def hits(a, b, lo, hi):
+    """Whether the segment a–b passes through the box [lo, hi] (slab test)."""
+    t0, t1 = 0.0, 1.0
+    for k in range(3):
+        d = b[k] - a[k]
+        if abs(d) < 1e-12:
+            if a[k] < lo[k] or a[k] > hi[k]:
+                return False
+            continue
+        u, v = (lo[k] - a[k]) / d, (hi[k] - a[k]) / d
+        t0, t1 = max(t0, min(u, v)), min(t1, max(u, v))
+        if t0 > t1:
+            return False
+    return True
+
+
+def check_view(store, eye):
+    """The eye's target lies on the ground, and obstacles hide the robot along < 10 % of its path."""
+    pos, target = eye
+    boxes, (glo, ghi) = obstacle_boxes(store)
+    if not (glo[0] <= target[0] <= ghi[0] and glo[1] <= target[1] <= ghi[1]):
+        fail(f"the eye looks at {target}, outside the ground {glo}–{ghi}")
+    table = store.reader("step", contents=["/world/trails/truth"]).to_arrow_table()
+    name = "/world/trails/truth:LineStrips3D:strips"
+    path = [v for v in table.column(name).to_pylist() if v][-1][0]
+    hidden = {}
+    for p in path:
+        robot = [p[0], p[1], 0.1]
+        for ent, lo, hi in boxes:
+            if hits(pos, robot, lo, hi):
+                hidden[ent] = hidden.get(ent, 0) + 1
+                break
+    share = sum(hidden.values()) / len(path)
+    if share > 0.1:
+        fail(f"obstacles hide the robot from the eye along {share:.0%} of its path: {hidden}")
+    print(f"rrd_check: the robot is in sight along {1 - share:.0%} of its path ({len(path)} points)")
+
+
+def check_visual_meshes(store, n):
+    table = store.reader("step", contents=["/world/robot/**"]).to_arrow_table()
+    meshes = [c for c in columns(table, ":Mesh3D:vertex_positions") if "_visual_" in c.split(":")[0]]
+    if len(meshes) < n:
+        fail(f"{len(meshes)} robot visual meshes, expected at least {n}")
+    print(f"rrd_check: {len(meshes)} robot links drawn from URDF visual meshes")
 
 
 def is_static(table, name):
@@ -101,12 +234,20 @@ def check_plots(store):
 
 
 def main():
-    if len(sys.argv) != 3:
-        fail("usage: rrd_check.py FILE.rrd WORLD")
-    reader = RrdReader(sys.argv[1])
-    check_blueprint(reader, sys.argv[2])
+    args = sys.argv[1:]
+    meshes = 0
+    if len(args) == 4 and args[2] == "--visual-meshes" and args[3].isdigit():
+        meshes = int(args[3])
+        args = args[:2]
+    if len(args) != 2:
+        fail("usage: rrd_check.py FILE.rrd WORLD [--visual-meshes N]")
+    reader = RrdReader(args[0])
+    eye = check_blueprint(reader, args[1])
     store = check_motion(reader)
+    check_view(store, eye)
     check_plots(store)
+    if meshes:
+        check_visual_meshes(store, meshes)
     print("rrd_check: ok")
 
 

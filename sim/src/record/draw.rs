@@ -53,6 +53,8 @@ pub(crate) const CLEAN: rerun::Color = rgb(120, 120, 120);
 pub(crate) const RECEIVED: rerun::Color = rgb(214, 39, 40);
 /// Attack windows.
 pub(crate) const ATTACK: rerun::Color = rgb(255, 150, 150);
+/// The robot's links.
+pub(crate) const ROBOT: rerun::Color = rgb(70, 70, 70);
 /// Safe-set boundaries.
 pub(crate) const SAFE_SET: rerun::Color = rgb(214, 39, 40);
 /// Goal region.

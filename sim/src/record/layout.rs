@@ -4,14 +4,89 @@
 //! Right, top to bottom: h on the truth and on each estimate per barrier (tabs, safe sets
 //! first); clean vs received per channel (tabs, attacked channels first, attack windows drawn);
 //! the Step-3 residues, detector statistics and V/V₀ (tabs); v, ω, u and the attack windows (tabs).
+//!
+//! The 3D view's eye is set in the blueprint ([`eye`]): above the ground's −y side, looking down
+//! at its centre at [`EYE_ELEVATION`], far enough to frame the whole ground. rerun 0.36.3's Rust
+//! `Spatial3DView` has no setter for it (its `View::add_property` is crate-private), so [`send`]
+//! logs the `EyeControls3D` view property into the blueprint store itself, at
+//! `view/<id>/EyeControls3D` — where rerun's Python `Spatial3DView(eye_controls=…)` puts it.
 
 use rerun::blueprint::{
-    Blueprint, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel, Spatial3DView, Tabs,
-    TextLogView, TimePanel, TimeSeriesView, Vertical,
+    Blueprint, BlueprintActivation, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel,
+    Spatial3DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
+use rerun::external::re_sdk_types::blueprint::archetypes::EyeControls3D;
+use rerun::log::{Chunk, LogMsg};
+use rerun::{EntityPath, RecordingStream, RecordingStreamBuilder, StoreKind, TimePoint, Timeline};
 
-use super::draw::{colour_name, seg};
-use crate::observe::Scene;
+use super::draw::{colour_name, seg, Rect};
+use crate::observe::{Geometry, Scene};
+
+/// Angle of the eye above the ground plane [rad]: steep enough that a 0.3 m wall hides at most
+/// 0.17 m of floor behind it, low enough to read heights.
+pub const EYE_ELEVATION: f32 = 60.0 * std::f32::consts::PI / 180.0;
+/// The viewer's vertical field of view (rerun's `Eye::DEFAULT_FOV_Y`) [rad].
+const FOV_Y: f32 = 55.0 * std::f32::consts::PI / 180.0;
+/// Width / height of the 3D view in the default layout (left column, upper three quarters) on a
+/// 16:10 window; a wider view only adds margin left and right.
+const VIEW_ASPECT: f32 = 1.2;
+/// The ground fills at most 1 / this of the view's width or height.
+const EYE_MARGIN: f32 = 1.1;
+
+/// Height up to which the scene is kept in view (half-space walls are drawn 0.3 m high) [m].
+const FRAMED_HEIGHT: f32 = 0.3;
+
+/// The 3D view's starting eye for `ground`: position and look target (both in `world`, z up).
+///
+/// The eye looks at the ground's centre from the −y side (the +y side when `from_plus_y`),
+/// [`EYE_ELEVATION`] above the plane, at
+/// the smallest distance where every corner of the ground, on the floor and [`FRAMED_HEIGHT`]
+/// above it, lies inside the view (perspective included) with a margin of [`EYE_MARGIN`].
+pub(crate) fn eye(ground: &Rect, from_plus_y: bool) -> ([f32; 3], [f32; 3]) {
+    let side = if from_plus_y { -1.0 } else { 1.0 };
+    let c = [
+        (ground.lo[0] + ground.hi[0]) / 2.0,
+        (ground.lo[1] + ground.hi[1]) / 2.0,
+    ];
+    let t = (FOV_Y / 2.0).tan() / EYE_MARGIN;
+    let (s, co) = EYE_ELEVATION.sin_cos();
+    // Eye frame for an eye at c + d·(0, −cos e, sin e): right = x, up = (0, sin e, cos e),
+    // forward = (0, cos e, −sin e). A point q (relative to c) is in view when
+    // |q·right| ≤ aspect·t·(d + q·forward) and |q·up| ≤ t·(d + q·forward).
+    let mut d: f32 = 0.5;
+    for x in [ground.lo[0], ground.hi[0]] {
+        for y in [ground.lo[1], ground.hi[1]] {
+            for z in [0.0, FRAMED_HEIGHT] {
+                // Seen from +y the scene is mirrored in y (x stays across the view's width).
+                let q = [x - c[0], side * (y - c[1]), z];
+                let ahead = q[1] * co - q[2] * s;
+                let up = q[1] * s + q[2] * co;
+                d = d
+                    .max(q[0].abs() / (VIEW_ASPECT * t) - ahead)
+                    .max(up.abs() / t - ahead);
+            }
+        }
+    }
+    ([c[0], c[1] - side * d * co, d * s], [c[0], c[1], 0.0])
+}
+
+/// Whether the eye should look from the +y side: when the half-space walls (meshes given in
+/// world coordinates) stand, on average, on the −y side of the ground's centre, so the eye is
+/// on their free side and does not look over them at a robot driving along them.
+fn walls_on_minus_y(scene: &Scene, ground: &Rect) -> bool {
+    let cy = (ground.lo[1] + ground.hi[1]) / 2.0;
+    let (mut sum, mut n) = (0.0f32, 0usize);
+    for ob in &scene.obstacles {
+        let world_frame = ob.translation == [0.0; 3] && ob.rotation == [0.0, 0.0, 0.0, 1.0];
+        if let (true, Geometry::Mesh { vertices, .. }) = (world_frame, &ob.geometry) {
+            for v in vertices {
+                sum += v[1] - cy;
+                n += 1;
+            }
+        }
+    }
+    n > 0 && sum / (n as f32) < -1e-3
+}
 
 fn plot(name: String, origin: String) -> ContainerLike {
     TimeSeriesView::new(name).with_origin(origin).into()
@@ -25,20 +100,25 @@ fn channel_order(scene: &Scene) -> Vec<(&String, bool)> {
     v
 }
 
-/// The viewer layout for `scene`.
-pub(crate) fn blueprint(scene: &Scene) -> Blueprint {
+/// The viewer layout for `scene`, and the blueprint path of its 3D view.
+fn blueprint(scene: &Scene) -> (Blueprint, Option<EntityPath>) {
     let names: Vec<String> = scene
         .filters
         .iter()
         .enumerate()
         .map(|(i, f)| format!("{f} ({})", colour_name(i)))
         .collect();
-    let view3d = Spatial3DView::new(format!(
+    let view3d: ContainerLike = Spatial3DView::new(format!(
         "{}: robot and trail (black) = truth; estimates {}; safe sets red, goal green",
         scene.world,
         names.join(", ")
     ))
-    .with_origin("/world");
+    .with_origin("/world")
+    .into();
+    let view3d_path = match &view3d {
+        ContainerLike::View(v) => Some(v.blueprint_path()),
+        _ => None,
+    };
     let log = TextLogView::new("events: policy, safety, attacks").with_origin("/events");
     let barriers = Tabs::new(scene.barriers.iter().map(|b| {
         plot(
@@ -79,18 +159,189 @@ pub(crate) fn blueprint(scene: &Scene) -> Blueprint {
         stats.into(),
         control.into(),
     ]);
-    let left = Vertical::new([view3d.into(), log.into()]).with_row_shares([3.0, 1.0]);
-    Blueprint::new(Horizontal::new([left.into(), plots.into()]).with_column_shares([1.2, 1.0]))
-        .with_auto_views(false)
-        .with_blueprint_panel(BlueprintPanel::new().with_state(collapsed()))
-        .with_selection_panel(SelectionPanel::new().with_state(collapsed()))
-        .with_time_panel(
-            TimePanel::new()
-                .with_timeline("sim_time")
-                .with_state(collapsed()),
+    let left = Vertical::new([view3d, log.into()]).with_row_shares([3.0, 1.0]);
+    let bp =
+        Blueprint::new(Horizontal::new([left.into(), plots.into()]).with_column_shares([1.2, 1.0]))
+            .with_auto_views(false)
+            .with_blueprint_panel(BlueprintPanel::new().with_state(collapsed()))
+            .with_selection_panel(SelectionPanel::new().with_state(collapsed()))
+            .with_time_panel(
+                TimePanel::new()
+                    .with_timeline("sim_time")
+                    .with_state(collapsed()),
+            );
+    (bp, view3d_path)
+}
+
+/// Sends the default blueprint for `scene` (with the 3D eye framed on `ground`) through `rec`:
+/// the viewer shows it unless the user has edited the layout of this application id.
+///
+/// rerun's `Blueprint::send` writes into an in-memory stream first; its blueprint-store messages
+/// are forwarded with one more chunk, the 3D view's `EyeControls3D`, before the activation
+/// command. Send it before any data, as `RecordingStreamBuilder::with_default_blueprint` does.
+pub(crate) fn send(rec: &RecordingStream, scene: &Scene, ground: &Rect) -> Result<(), String> {
+    let e = |x: &dyn std::fmt::Display| format!("default blueprint: {x}");
+    let app = rec
+        .store_info()
+        .map(|i| i.application_id().clone())
+        .ok_or_else(|| e(&"the recording stream is disabled"))?;
+    let (bp, view3d) = blueprint(scene);
+    let view3d = view3d.ok_or_else(|| e(&"the 3D view is not a view"))?;
+    let (mem, storage) = RecordingStreamBuilder::new(app)
+        .memory()
+        .map_err(|x| e(&x))?;
+    bp.send(
+        &mem,
+        BlueprintActivation {
+            make_active: false,
+            make_default: true,
+        },
+    )
+    .map_err(|x| e(&x))?;
+    let mut msgs = Vec::new();
+    let mut activation = None;
+    for m in storage.take() {
+        match m {
+            LogMsg::BlueprintActivationCommand(cmd) => activation = Some(cmd),
+            m if m.store_id().kind() == StoreKind::Blueprint => msgs.push(m),
+            _ => {}
+        }
+    }
+    mem.disconnect();
+    let activation = activation.ok_or_else(|| e(&"rerun sent no activation command"))?;
+    let (position, look_target) = eye(ground, walls_on_minus_y(scene, ground));
+    let eye = EyeControls3D::new()
+        .with_position(position)
+        .with_look_target(look_target)
+        .with_eye_up([0.0f32, 0.0, 1.0]);
+    let chunk = Chunk::builder(view3d.join(&EntityPath::from_single_string("EyeControls3D")))
+        .with_archetype_auto_row(
+            TimePoint::default().with(Timeline::new_sequence("blueprint"), 0),
+            &eye,
         )
+        .build()
+        .map_err(|x| e(&x))?;
+    let arrow = chunk.to_arrow_msg().map_err(|x| e(&x))?;
+    msgs.push(LogMsg::ArrowMsg(activation.blueprint_id.clone(), arrow));
+    rec.send_blueprint(msgs, activation);
+    Ok(())
 }
 
 fn collapsed() -> rerun::blueprint::components::PanelState {
     rerun::blueprint::components::PanelState::Collapsed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `p` in the eye's frame (right, up, forward) for an eye at `pos` looking at `target`, z up.
+    fn in_eye_frame(pos: [f32; 3], target: [f32; 3], p: [f32; 3]) -> [f32; 3] {
+        let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let cross = |a: [f32; 3], b: [f32; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let unit = |a: [f32; 3]| {
+            let n = dot(a, a).sqrt();
+            [a[0] / n, a[1] / n, a[2] / n]
+        };
+        let fwd = unit(sub(target, pos));
+        let right = unit(cross(fwd, [0.0, 0.0, 1.0]));
+        let up = cross(right, fwd);
+        let d = sub(p, pos);
+        [dot(d, right), dot(d, up), dot(d, fwd)]
+    }
+
+    /// Every ground corner and 0.3 m above it lies inside the view's frustum, and the ground fills it.
+    fn assert_framed(ground: Rect, from_plus_y: bool) {
+        let (pos, target) = eye(&ground, from_plus_y);
+        let t = (FOV_Y / 2.0).tan();
+        let mut filled: f32 = 0.0;
+        for x in [ground.lo[0], ground.hi[0]] {
+            for y in [ground.lo[1], ground.hi[1]] {
+                for z in [0.0, 0.3] {
+                    let [r, u, f] = in_eye_frame(pos, target, [x, y, z]);
+                    assert!(f > 0.0, "({x}, {y}, {z}) behind the eye {pos:?}");
+                    let (rx, ry) = ((r / f).abs() / (VIEW_ASPECT * t), (u / f).abs() / t);
+                    assert!(rx <= 1.0 / EYE_MARGIN + 1e-4, "({x}, {y}, {z}): x at {rx}");
+                    assert!(ry <= 1.0 / EYE_MARGIN + 1e-4, "({x}, {y}, {z}): y at {ry}");
+                    filled = filled.max(rx).max(ry);
+                }
+            }
+        }
+        // Not farther than needed (grounds under 0.5 m are framed from 0.5 m).
+        let small = ground.hi[0] - ground.lo[0] < 0.5 && ground.hi[1] - ground.lo[1] < 0.5;
+        assert!(
+            small || filled > 0.99 / EYE_MARGIN,
+            "the ground fills only {filled}"
+        );
+    }
+
+    #[test]
+    fn the_eye_looks_down_on_the_ground_centre_from_the_minus_y_side() {
+        // corridor_spoof's ground: 5 m walls at y = ±0.55, start (0, 0), goal (3, 0).
+        let ground = Rect {
+            lo: [-1.3, -0.9],
+            hi: [4.3, 0.9],
+        };
+        let (pos, target) = eye(&ground, false);
+        assert!((target[0] - 1.5).abs() < 1e-5 && target[1] == 0.0 && target[2] == 0.0);
+        assert!((pos[0] - 1.5).abs() < 1e-6 && pos[1] < 0.0, "{pos:?}");
+        let elevation = (pos[2] / (pos[1] - target[1]).abs()).atan();
+        assert!((elevation - EYE_ELEVATION).abs() < 1e-5, "{elevation}");
+        assert_framed(ground, false);
+        let (north, _) = eye(&ground, true);
+        assert!(
+            (north[1] + pos[1]).abs() < 1e-5 && north[2] == pos[2],
+            "{north:?}"
+        );
+    }
+
+    #[test]
+    fn long_wide_and_tiny_grounds_are_all_framed() {
+        for (w, h) in [(6.0, 1.8), (1.8, 6.0), (10.0, 10.0), (0.2, 0.2)] {
+            for from_plus_y in [false, true] {
+                let ground = Rect {
+                    lo: [-1.0, 2.0],
+                    hi: [-1.0 + w, 2.0 + h],
+                };
+                assert_framed(ground, from_plus_y);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod side_tests {
+    use super::*;
+    use crate::observe::Placed;
+
+    #[test]
+    fn the_eye_stands_on_the_free_side_of_a_half_space_wall() {
+        let ground = Rect {
+            lo: [-0.3, -0.4],
+            hi: [3.4, 0.4],
+        };
+        let wall = |y: f32| Placed {
+            name: "wall".into(),
+            geometry: Geometry::Mesh {
+                vertices: vec![[3.0, y, 3.0], [3.0, y, -3.0], [-3.0, y, -3.0]],
+                triangles: vec![[0, 1, 2]],
+            },
+            translation: [0.0; 3],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        };
+        let scene = |obstacles| Scene {
+            obstacles,
+            ..Scene::default()
+        };
+        assert!(walls_on_minus_y(&scene(vec![wall(-0.3)]), &ground));
+        assert!(!walls_on_minus_y(&scene(vec![wall(0.3)]), &ground));
+        assert!(!walls_on_minus_y(&scene(vec![]), &ground));
+    }
 }

@@ -17,7 +17,9 @@
 //!   tightest constraint), `events/safety` (WARN: collisions and violations, naming the obstacle
 //!   or set), `events/attacks` (WARN at a window's start, INFO at its end).
 //!
-//! One colour per estimator ([`draw::palette`]) in the 3D view and in every plot.
+//! One colour per estimator ([`draw::palette`]) in the 3D view and in every plot. The 3D view
+//! opens looking down on the ground from its −y side ([`layout`]: eye position and target are in
+//! the blueprint), so no wall stands between the eye and the robot.
 //! Timelines: `sim_time` (seconds) and `step` (control step). The application id and the
 //! recording name are `ftcbf-<world>-<controller>-seed<N>`, so each world/controller/seed has its
 //! own stored layout in the viewer; log time is not recorded. The blueprint's view ids are random
@@ -36,9 +38,10 @@ use std::path::Path;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::observe::{Frame, Observer, Scene};
-use draw::{log_placed, palette, seg, Rect, GOAL, SAFE_SET, TRUTH};
+use draw::{log_placed, palette, seg, Rect, GOAL, ROBOT, SAFE_SET, TRUTH};
 use plots::Plots;
 
+pub use layout::EYE_ELEVATION;
 pub use plots::{MIN_SPAN, RESIDUE_FLOOR, RESIDUE_MAX, V_RATIO_MAX, Z_MAX};
 
 /// Trails get a point, and are re-logged, every this many control steps.
@@ -94,8 +97,8 @@ pub struct Recorder {
 impl Recorder {
     /// Checks that `path` (and its directory) can be created and names the stream by
     /// `recording_id` (`<world>-<controller>-seed<N>`): recording id, recording name and
-    /// application id. The file is written once the scene is known ([`Observer::scene`]),
-    /// because the default blueprint needs the scene's names.
+    /// application id. The file is written from the first frame on ([`Observer::frame`]),
+    /// because the default blueprint needs the scene's names and the robot's start.
     pub fn create(path: &Path, recording_id: &str) -> Result<Self, RecordError> {
         let p = path.display().to_string();
         let create_err = |message: String| RecordError::Create {
@@ -128,13 +131,15 @@ impl Recorder {
         })
     }
 
-    /// Opens the file stream with the scene's default blueprint (`with_default_blueprint`: the
-    /// viewer shows it unless the user has edited the layout of this application id).
-    fn open(&mut self, scene: &Scene) {
+    /// Opens the file stream at the first frame, when the robot's start is known: the default
+    /// blueprint first (its 3D eye is framed on the ground, which the start is part of), then the
+    /// static scene — ground, obstacles, safe sets, goal, robot shapes, estimator colours.
+    fn open(&mut self, start: [f32; 2]) {
+        let ground = draw::scene_extent(&self.scene, start);
+        self.ground = Some(ground);
         let rec = RecordingStreamBuilder::new(self.app.clone())
             .recording_id(self.recording_id.as_str())
             .recording_name(self.recording_id.as_str())
-            .with_default_blueprint(layout::blueprint(scene))
             .enabled(true)
             .save(&self.file);
         match rec {
@@ -142,8 +147,15 @@ impl Recorder {
                 rec.set_log_time_enabled(false);
                 self.rec = rec;
             }
-            Err(e) => self.keep::<(), _>(Err(e)),
+            Err(e) => {
+                self.keep::<(), _>(Err(e));
+                return;
+            }
         }
+        let r = layout::send(&self.rec, &self.scene, &ground);
+        self.keep(r);
+        self.log_scene();
+        self.log_ground(ground);
     }
 
     fn keep<T, E: std::fmt::Display>(&mut self, r: Result<T, E>) {
@@ -152,10 +164,8 @@ impl Recorder {
         }
     }
 
-    /// The ground, the obstacles and the safe sets, sized to the scene and the start (first frame).
-    fn log_ground(&mut self, start: [f32; 2]) {
-        let r = draw::scene_extent(&self.scene, start);
-        self.ground = Some(r);
+    /// The ground (`r`), the obstacles and the safe sets.
+    fn log_ground(&mut self, r: Rect) {
         let c = [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, -0.005];
         let h = [(r.hi[0] - r.lo[0]) / 2.0, (r.hi[1] - r.lo[1]) / 2.0, 0.005];
         let res = self.rec.log_static(
@@ -192,6 +202,44 @@ impl Recorder {
                     .with_labels([name.as_str()]),
             );
             self.keep(res);
+        }
+    }
+
+    /// World axes, goal, robot shapes (static, under each link's moving pose) and the
+    /// estimators' colours and radii (static; their positions are temporal).
+    fn log_scene(&mut self) {
+        let r = self
+            .rec
+            .log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP());
+        self.keep(r);
+        let ([gx, gy], gr) = self.scene.goal;
+        let r = self.rec.log_static(
+            "world/goal",
+            &rerun::LineStrips3D::new([draw::circle([gx, gy], gr, 0.003)])
+                .with_colors([GOAL])
+                .with_radii([0.008f32])
+                .with_labels(["goal"]),
+        );
+        self.keep(r);
+        let mut results = Vec::new();
+        for (link, shapes) in &self.scene.robot_links {
+            let base = format!("world/robot/{}", seg(link));
+            for s in shapes {
+                results.push(log_placed(&self.rec, &base, s, ROBOT));
+            }
+        }
+        for (i, f) in self.scene.filters.iter().enumerate() {
+            results.push(
+                self.rec.log_static(
+                    format!("world/estimates/{}", seg(f)).as_str(),
+                    &rerun::Points3D::update_fields()
+                        .with_colors([palette(i)])
+                        .with_radii([0.03f32]),
+                ),
+            );
+        }
+        for r in results {
+            self.keep(r);
         }
     }
 
@@ -252,8 +300,8 @@ impl Recorder {
 
     /// Flushes and closes the file; reports the first logging error, if any.
     pub fn finish(mut self) -> Result<(), RecordError> {
-        if !self.rec.is_enabled() && self.first_error.is_none() {
-            self.first_error = Some("the run ended before its scene was recorded".into());
+        if self.ground.is_none() && self.first_error.is_none() {
+            self.first_error = Some("the run ended before its first step was recorded".into());
         }
         self.log_trails();
         let r = self.send_poses();
@@ -320,47 +368,17 @@ impl Observer for Recorder {
     fn scene(&mut self, scene: &Scene) {
         self.scene = scene.clone();
         self.plots = Plots::new(scene);
-        self.open(scene);
-        let r = self
-            .rec
-            .log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP());
-        self.keep(r);
-        let ([gx, gy], gr) = scene.goal;
-        let r = self.rec.log_static(
-            "world/goal",
-            &rerun::LineStrips3D::new([draw::circle([gx, gy], gr, 0.003)])
-                .with_colors([GOAL])
-                .with_radii([0.008f32])
-                .with_labels(["goal"]),
-        );
-        self.keep(r);
-        for (link, shapes) in &scene.robot_links {
-            let base = format!("world/robot/{}", seg(link));
-            for s in shapes {
-                let r = log_placed(&self.rec, &base, s, rerun::Color::from_rgb(70, 70, 70));
-                self.keep(r);
-            }
-        }
-        for (i, f) in scene.filters.iter().enumerate() {
-            let r = self.rec.log_static(
-                format!("world/estimates/{}", seg(f)).as_str(),
-                &rerun::Points3D::update_fields()
-                    .with_colors([palette(i)])
-                    .with_radii([0.03f32]),
-            );
-            self.keep(r);
-        }
         self.positions = vec![Vec::new(); scene.filters.len()];
         self.trails = vec![Vec::new(); scene.filters.len() + 1];
     }
 
     fn frame(&mut self, f: &Frame<'_>) {
-        self.rec.set_duration_secs("sim_time", f.t);
-        self.rec.set_time_sequence("step", f.step as i64);
         let truth = [f.truth.x as f32, f.truth.y as f32];
         if self.ground.is_none() {
-            self.log_ground(truth);
+            self.open(truth);
         }
+        self.rec.set_duration_secs("sim_time", f.t);
+        self.rec.set_time_sequence("step", f.step as i64);
         self.time.push(f.t);
         self.steps.push(f.step as i64);
         if self.links.is_empty() {
