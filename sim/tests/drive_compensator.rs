@@ -185,9 +185,17 @@ fn closed_loop_restarts_from_the_measured_speed() {
         open.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(0.0), true);
         closed.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(0.0), true);
     }
-    assert!((open.speed() - 0.1).abs() < 1e-12, "open loop v = {}", open.speed());
+    assert!(
+        (open.speed() - 0.1).abs() < 1e-12,
+        "open loop v = {}",
+        open.speed()
+    );
     // Closed loop, each step starts from the measured 0 m/s: v = a·dt = 0.01 m/s.
-    assert!((closed.speed() - 0.01).abs() < 1e-12, "closed loop v = {}", closed.speed());
+    assert!(
+        (closed.speed() - 0.01).abs() < 1e-12,
+        "closed loop v = {}",
+        closed.speed()
+    );
     // A non-finite measurement (a failed encoder read) is ignored, not integrated.
     let (cmd, _) = closed.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(f64::NAN), true);
     assert!((cmd.v - 0.02).abs() < 1e-12, "v = {}", cmd.v);
