@@ -48,8 +48,8 @@ pub enum RegressError {
         controller: String,
         /// Seed.
         seed: u64,
-        /// Cause.
-        source: RunError,
+        /// Cause (boxed: a run error is large).
+        source: Box<RunError>,
     },
 }
 
@@ -160,7 +160,7 @@ impl Plan {
                     world: c.world.name.clone(),
                     controller: controller_name(c.controller).to_string(),
                     seed,
-                    source,
+                    source: Box::new(source),
                 });
                 progress();
                 r
