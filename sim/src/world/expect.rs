@@ -266,9 +266,11 @@ impl Expect {
         let seeds = match table.get("seeds") {
             None => 1,
             Some(toml::Value::Integer(n)) if (1..=i64::from(MAX_SEEDS)).contains(n) => *n as u32,
-            Some(v) => return Err(format!(
+            Some(v) => {
+                return Err(format!(
                 "`expect.seeds`: expected a whole number of seeds from 1 to {MAX_SEEDS}, found {v}"
-            )),
+            ))
+            }
         };
         let own = parse_outcome("expect", table, seeds, true)?;
         let comparison = |name: &str| -> Result<Option<ExpectOutcome>, String> {
