@@ -36,9 +36,15 @@ pub enum Command {
     /// conditions (Lemma 1, Prop. 1, Thm. 5) for it, without simulating.
     #[command(after_help = "Example:\n  ftcbf check worlds/elliptic_arena_drift.toml")]
     Check(CheckArgs),
-    /// Run every world that has an [expect] table and print a pass/fail table; exits 3 if any fails.
+    /// Run every world that has an [expect] table over its regression seeds and print a
+    /// pass/fail table; exits 3 if any case fails.
+    ///
+    /// Each controller an [expect] table names runs on `seeds = N` seeds: the world's seed, then
+    /// the first N − 1 trial seeds of `ftcbf batch` with that base seed. Counts ("safe in at least
+    /// K of N seeds") and margins (the worst seed's min h, clearance, time to goal, within a
+    /// stated tolerance) are judged over those runs. All runs share one thread pool.
     #[command(
-        after_help = "Examples:\n  ftcbf regress                      # every world under worlds/\n  ftcbf regress worlds/paper_linear.toml worlds/corridor_spoof.toml"
+        after_help = "Examples:\n  ftcbf regress                      # every world under worlds/\n  ftcbf regress worlds/paper_linear.toml worlds/corridor_spoof.toml\n  ftcbf regress --json > regress.json # every run's summary and each case's verdict\n\nA failing seed re-runs alone with:  ftcbf run WORLD --seed SEED --no-record"
     )]
     Regress(RegressArgs),
     /// Run N independent trials of a world (paired across controllers) and certify its safety
@@ -100,7 +106,8 @@ pub struct CheckArgs {
 pub struct RegressArgs {
     /// World files or directories of world files [default: worlds/].
     pub paths: Vec<PathBuf>,
-    /// Print the table as JSON.
+    /// Print every case (expectations, verdict, failures and each seed's summary) as JSON
+    /// instead of the table.
     #[arg(long)]
     pub json: bool,
 }

@@ -1,23 +1,20 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
-use ftcbf::batch;
+use ftcbf::{batch, regress};
 mod cli;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 
 use ftcbf_sim::ftcbf_controller::params::{check_lemma1, check_theorem5};
 use ftcbf_sim::ftcbf_controller::{Input, State};
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::regress::{self, RegressionRow};
 use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::safe_sets::ellipse_phi_state;
@@ -174,22 +171,37 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         );
         summary
     };
-    let expected = regress::expectation_for(&world, kind);
-    let failures = expected
-        .as_ref()
-        .map(|e| e.failures(&summary))
+    let expected = ftcbf_sim::regress::expectation_for(&world, kind);
+    let seeds = regress::world_seeds(&world);
+    // A run is judged by its world's expectations only on one of the regression seeds.
+    let judged = expected.as_ref().filter(|_| seeds.contains(&seed));
+    let (failures, left) = judged
+        .map(|e| ftcbf_sim::regress::failures_of_run(e, &summary))
         .unwrap_or_default();
     if a.json {
         let text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
         println!("{text}");
     } else {
         print_summary(&summary);
-        match &expected {
-            None => println!("expectations: none for {}", summary.controller),
-            Some(_) if failures.is_empty() => println!("expectations: met"),
-            Some(_) => {
+        match (&expected, judged) {
+            (None, _) => println!("expectations: none for {}", summary.controller),
+            (Some(_), None) => println!(
+                "expectations: not judged (seed {seed} is not one of the world's {} regression seeds)",
+                seeds.len()
+            ),
+            (Some(_), Some(_)) => {
+                if failures.is_empty() {
+                    println!("expectations: met");
+                }
                 for f in &failures {
                     println!("expectation FAILED: {f}");
+                }
+                if !left.is_empty() {
+                    println!(
+                        "expectations over all {} seeds left to `ftcbf regress`: {}",
+                        seeds.len(),
+                        left.join(", ")
+                    );
                 }
             }
         }
@@ -207,10 +219,6 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
             ),
         })
     }
-}
-
-fn fmt_opt(v: Option<f64>, unit: &str) -> String {
-    v.map_or("—".to_string(), |v| format!("{v:.3}{unit}"))
 }
 
 fn print_summary(s: &RunSummary) {
@@ -397,106 +405,23 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
     } else {
         a.paths.clone()
     };
-    let files = regress::collect_world_files(&paths).context("listing world files")?;
-    if files.is_empty() {
-        return Err(anyhow::anyhow!(
-            "no world files under {}",
-            paths
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-        .into());
+    let plan = regress::Plan::load(&paths).map_err(|e| match e {
+        regress::RegressError::World(w) => invalid(w),
+        other => Failure::from(anyhow::Error::new(other)),
+    })?;
+    for f in &plan.skipped {
+        eprintln!("skipping {} (no [expect] table)", f.display());
     }
-    let mut worlds = Vec::new();
-    for f in &files {
-        let w = load(f, &[])?;
-        if regress::has_expectations(&w) {
-            worlds.push(Arc::new(w));
-        } else {
-            eprintln!("skipping {} (no [expect] table)", f.display());
-        }
-    }
-    let jobs: Vec<(Arc<World>, ControllerKindSpec)> = worlds
-        .iter()
-        .flat_map(|w| {
-            regress::expected_controllers(w)
-                .into_iter()
-                .map(move |k| (w.clone(), k))
-        })
-        .collect();
-    let bar = steps_bar(jobs.len() as u64, "regress");
-    let rows: Vec<Result<RegressionRow, String>> = jobs
-        .par_iter()
-        .map(|(w, k)| {
-            let r = regress::check_world(w, *k).map_err(|e| e.to_string());
-            bar.inc(1);
-            r
-        })
-        .collect();
+    let bar = steps_bar(plan.runs() as u64, "regress");
+    let results = plan.run(|| bar.inc(1)).context("regression run")?;
     bar.finish_and_clear();
-    let mut failed = 0usize;
-    let mut table = Vec::new();
-    for r in rows {
-        match r {
-            Ok(row) => {
-                if !row.passed() {
-                    failed += 1;
-                }
-                table.push(row);
-            }
-            Err(e) => return Err(anyhow::anyhow!(e).into()),
-        }
-    }
     if a.json {
-        let v: Vec<serde_json::Value> = table
-            .iter()
-            .map(|r| {
-                serde_json::json!({
-                    "world": r.world, "controller": r.summary.controller, "passed": r.passed(),
-                    "failures": r.failures, "expected": r.expected, "summary": r.summary,
-                })
-            })
-            .collect();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&v).context("serialising")?
-        );
+        let text = serde_json::to_string_pretty(&results).context("serialising")?;
+        println!("{text}");
     } else {
-        println!(
-            "{:<26} {:<11} {:<7} {:<9} {:<10} {:>11} {:>10}  verdict",
-            "world", "controller", "safe", "collided", "goal [s]", "min clr [m]", "min h"
-        );
-        for r in &table {
-            let s = &r.summary;
-            let min_h = s
-                .min_barrier
-                .iter()
-                .map(|b| b.value)
-                .fold(f64::INFINITY, f64::min);
-            println!(
-                "{:<26} {:<11} {:<7} {:<9} {:<10} {:>11} {:>10}  {}",
-                r.world,
-                s.controller,
-                s.safe,
-                s.collided,
-                fmt_opt(s.time_to_goal, ""),
-                fmt_opt(s.min_clearance, ""),
-                if min_h.is_finite() {
-                    format!("{min_h:.4}")
-                } else {
-                    "—".into()
-                },
-                if r.passed() {
-                    "pass".to_string()
-                } else {
-                    format!("FAIL: {}", r.failures.join("; "))
-                }
-            );
-        }
-        println!("{} run(s), {} failed", table.len(), failed);
+        println!("{}", regress::table_text(&results));
     }
+    let failed = results.iter().filter(|r| !r.passed()).count();
     if failed > 0 {
         Err(Failure {
             code: EXIT_EXPECTATION,

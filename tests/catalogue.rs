@@ -1,9 +1,11 @@
 //! The world catalogue is the regression suite: every world under worlds/ with an [expect]
-//! table must meet it, through the same library call as `ftcbf regress`.
+//! table must meet it over its regression seeds, through the same library call as
+//! `ftcbf regress`.
 
 use std::path::PathBuf;
 
-use ftcbf_sim::regress::{check_file, collect_world_files};
+use ftcbf::regress::Plan;
+use ftcbf_sim::regress::collect_world_files;
 
 fn worlds() -> Vec<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds");
@@ -36,24 +38,35 @@ fn catalogue_holds_the_required_scenarios() {
 
 #[test]
 fn every_world_meets_its_expectations() {
-    let mut failures = Vec::new();
-    let mut runs = 0;
-    for path in worlds() {
-        let rows = check_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        assert!(!rows.is_empty(), "{}: no [expect] table", path.display());
-        for row in rows {
-            runs += 1;
-            if !row.passed() {
-                failures.push(format!(
-                    "{} / {}: {}",
-                    row.world,
-                    row.summary.controller,
-                    row.failures.join("; ")
-                ));
-            }
-        }
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds");
+    let plan = Plan::load(&[dir]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        plan.skipped.is_empty(),
+        "worlds without [expect]: {:?}",
+        plan.skipped
+    );
+    // Every world judged over several seeds, with at least one numeric margin per case.
+    for c in &plan.cases {
+        assert!(
+            c.seeds.len() >= 4,
+            "{}: only {} seed(s)",
+            c.world.name,
+            c.seeds.len()
+        );
+        assert!(
+            !c.expected.margins.is_empty(),
+            "{} / {:?}: no numeric margin",
+            c.world.name,
+            c.controller
+        );
     }
-    assert!(runs >= 15, "only {runs} regression runs");
+    assert!(plan.cases.len() >= 17, "only {} cases", plan.cases.len());
+    let results = plan.run(|| {}).unwrap_or_else(|e| panic!("{e}"));
+    let failures: Vec<String> = results
+        .iter()
+        .filter(|r| !r.passed())
+        .map(|r| format!("{} / {}: {}", r.world, r.controller, r.failures.join("; ")))
+        .collect();
     assert!(
         failures.is_empty(),
         "{} failed:\n{}",

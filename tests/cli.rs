@@ -123,7 +123,11 @@ fn regress_runs_paired_cases() {
         "worlds/outside_model.toml",
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(text(&o).contains("3 run(s), 0 failed"), "{}", text(&o));
+    assert!(
+        text(&o).contains("3 case(s), 24 run(s), 0 failed"),
+        "{}",
+        text(&o)
+    );
 }
 
 #[test]

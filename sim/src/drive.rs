@@ -6,6 +6,18 @@
 //! law); this module owns the wheel kinematics and configures the compensator with the
 //! `Floor` low-speed law of (6.4) (ω = a⊥ / (s·max(|v|, v_floor))) and no rate limits.
 //!
+//! The loop is closed on the measured speed ([`Drive::step`]): before each compensator step the
+//! integrator of (6.3) is pulled towards the forward speed the wheel encoders measure
+//! (`speed_gain`, default 0.1 per control step), so the integrator cannot wind up far beyond
+//! what the wheels deliver. Feeding the wheel-saturated command back (`feed_back_saturation`) is
+//! implemented but the runner leaves it off: with the `Floor` law it traps the robot at low
+//! speed (ω = a⊥/v_floor saturates the wheels, the scaled-down v keeps ω large; measured: the
+//! goal reached in 0 of 8 seeds of three_gnss and waffle_pillars). The encoders, not a
+//! sensor channel of the world, because the channels are the attack surface the fault-tolerant
+//! estimator exists to handle (a spoofed `odom_vx` must not reach the drive unfiltered), and
+//! because they measure the body-frame speed of (6.3) directly, as the TurtleBot3's motor
+//! board does.
+//!
 //! Wheel kinematics (r = radius, L = separation): ω_left = (v − ωL/2)/r, ω_right = (v + ωL/2)/r;
 //! if either exceeds the wheel-speed limit both are scaled down by the same factor (the path's
 //! curvature is kept).
@@ -54,6 +66,10 @@ pub struct DriveConfig {
     pub v_floor: f64,
     /// Initial forward speed of the integrator (6.3) [m/s]. Default 0.
     pub v_initial: f64,
+    /// Gain k ∈ [0, 1] of the correction v ← v + k·(v_measured − v) before each step; 0 is
+    /// the open loop. Default 0.1: at a steady acceleration a the integrator may lead the
+    /// measured speed by a·dt/k (10 control steps), which the motors' lag needs.
+    pub speed_gain: f64,
 }
 
 impl Default for DriveConfig {
@@ -61,6 +77,7 @@ impl Default for DriveConfig {
         Self {
             v_floor: 0.05,
             v_initial: 0.0,
+            speed_gain: 0.1,
         }
     }
 }
@@ -110,7 +127,7 @@ impl Drive {
             low_speed: LowSpeedLaw::Floor {
                 v_floor: cfg.v_floor,
             },
-            speed_gain: 1.0,
+            speed_gain: cfg.speed_gain,
         })?;
         compensator.reset(cfg.v_initial);
         Ok(Self {
@@ -124,6 +141,32 @@ impl Drive {
     /// `u` is the world-frame acceleration [m/s²], `theta` the heading [rad].
     pub fn command(&mut self, u: Input, theta: f64, dt: f64) -> BodyCommand {
         self.compensator.command(u, theta, dt)
+    }
+
+    /// One control period in closed loop: corrects the integrator towards `measured_v`, the
+    /// forward speed measured now [m/s] (`None` or non-finite: no correction), runs the
+    /// compensator ([`Drive::command`]), saturates at the wheels ([`Drive::wheel_speeds`]) and,
+    /// with `feed_back_saturation`, feeds the command the wheels will actually follow back into
+    /// the compensator.
+    /// Returns that command and the wheel speeds (left, right) [rad/s].
+    pub fn step(
+        &mut self,
+        u: Input,
+        theta: f64,
+        dt: f64,
+        measured_v: Option<f64>,
+        feed_back_saturation: bool,
+    ) -> (BodyCommand, (f64, f64)) {
+        if let Some(v) = measured_v {
+            self.compensator.observe_speed(v);
+        }
+        let cmd = self.command(u, theta, dt);
+        let (l, r) = self.wheel_speeds(cmd);
+        let sent = self.body_from_wheels(l, r);
+        if feed_back_saturation && sent != cmd {
+            self.compensator.saturated(sent);
+        }
+        (sent, (l, r))
     }
 
     /// Wheel angular speeds (left, right) [rad/s] for a body command, saturated at the wheel

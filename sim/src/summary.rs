@@ -101,3 +101,68 @@ pub struct RunSummary {
     /// True planar state (p_x, p_y, v_x, v_y) at the end [m, m, m/s, m/s].
     pub final_state: [f64; 4],
 }
+
+/// A yes/no outcome of a run that `[expect]` can count over seeds (`safe = true`,
+/// `collided = { at_most = 1 }`, …).
+#[derive(Debug, Clone, Copy)]
+pub struct Event {
+    /// The `[expect]` key.
+    pub key: &'static str,
+    /// Whether the run shows it.
+    pub of: fn(&RunSummary) -> bool,
+}
+
+/// A number a run measured that `[expect]` can bound with a margin
+/// (`min_clearance = { at_least = 0.12, tolerance = 0.01 }`).
+#[derive(Debug, Clone, Copy)]
+pub struct Metric {
+    /// The `[expect]` key.
+    pub key: &'static str,
+    /// Unit, for messages (`"m"`, `"s"`, `""`).
+    pub unit: &'static str,
+    /// The value of one run; `None` when the run does not measure it (no obstacles, goal never
+    /// reached). Seeds without a value are left out of the margin check.
+    pub of: fn(&RunSummary) -> Option<f64>,
+}
+
+/// The events `[expect]` accepts. A new yes/no field of [`RunSummary`] becomes an `[expect]`
+/// key by one more entry here.
+pub const EVENTS: &[Event] = &[
+    Event {
+        key: "safe",
+        of: |s| s.safe,
+    },
+    Event {
+        key: "collided",
+        of: |s| s.collided,
+    },
+    Event {
+        key: "reaches_goal",
+        of: |s| s.goal_reached,
+    },
+];
+
+/// The metrics `[expect]` accepts. A new numeric field of [`RunSummary`] becomes an `[expect]`
+/// key by one more entry here.
+pub const METRICS: &[Metric] = &[
+    Metric {
+        key: "min_h",
+        unit: "",
+        of: |s| s.min_barrier.iter().map(|b| b.value).reduce(f64::min),
+    },
+    Metric {
+        key: "min_clearance",
+        unit: " m",
+        of: |s| s.min_clearance,
+    },
+    Metric {
+        key: "time_to_goal",
+        unit: " s",
+        of: |s| s.time_to_goal,
+    },
+    Metric {
+        key: "fallback_fraction",
+        unit: "",
+        of: |s| (s.control_steps > 0).then(|| s.steps.infeasible as f64 / s.control_steps as f64),
+    },
+];

@@ -152,9 +152,78 @@ fn invalid_construction_is_a_typed_error() {
         &LIMITS,
         DriveConfig {
             v_floor: -1.0,
-            v_initial: 0.0,
+            ..DriveConfig::default()
         },
     )
     .unwrap_err();
     assert!(e.to_string().contains("v_floor"));
+}
+
+#[test]
+fn closed_loop_restarts_from_the_measured_speed() {
+    // Open loop, the integrator runs ahead of a robot that did not follow (e.g. blocked by a
+    // wall): after 10 steps of 0.5 m/s² it commands 0.1 m/s whatever the wheels did.
+    let mut open = Drive::new(
+        &GEOM,
+        &LIMITS,
+        DriveConfig {
+            speed_gain: 0.0,
+            ..DriveConfig::default()
+        },
+    )
+    .unwrap();
+    let mut closed = Drive::new(
+        &GEOM,
+        &LIMITS,
+        DriveConfig {
+            speed_gain: 1.0,
+            ..DriveConfig::default()
+        },
+    )
+    .unwrap();
+    for _ in 0..10 {
+        open.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(0.0), true);
+        closed.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(0.0), true);
+    }
+    assert!(
+        (open.speed() - 0.1).abs() < 1e-12,
+        "open loop v = {}",
+        open.speed()
+    );
+    // Closed loop, each step starts from the measured 0 m/s: v = a·dt = 0.01 m/s.
+    assert!(
+        (closed.speed() - 0.01).abs() < 1e-12,
+        "closed loop v = {}",
+        closed.speed()
+    );
+    // A non-finite measurement (a failed encoder read) is ignored, not integrated.
+    let (cmd, _) = closed.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(f64::NAN), true);
+    assert!((cmd.v - 0.02).abs() < 1e-12, "v = {}", cmd.v);
+    let (cmd, _) = closed.step(Input::new(0.5, 0.0), 0.0, 0.02, None, true);
+    assert!((cmd.v - 0.03).abs() < 1e-12, "v = {}", cmd.v);
+    // The default gain 0.1 pulls a tenth of the way: from 0.1 with 0 measured, 0.09 + a·dt.
+    let mut d = drive();
+    d.reset(0.1);
+    let (cmd, _) = d.step(Input::new(0.5, 0.0), 0.0, 0.02, Some(0.0), true);
+    assert!((cmd.v - 0.1).abs() < 1e-12, "v = {}", cmd.v);
+}
+
+#[test]
+fn wheel_saturation_is_fed_back_to_the_integrator() {
+    // Full speed and a hard turn: the outer wheel saturates, both are scaled, and the
+    // compensator continues from the speed the wheels actually follow, not from v_max.
+    let mut d = drive();
+    d.reset(0.22);
+    let (sent, (l, r)) = d.step(Input::new(0.0, 0.4), 0.0, 0.02, None, true);
+    assert!((r - LIMITS.wheel_speed_max).abs() < 1e-12, "r = {r}");
+    assert!(l.abs() < r);
+    assert!(sent.v < 0.22 - 1e-3, "sent v = {}", sent.v);
+    assert_eq!(d.speed(), sent.v, "integrator = sent speed");
+    let back = d.body_from_wheels(l, r);
+    assert!((back.v - sent.v).abs() < 1e-15 && (back.omega - sent.omega).abs() < 1e-15);
+    // Unsaturated, the sent command is the compensator's.
+    let mut d = drive();
+    d.reset(0.1);
+    let (sent, _) = d.step(Input::new(0.0, 0.05), 0.0, 0.02, None, true);
+    assert!((sent.v - 0.1).abs() < 1e-12 && (sent.omega - 0.5).abs() < 1e-12);
 }

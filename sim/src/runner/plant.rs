@@ -141,15 +141,18 @@ impl Plant {
     }
 
     /// Holds the controller's input `u` for the coming control period. For the robot, the
-    /// compensator turns it into (v, ω) about the measured `heading`, then into wheel speeds.
-    /// Returns the body command (v, ω) (zero for the linear plant).
+    /// compensator, corrected to the wheel encoders' speed, turns it into (v, ω) about the
+    /// measured `heading`, then into wheel speeds. Returns the body command (v, ω) the wheels
+    /// follow after saturation (zero for the linear plant).
     pub fn apply_input(&mut self, u: &Input, heading: f64, control_dt: f64) -> [f64; 2] {
         match self {
             Plant::Rapier { physics, drive, .. } => {
-                let cmd = drive.command(*u, heading, control_dt);
-                let (l, r) = drive.wheel_speeds(cmd);
+                // The wheel encoders' forward speed closes the loop of (6.3) (see crate::drive).
+                let (wl, wr) = physics.wheel_speeds();
+                let measured = drive.body_from_wheels(wl, wr).v;
+                let (sent, (l, r)) = drive.step(*u, heading, control_dt, Some(measured), false);
                 physics.set_wheel_speeds(l, r);
-                [cmd.v, cmd.omega]
+                [sent.v, sent.omega]
             }
             Plant::Linear { u: held, .. } => {
                 *held = *u;

@@ -1,6 +1,7 @@
 //! World files: what a run is. A [`World`] is the validated, immutable description (parsed and
 //! checked once, like MuJoCo's `mjModel`); the runner keeps the mutable state.
 
+pub mod expect;
 mod overrides;
 pub mod schema;
 
@@ -8,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+pub use expect::{Count, Expect, ExpectOutcome, Margin};
 pub use overrides::Override;
 pub use schema::*;
 
@@ -384,18 +386,6 @@ impl Validator<'_> {
                  channels that may fail together); use controller = \"baseline\" for a world without them",
             ));
         }
-        if let Some(e) = &file.expect {
-            for (key, o) in [
-                ("expect", Some(e.own())),
-                ("expect.baseline", e.baseline.clone()),
-                ("expect.nominal", e.nominal.clone()),
-            ] {
-                if let Some(t) = o.and_then(|o| o.goal_within) {
-                    self.positive(&format!("{key}.goal_within"), t)?;
-                }
-            }
-        }
-
         Ok(World {
             name,
             path: self.path.to_path_buf(),

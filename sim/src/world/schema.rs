@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
+use super::expect::Expect;
 use crate::attacks::AttackSpec;
 use crate::obstacles::ObstacleSpec;
 use crate::sensors::{ChannelSpec, FaultPatternSpec};
@@ -349,98 +350,5 @@ impl SafeSetSpec {
             | SafeSetSpec::EllipseInside { name, .. }
             | SafeSetSpec::EllipseOutside { name, .. } => name,
         }
-    }
-}
-
-/// Expected outcome of one controller on a world.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ExpectOutcome {
-    /// The true state stays in every safe set and never touches an obstacle.
-    pub safe: Option<bool>,
-    /// The robot touches an obstacle.
-    pub collided: Option<bool>,
-    /// The goal set is entered.
-    pub reaches_goal: Option<bool>,
-    /// … no later than this [s].
-    pub goal_within: Option<f64>,
-}
-
-/// `[expect]`: what a correct run of this world shows; a run that does not is a failed regression.
-/// The top-level keys apply to the world's own `control.controller`; `[expect.baseline]` and
-/// `[expect.nominal]` add paired runs of the comparison controllers on the same seed.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Expect {
-    /// The true state stays in every safe set and never touches an obstacle.
-    pub safe: Option<bool>,
-    /// The robot touches an obstacle.
-    pub collided: Option<bool>,
-    /// The goal set is entered.
-    pub reaches_goal: Option<bool>,
-    /// … no later than this [s].
-    pub goal_within: Option<f64>,
-    /// Expectations for the `baseline` controller on the same world and seed.
-    pub baseline: Option<ExpectOutcome>,
-    /// Expectations for the `nominal` controller on the same world and seed.
-    pub nominal: Option<ExpectOutcome>,
-}
-
-impl Expect {
-    /// The expectations for the world's own controller.
-    pub fn own(&self) -> ExpectOutcome {
-        ExpectOutcome {
-            safe: self.safe,
-            collided: self.collided,
-            reaches_goal: self.reaches_goal,
-            goal_within: self.goal_within,
-        }
-    }
-}
-
-impl ExpectOutcome {
-    /// Every expectation the summary fails, as a sentence with the numbers behind it.
-    pub fn failures(&self, s: &crate::summary::RunSummary) -> Vec<String> {
-        let mut out = Vec::new();
-        if let Some(want) = self.safe {
-            if s.safe != want {
-                let why = match (&s.first_collision, &s.first_violation) {
-                    (Some(c), _) => format!("collided with {} at t = {:.3} s", c.obstacle, c.t),
-                    (None, Some(v)) => {
-                        format!("left {} at t = {:.3} s (h = {:.4})", v.set, v.t, v.value)
-                    }
-                    (None, None) => "stayed safe".to_string(),
-                };
-                out.push(format!("expected safe = {want}, but the robot {why}"));
-            }
-        }
-        if let Some(want) = self.collided {
-            if s.collided != want {
-                out.push(format!(
-                    "expected collided = {want}, got {} (min clearance {})",
-                    s.collided,
-                    s.min_clearance
-                        .map_or("n/a".to_string(), |c| format!("{c:.4} m"))
-                ));
-            }
-        }
-        if let Some(want) = self.reaches_goal {
-            if s.goal_reached != want {
-                out.push(format!(
-                    "expected reaches_goal = {want}, got {}",
-                    s.goal_reached
-                ));
-            }
-        }
-        if let Some(limit) = self.goal_within {
-            match s.time_to_goal {
-                Some(t) if t <= limit => {}
-                Some(t) => out.push(format!(
-                    "expected the goal within {limit} s, reached at {t:.3} s"
-                )),
-                None => out.push(format!("expected the goal within {limit} s, never reached")),
-            }
-        }
-        out
     }
 }
