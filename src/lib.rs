@@ -4,7 +4,10 @@
 //! engine (plans, shards and sweeps, trials on a thread pool, exact Clopper–Pearson intervals,
 //! the exact McNemar test, CSV/JSON output, shard merging). It drives any
 //! [`batch::TrialRunner`], so a program can certify its own controller or simulator with the
-//! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`). The binary
-//! (`src/main.rs`) is a thin shell over it and over `ftcbf-sim`.
+//! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`); and [`falsify`], the
+//! search for the worst attack inside a world's threat model (a cross-entropy method on the
+//! batch engine's thread pool, compared with random search). The binary (`src/main.rs`) is a
+//! thin shell over them and over `ftcbf-sim`.
 
 pub mod batch;
+pub mod falsify;
