@@ -105,7 +105,11 @@ pub fn write_worst(
         .methods
         .iter()
         .reduce(|a, b| {
-            if b.witness.robustness.cmp_worse(&a.witness.robustness).is_lt() {
+            if b.witness
+                .robustness
+                .cmp_worse(&a.witness.robustness)
+                .is_lt()
+            {
                 b
             } else {
                 a
@@ -113,7 +117,11 @@ pub fn write_worst(
         })
         .ok_or_else(|| anyhow!("no search result"))?;
     let w = &best.witness;
-    let name = format!("{}_worst_{}", report.world, report.controller.replace('-', "_"));
+    let name = format!(
+        "{}_worst_{}",
+        report.world,
+        report.controller.replace('-', "_")
+    );
     let description = format!(
         "The worst attack `ftcbf falsify` found on {} against {} (seed {}): {}; ρ = {}.",
         report.world,
@@ -193,12 +201,18 @@ pub fn write_worst(
 pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     if let Some(j) = &args.json {
         if j.extension().is_none_or(|e| e != "json") {
-            return Err(anyhow!("--json {}: expected a .json file name", j.display()));
+            return Err(anyhow!(
+                "--json {}: expected a .json file name",
+                j.display()
+            ));
         }
     }
     if let Some(out) = &args.out {
         if out.extension().is_none_or(|e| e != "toml") {
-            return Err(anyhow!("--out {}: expected a .toml file name", out.display()));
+            return Err(anyhow!(
+                "--out {}: expected a .toml file name",
+                out.display()
+            ));
         }
     }
     let template = WorldTemplate::load(&args.world)?;
@@ -224,10 +238,7 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     let report = falsify(&template, &settings)?;
     print!("{}", report.text());
     let out = args.out.clone().unwrap_or_else(|| {
-        PathBuf::from("runs").join(format!(
-            "{}-worst-{}.toml",
-            report.world, report.controller
-        ))
+        PathBuf::from("runs").join(format!("{}-worst-{}.toml", report.world, report.controller))
     });
     let recording = (!args.no_record).then(|| out.with_extension("rrd"));
     let replay = write_worst(&template, &report, &out, recording.as_deref())?;

@@ -195,7 +195,11 @@ impl Report {
         let _ = writeln!(
             s,
             "{:<8} {:>5} {:>7}  {:<44} {}",
-            "method", "runs", "unsafe", "worst run: ρ (binding)", "best attack on held-out seeds: mean ρ, unsafe"
+            "method",
+            "runs",
+            "unsafe",
+            "worst run: ρ (binding)",
+            "best attack on held-out seeds: mean ρ, unsafe"
         );
         for m in &self.methods {
             let b = m.best();
@@ -225,7 +229,12 @@ impl Report {
         }
         for m in &self.methods {
             let _ = writeln!(s);
-            let _ = writeln!(s, "{} — worst run (seed {}):", m.method.name(), m.witness.seed);
+            let _ = writeln!(
+                s,
+                "{} — worst run (seed {}):",
+                m.method.name(),
+                m.witness.seed
+            );
             let _ = writeln!(s, "  {}", m.witness.description);
             let _ = writeln!(
                 s,

@@ -496,12 +496,21 @@ mod tests {
         for b in [MIN_BUDGET, 25, 50, 99, 100, 200, 333, 400, 1000, 5000] {
             let p = Plan::new(b).expect("plan");
             assert!(p.runs <= b && p.runs + 2 > b, "{p:?}");
-            assert!(p.generations >= 2 && p.finalists >= 1 && p.final_seeds >= 2, "{p:?}");
+            assert!(
+                p.generations >= 2 && p.finalists >= 1 && p.final_seeds >= 2,
+                "{p:?}"
+            );
             assert!(p.elites < p.population, "{p:?}");
         }
         let p = Plan::new(200).expect("plan");
         assert_eq!(
-            (p.candidates, p.population, p.generations, p.finalists, p.final_seeds),
+            (
+                p.candidates,
+                p.population,
+                p.generations,
+                p.finalists,
+                p.final_seeds
+            ),
             (80, 16, 5, 4, 10)
         );
         assert!(Plan::new(10).is_err_and(|e| e.to_string().contains("--budget 10")));
@@ -532,7 +541,11 @@ mod tests {
         for _ in 0..6 {
             d.update(&[&elite, &elite]);
         }
-        assert!(d.patterns[1] > 0.9 && d.patterns[0] >= PATTERN_FLOOR / 2.0 - 1e-12);
+        assert!(
+            d.patterns[1] > 0.9 && d.patterns[0] > 0.04,
+            "{:?}",
+            d.patterns
+        );
         assert!(d.kinds[3] > 0.85, "{:?}", d.kinds);
         assert!((d.mu[3][0] - 0.9).abs() < 1e-3);
         assert_eq!(d.sigma[3][0], SIGMA_MIN);
