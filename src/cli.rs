@@ -52,6 +52,9 @@ pub enum Command {
     Batch(crate::batch::BatchArgs),
     /// Merge the JSON results of sharded batches into the summary the unsharded batch gives.
     Merge(crate::batch::MergeArgs),
+    /// Search for the worst attack inside the world's threat model (one fault pattern at a time)
+    /// and write it as a world file that `ftcbf run` replays.
+    Falsify(crate::falsify::FalsifyArgs),
 }
 
 /// Which controller to run (overrides the world's `control.controller`).

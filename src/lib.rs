@@ -4,11 +4,13 @@
 //! engine (plans, shards and sweeps, trials on a thread pool, exact Clopper–Pearson intervals,
 //! the exact McNemar test, CSV/JSON output, shard merging). It drives any
 //! [`batch::TrialRunner`], so a program can certify its own controller or simulator with the
-//! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`). The binary
-//! (`src/main.rs`) is a thin shell over it and over `ftcbf-sim`.
-//!
-//! [`regress`] runs the world catalogue as a regression suite: every world's `[expect]` over its
-//! regression seeds, in parallel, with a table (`ftcbf regress`).
+//! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`); [`falsify`], the
+//! search for the worst attack inside a world's threat model (a cross-entropy method on the
+//! batch engine's thread pool, compared with random search); and [`regress`], the world
+//! catalogue as a regression suite: every world's `[expect]` over its regression seeds, in
+//! parallel, with a table (`ftcbf regress`). The binary (`src/main.rs`) is a thin shell over
+//! them and over `ftcbf-sim`.
 
 pub mod batch;
+pub mod falsify;
 pub mod regress;

@@ -1,6 +1,6 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
-use ftcbf::{batch, regress};
+use ftcbf::{batch, falsify, regress};
 mod cli;
 
 use std::io::IsTerminal;
@@ -59,6 +59,14 @@ fn main() -> ExitCode {
             batch::batch_command(&a, &prepare_batch(&a.world)).map_err(Failure::from)
         }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
+        Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
+            code: if e.chain().any(|c| c.is::<WorldError>()) {
+                EXIT_INVALID
+            } else {
+                1
+            },
+            error: e,
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

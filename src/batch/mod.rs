@@ -37,7 +37,7 @@ pub use cli::{batch_command, merge_command, BatchArgs, MergeArgs, PrepareFn};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{BatchResult, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict};
-pub use run::{run_batch, run_sweep};
+pub use run::{progress_bar, run_batch, run_parallel, run_sweep, worker_pool};
 
 /// Confidence level of every interval in a batch summary.
 pub const CONFIDENCE: f64 = 0.95;

@@ -10,6 +10,77 @@ use super::{
     TrialRunner, WorldInfo,
 };
 
+/// A pool of `jobs` worker threads (`None` = one per core), on which a command runs its trials.
+pub fn worker_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(j) = jobs {
+        pool = pool.num_threads(j.max(1));
+    }
+    pool.build().context("could not start the worker threads")
+}
+
+/// A progress bar over `len` runs on stderr with elapsed time and ETA, labelled `message`;
+/// hidden unless `show` and stderr is a terminal.
+pub fn progress_bar(len: u64, message: &str, show: bool) -> indicatif::ProgressBar {
+    if !(show && std::io::stderr().is_terminal()) {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} runs, ETA {eta}",
+    ) {
+        bar.set_style(style);
+    }
+    bar.set_message(message.to_string());
+    bar
+}
+
+/// Runs `f` on every item on `pool`, advancing `bar` once per finished item, and returns the
+/// results in item order, so the outcome does not depend on the number of threads. After a
+/// failure, items not yet started are skipped, and the error of the lowest-index failed item is
+/// returned.
+pub fn run_parallel<T, R, F>(
+    pool: &rayon::ThreadPool,
+    items: &[T],
+    bar: &indicatif::ProgressBar,
+    f: F,
+) -> anyhow::Result<Vec<R>>
+where
+    T: Sync,
+    R: Send,
+    F: Fn(&T) -> anyhow::Result<R> + Sync,
+{
+    use rayon::prelude::*;
+
+    let failed = AtomicBool::new(false);
+    let outcomes: Vec<Option<anyhow::Result<R>>> = pool.install(|| {
+        items
+            .par_iter()
+            .map(|item| {
+                if failed.load(Ordering::Relaxed) {
+                    return None;
+                }
+                let out = f(item);
+                if out.is_err() {
+                    failed.store(true, Ordering::Relaxed);
+                }
+                bar.inc(1);
+                Some(out)
+            })
+            .collect()
+    });
+    let mut results = Vec::with_capacity(outcomes.len());
+    for out in outcomes.into_iter().flatten() {
+        results.push(out?);
+    }
+    if results.len() != items.len() {
+        // Unreachable: an item is skipped only after another one failed, whose error is
+        // returned above. Kept as a guard so a result is never silently short.
+        return Err(anyhow!("stopped early after a failed run"));
+    }
+    Ok(results)
+}
+
 /// Run every trial of `plan` (its shard only, if it has one) with every controller, on
 /// `exec.jobs` threads, and aggregate. Trial k of every controller uses [`trial_seed`]`(S, k)`.
 /// The result is the same for any number of threads. A failing trial stops the batch (trials
@@ -20,71 +91,33 @@ pub fn run_batch(
     plan: &BatchPlan,
     exec: Execution,
 ) -> anyhow::Result<BatchResult> {
-    use rayon::prelude::*;
-
     plan.validate()?;
     let tasks: Vec<(u64, &str)> = plan
         .trial_indices()
         .into_iter()
         .flat_map(|k| plan.controllers.iter().map(move |c| (k, c.as_str())))
         .collect();
-    let bar = if exec.progress && std::io::stderr().is_terminal() {
-        let bar = indicatif::ProgressBar::new(tasks.len() as u64);
-        if let Ok(style) = indicatif::ProgressStyle::with_template(
-            "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} runs, ETA {eta}",
-        ) {
-            bar.set_style(style);
-        }
-        bar.set_message(plan.world.clone());
-        bar
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(j) = exec.jobs {
-        pool = pool.num_threads(j.max(1));
-    }
-    let pool = pool.build().context("could not start the worker threads")?;
-    let failed = AtomicBool::new(false);
-    let outcomes: Vec<Option<anyhow::Result<TrialRecord>>> = pool.install(|| {
-        tasks
-            .par_iter()
-            .map(|&(k, controller)| {
-                if failed.load(Ordering::Relaxed) {
-                    return None;
+    let bar = progress_bar(tasks.len() as u64, &plan.world, exec.progress);
+    let pool = worker_pool(exec.jobs)?;
+    let records = run_parallel(&pool, &tasks, &bar, |&(k, controller)| {
+        let seed = trial_seed(plan.base_seed, k);
+        runner
+            .run_trial(controller, seed)
+            .and_then(|s| {
+                if s.seed != seed || s.controller != controller {
+                    Err(anyhow!(
+                        "the runner returned a summary for seed {} / `{}`, not for seed {seed} / `{controller}`",
+                        s.seed,
+                        s.controller
+                    ))
+                } else {
+                    Ok(TrialRecord::from_summary(k, &s))
                 }
-                let seed = trial_seed(plan.base_seed, k);
-                let out = runner
-                    .run_trial(controller, seed)
-                    .and_then(|s| {
-                        if s.seed != seed || s.controller != controller {
-                            Err(anyhow!(
-                                "the runner returned a summary for seed {} / `{}`, not for seed {seed} / `{controller}`",
-                                s.seed,
-                                s.controller
-                            ))
-                        } else {
-                            Ok(TrialRecord::from_summary(k, &s))
-                        }
-                    })
-                    .with_context(|| format!("trial {k} (seed {seed}, controller {controller}) failed"));
-                if out.is_err() {
-                    failed.store(true, Ordering::Relaxed);
-                }
-                bar.inc(1);
-                Some(out)
             })
-            .collect()
+            .with_context(|| format!("trial {k} (seed {seed}, controller {controller}) failed"))
     });
     bar.finish_and_clear();
-    let mut records = Vec::with_capacity(outcomes.len());
-    for out in outcomes.into_iter().flatten() {
-        records.push(out?);
-    }
-    if records.len() != tasks.len() {
-        return Err(anyhow!("the batch stopped early after a failed trial"));
-    }
-    BatchResult::from_records(plan.clone(), records, Vec::new())
+    BatchResult::from_records(plan.clone(), records?, Vec::new())
 }
 
 /// Run `plan_for` once per sweep value (or once without a sweep): for each point the world is

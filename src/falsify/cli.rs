@@ -1,0 +1,266 @@
+//! `ftcbf falsify`: clap arguments and the command.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, Context};
+use ftcbf_sim::record::Recorder;
+use ftcbf_sim::runner::setup::controller_name;
+use ftcbf_sim::runner::{run, run_observed, RunOptions};
+use ftcbf_sim::world::{ControllerKindSpec, World};
+use serde::Serialize;
+
+use super::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
+use crate::falsify::search::MIN_BUDGET;
+
+/// Search for the worst attack inside the world's threat model.
+///
+/// Every candidate attacks the channels of ONE declared fault pattern (the paper's fault model;
+/// patterns are never combined) with one of the 12 injector kinds, parameterised by magnitude or
+/// rate, direction, onset, duration and, for the stealthy attacker, its detector threshold. The
+/// objective is the run's robustness ρ: the minimum over time of h(x_true) of every safe set and
+/// of the signed obstacle clearance (negative = unsafe; a collision ranks below any run without
+/// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, and
+/// re-runs its best 4 candidates on held-out seeds; random search with the same budget and
+/// seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
+/// controller) that `ftcbf run` replays to the same ρ, with its recording next to it.
+/// The same command gives the same output files (the recording's blueprint ids aside), for any
+/// --jobs.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_help = "Examples:
+  ftcbf falsify worlds/paper_turtlebot.toml --controller baseline --budget 200 --out worst.toml
+  ftcbf run worst.toml                       # replays the worst run (seed and controller are in the file)
+  ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record")]
+pub struct FalsifyArgs {
+    /// World file (TOML). Its own [[attacks]] are replaced by the searched ones.
+    pub world: PathBuf,
+    /// Controller under test [default: the world's `control.controller`].
+    #[arg(long, value_name = "KIND", value_parser = ["ft-cbf-clf", "baseline", "nominal"])]
+    pub controller: Option<String>,
+    /// Runs (simulations) per search method.
+    #[arg(long, value_name = "N", default_value_t = 200,
+          value_parser = clap::value_parser!(u64).range(MIN_BUDGET as u64..=1_000_000))]
+    pub budget: u64,
+    /// Base seed S of the candidates and of the run seeds [default: the world's seed].
+    #[arg(long, value_name = "S")]
+    pub seed: Option<u64>,
+    /// Worker threads [default: all cores].
+    #[arg(long, short = 'j', value_name = "J", value_parser = clap::value_parser!(u64).range(1..))]
+    pub jobs: Option<u64>,
+    /// Where to write the worst run as a world file [default: runs/<world>-worst-<controller>.toml];
+    /// its recording goes next to it (same name, .rrd).
+    #[arg(long, value_name = "WORST.toml")]
+    pub out: Option<PathBuf>,
+    /// Also write every evaluation, the finalists and the comparison as JSON.
+    #[arg(long, value_name = "FILE.json")]
+    pub json: Option<PathBuf>,
+    /// Do not record the worst run.
+    #[arg(long)]
+    pub no_record: bool,
+    /// Skip the random-search comparison (halves the runs).
+    #[arg(long)]
+    pub no_random: bool,
+}
+
+fn parse_controller(s: &str) -> anyhow::Result<ControllerKindSpec> {
+    match s {
+        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
+        "baseline" => Ok(ControllerKindSpec::Baseline),
+        "nominal" => Ok(ControllerKindSpec::Nominal),
+        other => Err(anyhow!(
+            "unknown controller `{other}`; expected ft-cbf-clf, baseline or nominal"
+        )),
+    }
+}
+
+/// The replay of the written world.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Replay {
+    /// Which method found the worst run.
+    pub found_by: String,
+    /// The world file written.
+    pub world_file: String,
+    /// The recording, if written.
+    pub recording: Option<String>,
+    /// ρ of `ftcbf run` on the written file (equal to the witness', checked).
+    pub robustness: Robustness,
+}
+
+#[derive(Serialize)]
+struct JsonOut<'a> {
+    #[serde(flatten)]
+    report: &'a Report,
+    replay: &'a Replay,
+}
+
+/// Writes the worst run of `report` as a world file at `out`, runs that file as `ftcbf run`
+/// would (recording to `recording` if given) and checks that it reproduces the witness' ρ bit
+/// for bit.
+pub fn write_worst(
+    template: &WorldTemplate,
+    report: &Report,
+    out: &Path,
+    recording: Option<&Path>,
+) -> anyhow::Result<Replay> {
+    let best = report
+        .methods
+        .iter()
+        .reduce(|a, b| {
+            if b.witness
+                .robustness
+                .cmp_worse(&a.witness.robustness)
+                .is_lt()
+            {
+                b
+            } else {
+                a
+            }
+        })
+        .ok_or_else(|| anyhow!("no search result"))?;
+    let w = &best.witness;
+    let name = format!(
+        "{}_worst_{}",
+        report.world,
+        report.controller.replace('-', "_")
+    );
+    let description = format!(
+        "The worst attack `ftcbf falsify` found on {} against {} (seed {}): {}; ρ = {}.",
+        report.world,
+        report.controller,
+        w.seed,
+        w.description,
+        w.robustness.display()
+    );
+    let header = vec![
+        format!(
+            "Written by `ftcbf falsify {} --controller {} --seed {} --budget {}` ({} search).",
+            report.world_file,
+            report.controller,
+            report.seed,
+            report.plan.budget,
+            best.method.name()
+        ),
+        format!(
+            "The original's [[attacks]] are replaced by the worst run's; `seed` and `control.controller` are that run's."
+        ),
+        format!(
+            "Robustness ρ = {} (min over time of h(x_true) and obstacle clearance).",
+            w.robustness.display()
+        ),
+        "Every attack stays inside one declared fault pattern. The original's [expect] is removed.".into(),
+    ];
+    let info = ReplayInfo {
+        name: &name,
+        description: &description,
+        seed: w.seed,
+        controller: &report.controller,
+        header: &header,
+    };
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create directory {}", dir.display()))?;
+    }
+    let text = template.replay_text(&w.attacks, &info, out)?;
+    std::fs::write(out, &text).with_context(|| format!("cannot write {}", out.display()))?;
+    let world = World::load(out, &[])
+        .with_context(|| format!("the written world {} does not load", out.display()))?;
+    let opts = RunOptions::default();
+    let summary = match recording {
+        None => run(&world, &opts)?,
+        Some(path) => {
+            let id = format!(
+                "{}-{}-seed{}",
+                world.name,
+                controller_name(world.file.control.controller),
+                world.file.seed
+            );
+            let mut rec = Recorder::create(path, &id).context("recording")?;
+            let s = run_observed(&world, &opts, Some(&mut rec))?;
+            rec.finish().context("recording")?;
+            s
+        }
+    };
+    let robustness = Robustness::of(&world, &summary)
+        .ok_or_else(|| anyhow!("the written world has no safe set and no obstacle"))?;
+    if robustness != w.robustness {
+        return Err(anyhow!(
+            "the written world {} replays to ρ = {}, not the searched {}; this is a bug",
+            out.display(),
+            robustness.display(),
+            w.robustness.display()
+        ));
+    }
+    Ok(Replay {
+        found_by: best.method.name().into(),
+        world_file: out.display().to_string(),
+        recording: recording.map(|p| p.display().to_string()),
+        robustness,
+    })
+}
+
+/// `ftcbf falsify`: search, print the summary, write the worst world, its recording and the JSON.
+pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
+    if let Some(j) = &args.json {
+        if j.extension().is_none_or(|e| e != "json") {
+            return Err(anyhow!(
+                "--json {}: expected a .json file name",
+                j.display()
+            ));
+        }
+    }
+    if let Some(out) = &args.out {
+        if out.extension().is_none_or(|e| e != "toml") {
+            return Err(anyhow!(
+                "--out {}: expected a .toml file name",
+                out.display()
+            ));
+        }
+    }
+    let template = WorldTemplate::load(&args.world)?;
+    let controller = match &args.controller {
+        Some(c) => parse_controller(c)?,
+        None => template.world.file.control.controller,
+    };
+    let settings = Settings {
+        controller,
+        budget: usize::try_from(args.budget).context("--budget is too large")?,
+        seed: args.seed.unwrap_or(template.world.file.seed),
+        jobs: args
+            .jobs
+            .map(usize::try_from)
+            .transpose()
+            .context("--jobs is too large for this machine")?,
+        progress: true,
+        compare_random: !args.no_random,
+    };
+    for w in super::model_warnings(&template.world) {
+        eprintln!("warning: {w}");
+    }
+    let report = falsify(&template, &settings)?;
+    print!("{}", report.text());
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!("{}-worst-{}.toml", report.world, report.controller))
+    });
+    let recording = (!args.no_record).then(|| out.with_extension("rrd"));
+    let replay = write_worst(&template, &report, &out, recording.as_deref())?;
+    println!();
+    println!(
+        "worst run ({} search) written to {}; `ftcbf run {}` replays it: ρ = {} (identical)",
+        replay.found_by,
+        replay.world_file,
+        replay.world_file,
+        replay.robustness.display()
+    );
+    if let Some(r) = &replay.recording {
+        println!("recording: {r} (open it with: rerun {r})");
+    }
+    if let Some(j) = &args.json {
+        let text = serde_json::to_string_pretty(&JsonOut {
+            report: &report,
+            replay: &replay,
+        })
+        .context("serialising the report")?;
+        std::fs::write(j, text + "\n").with_context(|| format!("cannot write {}", j.display()))?;
+        eprintln!("wrote {}", j.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,517 @@
+//! The attack family `falsify` searches: one declared fault pattern, one injector kind, and a
+//! point z ∈ [0, 1]^D that the decoder turns into `[[attacks]]` entries on that pattern's channels.
+//!
+//! Layout of z (D = 5 + the most channels any pattern has):
+//!
+//! | index | meaning |
+//! |---|---|
+//! | 0 | onset: `start = z₀ · 0.75 · T` (T = the world's duration; replay: at least 0.1 · T) |
+//! | 1 | duration: `end = start + 1.25 · z₁ · (T − start)`; an end at or after T means "forever" |
+//! | 2 | magnitude or rate, log-uniform over the kind's range (below), times the channel scale |
+//! | 3 | the kind's second parameter (frequency, threshold, probability, factor, …) |
+//! | 4 | the kind's third parameter (phase, cap, largest bias, recording length) |
+//! | 5 + i | weight wᵢ = 2 z − 1 of the pattern's i-th channel: the channel is attacked iff \|wᵢ\| ≥ 0.2 (if none is, the largest \|wᵢ\|), with sign sign(wᵢ) and relative size \|wᵢ\| / maxⱼ \|wⱼ\| |
+//!
+//! Channel scale: 1 m for x and y, 0.5 m/s for vx and vy. Every decoded number is rounded to four
+//! significant digits, so the written world file is readable and replays the evaluated attack
+//! exactly.
+
+use std::f64::consts::PI;
+
+use ftcbf_sim::attacks::{AttackKind, AttackSpec, Direction, NonFiniteValue};
+use ftcbf_sim::sensors::Quantity;
+use ftcbf_sim::world::World;
+use serde::{Deserialize, Serialize};
+
+/// Number of z coordinates before the channel weights.
+const HEAD: usize = 5;
+/// A channel whose |weight| is below this is not attacked.
+const CHANNEL_ON: f64 = 0.2;
+
+/// The injector kinds of `sim/src/attacks.rs`, all of which the search covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// Constant offset.
+    Bias,
+    /// Offset growing at a rate, optionally capped.
+    Ramp,
+    /// Sinusoidal offset.
+    Sinusoid,
+    /// Reading held at its last value.
+    Freeze,
+    /// Earlier readings played back.
+    Replay,
+    /// Denial of service.
+    Dropout,
+    /// Reading multiplied.
+    Scale,
+    /// Random outliers.
+    Spikes,
+    /// NaN / ±∞.
+    NonFinite,
+    /// A finite absurd value (below 10⁶ it is not rejected by the controller).
+    Absurd,
+    /// Bias growing as fast as the detector allows.
+    Stealthy,
+    /// Channels spoofed consistently along a path.
+    Coordinated,
+}
+
+/// Every kind, in a fixed order (the categorical distribution's index).
+pub const KINDS: [Kind; 12] = [
+    Kind::Bias,
+    Kind::Ramp,
+    Kind::Sinusoid,
+    Kind::Freeze,
+    Kind::Replay,
+    Kind::Dropout,
+    Kind::Scale,
+    Kind::Spikes,
+    Kind::NonFinite,
+    Kind::Absurd,
+    Kind::Stealthy,
+    Kind::Coordinated,
+];
+
+impl Kind {
+    /// The world file's `kind` string.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Bias => "bias",
+            Kind::Ramp => "ramp",
+            Kind::Sinusoid => "sinusoid",
+            Kind::Freeze => "freeze",
+            Kind::Replay => "replay",
+            Kind::Dropout => "dropout",
+            Kind::Scale => "scale",
+            Kind::Spikes => "spikes",
+            Kind::NonFinite => "non_finite",
+            Kind::Absurd => "absurd",
+            Kind::Stealthy => "stealthy",
+            Kind::Coordinated => "coordinated",
+        }
+    }
+}
+
+/// One declared fault pattern: its name and channels (name, what it measures).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Pattern {
+    /// The pattern's name in the world file.
+    pub name: String,
+    /// Its channels, in the world file's order.
+    pub channels: Vec<(String, Quantity)>,
+}
+
+/// A point of the search space.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    /// Index of the fault pattern.
+    pub pattern: usize,
+    /// Injector kind.
+    pub kind: Kind,
+    /// The continuous parameters, each in [0, 1].
+    pub z: Vec<f64>,
+}
+
+/// The search space of one world: its fault patterns and duration.
+#[derive(Debug, Clone)]
+pub struct SearchSpace {
+    /// The declared fault patterns.
+    pub patterns: Vec<Pattern>,
+    /// The world's duration T [s].
+    pub duration: f64,
+    /// Length of z.
+    pub dim: usize,
+}
+
+/// Why a world cannot be searched.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpaceError {
+    /// No `[[fault_patterns]]`: the threat model allows no attack.
+    #[error("the world declares no [[fault_patterns]], so the threat model allows no attack to search; declare the channels that may fail together")]
+    NoPatterns,
+    /// A pattern channel measures something other than x, y, vx, vy.
+    #[error("fault pattern `{pattern}`: channel `{channel}` measures {quantity}, but attacks are searched on x, y, vx and vy channels only")]
+    UnsupportedChannel {
+        /// Pattern.
+        pattern: String,
+        /// Channel.
+        channel: String,
+        /// What it measures.
+        quantity: &'static str,
+    },
+}
+
+/// The channel scale used for magnitudes and rates [unit].
+fn scale(q: Quantity) -> f64 {
+    match q {
+        Quantity::X | Quantity::Y => 1.0,
+        _ => 0.5,
+    }
+}
+
+/// `lo · (hi / lo)^a`: log-uniform in [lo, hi] for a uniform a ∈ [0, 1].
+fn log_range(a: f64, lo: f64, hi: f64) -> f64 {
+    lo * (hi / lo).powf(a.clamp(0.0, 1.0))
+}
+
+/// Rounds to four significant digits (exact zero stays zero).
+fn round4(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.3e}").parse().unwrap_or(x)
+}
+
+impl SearchSpace {
+    /// The search space of `world`: its declared fault patterns (x, y, vx, vy channels).
+    pub fn new(world: &World) -> Result<Self, SpaceError> {
+        let f = &world.file;
+        if world.patterns.is_empty() {
+            return Err(SpaceError::NoPatterns);
+        }
+        let mut patterns = Vec::with_capacity(world.patterns.len());
+        for (spec, idx) in f.fault_patterns.iter().zip(&world.patterns) {
+            let mut channels = Vec::with_capacity(idx.len());
+            for &c in idx {
+                let ch = &f.sensors[c];
+                if !matches!(
+                    ch.measures,
+                    Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy
+                ) {
+                    return Err(SpaceError::UnsupportedChannel {
+                        pattern: spec.name.clone(),
+                        channel: ch.name.clone(),
+                        quantity: ch.measures.as_str(),
+                    });
+                }
+                channels.push((ch.name.clone(), ch.measures));
+            }
+            patterns.push(Pattern {
+                name: spec.name.clone(),
+                channels,
+            });
+        }
+        let widest = patterns.iter().map(|p| p.channels.len()).max().unwrap_or(1);
+        Ok(Self {
+            patterns,
+            duration: f.duration,
+            dim: HEAD + widest,
+        })
+    }
+
+    /// The `[[attacks]]` entries of `c`: all on channels of pattern `c.pattern` (never of two
+    /// patterns), in a fixed order.
+    pub fn decode(&self, c: &Candidate) -> Vec<AttackSpec> {
+        let pattern = &self.patterns[c.pattern.min(self.patterns.len() - 1)];
+        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
+        let t_end = self.duration;
+        let mut start = z(0) * 0.75 * t_end;
+        if c.kind == Kind::Replay {
+            start = start.max(0.1 * t_end);
+        }
+        let start = round4(start);
+        let end_raw = start + 1.25 * z(1) * (t_end - start);
+        let end = (end_raw < t_end).then(|| round4(end_raw.max(start + 0.02)));
+        // Attacked channels with signed relative weights.
+        let weights: Vec<f64> = (0..pattern.channels.len())
+            .map(|i| 2.0 * z(HEAD + i) - 1.0)
+            .collect();
+        let wmax = weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+        let mut on: Vec<(usize, f64)> = weights
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| w.abs() >= CHANNEL_ON)
+            .map(|(i, &w)| (i, if wmax > 0.0 { w / wmax } else { 1.0 }))
+            .collect();
+        if on.is_empty() {
+            let (i, w) = weights
+                .iter()
+                .enumerate()
+                .fold((0, 0.0f64), |(bi, bw), (i, &w)| {
+                    if w.abs() > bw.abs() {
+                        (i, w)
+                    } else {
+                        (bi, bw)
+                    }
+                });
+            on.push((i, if w < 0.0 { -1.0 } else { 1.0 }));
+        }
+        let names: Vec<String> = on
+            .iter()
+            .map(|&(i, _)| pattern.channels[i].0.clone())
+            .collect();
+        let sc = |i: usize| scale(pattern.channels[i].1);
+        let cap = |a: f64, i: usize| {
+            (a >= 0.5).then(|| round4(sc(i) * log_range(2.0 * (a - 0.5), 0.05, 3.0)))
+        };
+        let spec = |channels: Vec<String>, kind: AttackKind| AttackSpec {
+            label: None,
+            channels,
+            start,
+            end,
+            kind,
+        };
+        let per_channel = |f: &dyn Fn(usize, f64) -> AttackKind| -> Vec<AttackSpec> {
+            on.iter()
+                .map(|&(i, w)| spec(vec![pattern.channels[i].0.clone()], f(i, w)))
+                .collect()
+        };
+        match c.kind {
+            Kind::Bias => per_channel(&|i, w| AttackKind::Bias {
+                value: round4(w * sc(i) * log_range(z(2), 0.01, 3.0)),
+            }),
+            Kind::Ramp => per_channel(&|i, w| AttackKind::Ramp {
+                rate: round4(w * sc(i) * log_range(z(2), 0.002, 0.5)),
+                cap: cap(z(4), i),
+            }),
+            Kind::Sinusoid => per_channel(&|i, w| AttackKind::Sinusoid {
+                amplitude: round4(w * sc(i) * log_range(z(2), 0.01, 3.0)),
+                frequency_hz: round4(log_range(z(3), 0.01, 2.0)),
+                phase: round4(2.0 * PI * z(4)),
+            }),
+            Kind::Freeze => vec![spec(names, AttackKind::Freeze { value: None })],
+            Kind::Replay => {
+                let record_start = round4(z(3) * 0.9 * start);
+                let length = round4(((start - record_start) * (0.05 + 0.95 * z(4))).max(0.02));
+                let length = if record_start + length > start {
+                    start - record_start
+                } else {
+                    length
+                };
+                vec![spec(
+                    names,
+                    AttackKind::Replay {
+                        record_start,
+                        length,
+                    },
+                )]
+            }
+            Kind::Dropout => vec![spec(names, AttackKind::Dropout {})],
+            Kind::Scale => vec![spec(
+                names,
+                AttackKind::Scale {
+                    factor: round4(-1.0 + 4.0 * z(3)),
+                },
+            )],
+            Kind::Spikes => {
+                let i = on[0].0;
+                vec![spec(
+                    names,
+                    AttackKind::Spikes {
+                        probability: round4(log_range(z(3), 0.01, 0.5)),
+                        magnitude: round4(sc(i) * log_range(z(2), 0.05, 5.0)),
+                    },
+                )]
+            }
+            Kind::NonFinite => {
+                let value = match (z(3) * 3.0) as usize {
+                    0 => NonFiniteValue::Nan,
+                    1 => NonFiniteValue::PosInf,
+                    _ => NonFiniteValue::NegInf,
+                };
+                vec![spec(names, AttackKind::NonFinite { value })]
+            }
+            Kind::Absurd => per_channel(&|_, w| AttackKind::Absurd {
+                value: round4(w.signum() * 10f64.powf(3.0 + 9.0 * z(2))),
+            }),
+            Kind::Stealthy => per_channel(&|i, w| AttackKind::Stealthy {
+                max_rate: round4(w.abs() * sc(i) * log_range(z(2), 0.002, 0.5)),
+                threshold: round4(0.5 + 3.5 * z(3)),
+                direction: if w < 0.0 {
+                    Direction::Negative
+                } else {
+                    Direction::Positive
+                },
+                max_bias: cap(z(4), i),
+            }),
+            Kind::Coordinated => {
+                let velocity = on
+                    .iter()
+                    .map(|&(i, w)| round4(w * sc(i) * log_range(z(2), 0.002, 0.5)))
+                    .collect();
+                vec![spec(
+                    names,
+                    AttackKind::Coordinated {
+                        velocity,
+                        cap: cap(z(4), on[0].0),
+                    },
+                )]
+            }
+        }
+    }
+
+    /// A one-line description of `c`'s attack, e.g.
+    /// `pattern gnss2: ramp[gnss2_y] rate = 0.05 from t = 3 s, forever`.
+    pub fn describe(&self, c: &Candidate) -> String {
+        let specs = self.decode(c);
+        let window = specs.first().map_or(String::new(), |s| match s.end {
+            Some(e) => format!("in [{}, {}) s", s.start, e),
+            None => format!("from t = {} s, forever", s.start),
+        });
+        let parts: Vec<String> = specs
+            .iter()
+            .map(|s| format!("{} {}", s.display_label(), kind_params(&s.kind)))
+            .collect();
+        format!(
+            "pattern {}: {} {window}",
+            self.patterns[c.pattern.min(self.patterns.len() - 1)].name,
+            parts.join("; ")
+        )
+    }
+}
+
+/// The kind's parameters as `key = value` text.
+fn kind_params(k: &AttackKind) -> String {
+    let opt = |v: &Option<f64>| v.map_or("none".to_string(), |v| v.to_string());
+    match k {
+        AttackKind::Bias { value } => format!("value = {value}"),
+        AttackKind::Ramp { rate, cap } => format!("rate = {rate}, cap = {}", opt(cap)),
+        AttackKind::Sinusoid {
+            amplitude,
+            frequency_hz,
+            phase,
+        } => format!("amplitude = {amplitude}, frequency_hz = {frequency_hz}, phase = {phase}"),
+        AttackKind::Freeze { value } => format!("value = {}", opt(value)),
+        AttackKind::Replay {
+            record_start,
+            length,
+        } => format!("record_start = {record_start}, length = {length}"),
+        AttackKind::Dropout {} => String::new(),
+        AttackKind::Scale { factor } => format!("factor = {factor}"),
+        AttackKind::Spikes {
+            probability,
+            magnitude,
+        } => format!("probability = {probability}, magnitude = {magnitude}"),
+        AttackKind::NonFinite { value } => format!("value = {}", value.value()),
+        AttackKind::Absurd { value } => format!("value = {value}"),
+        AttackKind::Stealthy {
+            max_rate,
+            threshold,
+            direction,
+            max_bias,
+        } => format!(
+            "max_rate = {max_rate}, threshold = {threshold}, direction = {}, max_bias = {}",
+            if *direction == Direction::Negative {
+                "negative"
+            } else {
+                "positive"
+            },
+            opt(max_bias)
+        ),
+        AttackKind::Coordinated { velocity, cap } => {
+            format!("velocity = {velocity:?}, cap = {}", opt(cap))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn space() -> SearchSpace {
+        SearchSpace {
+            patterns: vec![
+                Pattern {
+                    name: "gnss1".into(),
+                    channels: vec![("g1x".into(), Quantity::X), ("g1y".into(), Quantity::Y)],
+                },
+                Pattern {
+                    name: "odo".into(),
+                    channels: vec![("ovx".into(), Quantity::Vx)],
+                },
+            ],
+            duration: 20.0,
+            dim: HEAD + 2,
+        }
+    }
+
+    #[test]
+    fn every_kind_decodes_inside_one_pattern() {
+        let s = space();
+        let zs = [
+            vec![0.0; 7],
+            vec![1.0; 7],
+            vec![0.5; 7],
+            vec![0.3, 0.9, 0.7, 0.1, 0.8, 0.95, 0.05],
+        ];
+        for kind in KINDS {
+            for pattern in 0..2 {
+                for z in &zs {
+                    let c = Candidate {
+                        pattern,
+                        kind,
+                        z: z.clone(),
+                    };
+                    let specs = s.decode(&c);
+                    assert!(!specs.is_empty());
+                    let allowed: Vec<&str> = s.patterns[pattern]
+                        .channels
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect();
+                    for sp in &specs {
+                        assert_eq!(sp.kind.name(), kind.name());
+                        assert!(!sp.channels.is_empty());
+                        assert!(sp.channels.iter().all(|n| allowed.contains(&n.as_str())));
+                        assert!((0.0..=15.0).contains(&sp.start), "{sp:?}");
+                        if let Some(e) = sp.end {
+                            assert!(e > sp.start && e < 20.0, "{sp:?}");
+                        }
+                    }
+                    // The specs pass the simulator's own validation.
+                    let chans: Vec<ftcbf_sim::sensors::ChannelSpec> = s
+                        .patterns
+                        .iter()
+                        .flat_map(|p| p.channels.iter())
+                        .map(|(n, q)| ftcbf_sim::sensors::ChannelSpec::new(n.clone(), *q, 0.01))
+                        .collect();
+                    ftcbf_sim::attacks::validate_attacks(&specs, &chans)
+                        .unwrap_or_else(|e| panic!("{kind:?} {z:?}: {e}"));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn weights_choose_channels_and_signs() {
+        let s = space();
+        // Channel 0 off (|w| = 0.1), channel 1 negative: one bias on g1y, negative.
+        let c = Candidate {
+            pattern: 0,
+            kind: Kind::Bias,
+            z: vec![0.0, 1.0, 1.0, 0.5, 0.5, 0.55, 0.0],
+        };
+        let specs = s.decode(&c);
+        assert_eq!(specs.len(), 1);
+        assert_eq!(specs[0].channels, vec!["g1y".to_string()]);
+        assert_eq!(specs[0].kind, AttackKind::Bias { value: -3.0 });
+        assert_eq!((specs[0].start, specs[0].end), (0.0, None));
+        // Magnitude 0 of the log range is its lower end; the onset at z0 = 1 is 0.75 T.
+        let c = Candidate {
+            pattern: 0,
+            kind: Kind::Ramp,
+            z: vec![1.0, 0.0, 0.0, 0.5, 0.0, 1.0, 1.0],
+        };
+        let specs = s.decode(&c);
+        assert_eq!(specs.len(), 2);
+        assert_eq!(specs[0].start, 15.0);
+        assert_eq!(specs[0].end, Some(15.02));
+        assert_eq!(
+            specs[1].kind,
+            AttackKind::Ramp {
+                rate: 0.002,
+                cap: None
+            }
+        );
+    }
+
+    #[test]
+    fn rounding_keeps_four_digits() {
+        assert_eq!(round4(0.123456), 0.1235);
+        assert_eq!(round4(-98765.4), -98770.0);
+        assert_eq!(round4(0.0), 0.0);
+        assert_eq!(log_range(0.5, 0.01, 1.0), 0.1);
+    }
+}

@@ -1,0 +1,225 @@
+//! `ftcbf falsify` end to end: it finds an unsafe attack on the all-sensor baseline, the written
+//! world replays it with `ftcbf run`, outputs are deterministic for any --jobs, and the threat
+//! model is respected.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn ftcbf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ftcbf-falsify-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d.join(name)
+}
+
+fn read_json(p: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).expect("json file")).expect("valid JSON")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// The acceptance test: budget 200 against the baseline on paper_turtlebot finds an
+/// unsafe attack, and `ftcbf run` on the written world reproduces its robustness exactly.
+#[test]
+fn baseline_on_paper_turtlebot_is_falsified_and_the_world_replays_it() {
+    let worst = tmp("paper_worst.toml");
+    let json = tmp("paper.json");
+    let o = ftcbf(&[
+        "falsify",
+        "worlds/paper_turtlebot.toml",
+        "--controller",
+        "baseline",
+        "--budget",
+        "200",
+        "--no-random",
+        "--no-record",
+        "--out",
+        s(&worst),
+        "--json",
+        s(&json),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let out = text(&o);
+    assert!(out.contains("patterns are never combined"), "{out}");
+    assert!(out.contains("UNSAFE"), "{out}");
+    let v = read_json(&json);
+    let witness = &v["methods"][0]["witness"];
+    let rho = witness["robustness"]["value"].as_f64().expect("ρ");
+    assert!(rho < 0.0, "no unsafe attack found: ρ = {rho}");
+    assert_eq!(v["methods"][0]["runs"], 200);
+    assert_eq!(v["replay"]["robustness"], witness["robustness"]);
+
+    // The written world is an ordinary world: `ftcbf run` replays the worst run with the
+    // seed and controller it names.
+    let o = ftcbf(&["run", s(&worst), "--no-record", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let summary: Value = serde_json::from_slice(&o.stdout).expect("summary JSON");
+    assert_eq!(summary["controller"], "baseline");
+    assert_eq!(summary["safe"], false);
+    assert_eq!(summary["seed"], witness["seed"]);
+    assert_eq!(summary["min_barrier"][0]["name"], "floor");
+    assert_eq!(summary["min_barrier"][0]["value"].as_f64(), Some(rho));
+    // …and with --controller baseline given explicitly, as a user would type it.
+    let o = ftcbf(&[
+        "run",
+        s(&worst),
+        "--no-record",
+        "--json",
+        "--controller",
+        "baseline",
+    ]);
+    let again: Value = serde_json::from_slice(&o.stdout).expect("summary JSON");
+    assert_eq!(again, summary);
+    // Every attack in the written world is on one channel of one declared pattern.
+    let text = std::fs::read_to_string(&worst).expect("world");
+    assert!(text.starts_with("# Written by `ftcbf falsify"), "{text}");
+    assert!(!text.contains("\n[expect"), "{text}");
+    let doc: toml::Table = toml::from_str(&text).expect("TOML");
+    let attacks = doc["attacks"].as_array().expect("attacks");
+    assert!(!attacks.is_empty());
+    for a in attacks {
+        let ch = a["channels"].as_array().expect("channels");
+        assert!(
+            ch.iter().all(|c| c.as_str() == Some("gnss2_x"))
+                || ch.iter().all(|c| c.as_str() == Some("gnss2_y")),
+            "{a:?}"
+        );
+    }
+}
+
+/// Same command → byte-identical world and JSON files, whatever --jobs; the recording replays
+/// the same run; a world whose own attacks leave the model is warned about, and every searched
+/// attack stays inside one pattern.
+#[test]
+fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
+    let run = |jobs: &str| {
+        let worst = tmp("lin.toml");
+        let json = tmp("lin.json");
+        let o = ftcbf(&[
+            "falsify",
+            "worlds/paper_linear.toml",
+            "--budget",
+            "30",
+            "--seed",
+            "5",
+            "--jobs",
+            jobs,
+            "--out",
+            s(&worst),
+            "--json",
+            s(&json),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        (
+            std::fs::read(&worst).expect("world"),
+            std::fs::read(&json).expect("json"),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            worst,
+            json,
+        )
+    };
+    let (w1, j1, out1, ..) = run("1");
+    let (w2, j2, out2, worst, json) = run("2");
+    assert!(w1 == w2, "the world files differ between --jobs 1 and 2");
+    assert!(j1 == j2, "the JSON files differ between --jobs 1 and 2");
+    assert_eq!(out1, out2);
+    assert!(worst.with_extension("rrd").exists());
+    let v = read_json(&json);
+    assert_eq!(v["methods"].as_array().map(Vec::len), Some(2));
+    assert_eq!(v["methods"][1]["method"], "random");
+    // Same run count for both methods.
+    assert_eq!(v["methods"][0]["runs"], v["methods"][1]["runs"]);
+    let patterns: Vec<Vec<String>> = v["patterns"]
+        .as_array()
+        .expect("patterns")
+        .iter()
+        .map(|p| {
+            p["channels"]
+                .as_array()
+                .expect("channels")
+                .iter()
+                .map(|c| c[0].as_str().expect("name").to_string())
+                .collect()
+        })
+        .collect();
+    for m in v["methods"].as_array().expect("methods") {
+        for e in m["search"]
+            .as_array()
+            .expect("search")
+            .iter()
+            .chain(m["finalists"].as_array().expect("finalists"))
+        {
+            let chans: Vec<String> = e["attacks"]
+                .as_array()
+                .expect("attacks")
+                .iter()
+                .flat_map(|a| a["channels"].as_array().expect("channels").clone())
+                .map(|c| c.as_str().expect("name").to_string())
+                .collect();
+            assert!(
+                patterns.iter().any(|p| chans.iter().all(|c| p.contains(c))),
+                "{chans:?} is not inside one pattern of {patterns:?}"
+            );
+        }
+    }
+
+    let o = ftcbf(&[
+        "falsify",
+        "worlds/outside_model.toml",
+        "--budget",
+        "24",
+        "--no-random",
+        "--no-record",
+        "--out",
+        s(&tmp("outside.toml")),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains("warning: the world's own attacks[0]")
+            && text(&o).contains("leaves the paper's threat model"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn bad_input_is_named() {
+    let o = ftcbf(&["falsify", "worlds/nope.toml", "--no-record"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("nope.toml"), "{}", text(&o));
+    let o = ftcbf(&["falsify", "worlds/paper_linear.toml", "--budget", "5"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("--budget"), "{}", text(&o));
+    let o = ftcbf(&[
+        "falsify",
+        "worlds/paper_linear.toml",
+        "--budget",
+        "24",
+        "--out",
+        "x.yaml",
+    ]);
+    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
+}
