@@ -96,7 +96,7 @@ fn the_given_speed_bound_and_the_shapes_curvature_set_h_bar() {
     let want = gamma * (gp * gp + gv * gv).sqrt();
     assert!((barriers[1].h_bar(gamma) - want).abs() < 1e-12);
     // before: κ = 1/max(r, 1e-3) = 1000 for the point robot, h̄ ≈ 200 γ here
-    assert!(barriers[2].h_bar(gamma) < 2.0 * gamma);
+    assert!(barriers[2].h_bar(gamma) < 3.0 * gamma); // ≈ 2.65 γ
 }
 
 #[test]
