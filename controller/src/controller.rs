@@ -493,7 +493,7 @@ impl Controller {
                 let k = i * nbu + b;
                 // X_t(δ) = {ĥ < δ}; a NaN ĥ is imposed (and its row fails closed), never
                 // left out as "far from the boundary".
-                self.problem.cbf_active[k] = !(row.h_hat >= self.delta);
+                self.problem.cbf_active[k] = row.h_hat < self.delta || row.h_hat.is_nan();
                 self.problem.cbf[k] = row;
             }
             let crow = clf_row(
