@@ -11,13 +11,13 @@ use anyhow::Context;
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use ftcbf_sim::ftcbf_controller::params::{check_lemma1, check_theorem5};
-use ftcbf_sim::ftcbf_controller::{Input, State};
+use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
+use ftcbf_sim::ftcbf_controller::params::check_lemma1;
+use ftcbf_sim::ftcbf_controller::State;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
+use ftcbf_sim::runner::setup::{controller_name, ellipse_prop1, ControlSetup};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
-use ftcbf_sim::safe_sets::ellipse_phi_state;
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{
     ControllerKindSpec, Dynamics, Override, Param, SafeSetSpec, World, WorldError,
@@ -266,6 +266,13 @@ fn print_summary(s: &RunSummary) {
             s.rejected_readings
         );
     }
+    let fc = &s.fail_closed;
+    if fc.any() {
+        println!(
+            "  fail-closed: {} step(s) with non-finite constraint rows · {} unusable reading(s) · {} step(s) where Step 2 kept the last barrier · {} braking step(s)",
+            fc.non_finite_row_steps, fc.skipped_updates, fc.step2_retained_steps, fc.brake_steps
+        );
+    }
     for w in &s.attack_windows {
         println!(
             "  attack:    {} in [{}, {}){}",
@@ -373,30 +380,30 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
                 let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
                 println!("  {name} (half-plane): {v}");
             }
-            SafeSetSpec::EllipseInside {
-                name,
-                center,
-                semi_axes,
-                angle,
-                lift,
-            } => {
-                let phi = ellipse_phi_state(*semi_axes, *angle);
-                let centre = State::new(center[0], center[1], 0.0, 0.0);
-                let start = setup.config.x0;
-                let w = Input::new(centre[0] - start[0], centre[1] - start[1]);
-                let v = check_theorem5(&phi, &centre, &model.g, &w, &[start]);
-                println!(
-                    "  {name} (ellipse, position only, rank G = 2 < n = 4 so Prop. 1 does not apply; lifted with k = {lift} s so ∂H/∂v ≠ 0 away from the centre): Thm. 5 at the start: {v}"
-                );
+            SafeSetSpec::EllipseInside { name, lift, .. }
+            | SafeSetSpec::EllipseOutside { name, lift, .. } => {
+                // Evaluated on the barrier that runs (the lifted ellipse), not on the
+                // unlifted 4×4 ellipsoid: see ftcbf_sim::safe_sets and ftcbf_controller::conditions.
+                if let Some(v) = ellipse_prop1(&world, &setup, s) {
+                    println!(
+                        "  {name} ({} ellipse on the position, lifted H = h + k∇h·v with k = {lift} s, so Λ = k∇h(p); rank G = 2 < n = 4, so Prop. 1 as stated does not apply):",
+                        if v.inside { "inside of an" } else { "outside of an" }
+                    );
+                    println!("    {v}");
+                }
             }
-            SafeSetSpec::EllipseOutside { name, lift, .. } => println!(
-                "  {name} (outside an ellipse): lifted with k = {lift} s: ∂H/∂x·G = k∇h ≠ 0 away from the centre, so (4.4) holds for one filter; across filters it needs the estimates within θ of each other (Thm. 3, cond. 1)"
-            ),
         }
+    }
+    let start = [setup.config.x0];
+    for (b, name) in setup.config.barriers.iter().zip(&setup.barrier_names) {
+        println!(
+            "  {name} at the start estimate: {}",
+            condition_4_4(b.as_ref(), &model.g, &start)
+        );
     }
     for ob in &world.obstacles {
         println!(
-            "  obstacle {} ({}): lifted signed distance, ∂H/∂v = k∇d with ‖∇d‖ = 1 outside the shape, so Λ ≠ 0 (4.4) for every filter",
+            "  obstacle {} ({}): lifted signed distance H = d − margin + k∇d·v (a first-order velocity lift, not §4.2.1's construction), Λ = k∇d ≠ 0 outside the shape; h̄_γ = γ·L holds under the conditions in ftcbf_sim::obstacles",
             ob.name,
             ob.spec.shape.kind()
         );

@@ -114,6 +114,10 @@ pub struct RejectedReadings {
     pub length_mismatch: bool,
     /// `dt` was not finite and positive: the filters were not advanced.
     pub invalid_dt: bool,
+    /// Accepted readings that a filter of the bank could not use because their innovation
+    /// variance was not finite and positive, summed over the filters
+    /// ([`crate::KalmanFilter::skipped_updates`]); each flags its filter.
+    pub skipped_updates: usize,
 }
 
 /// Output of one step.
@@ -328,6 +332,7 @@ impl Controller {
                 patterns: vec![false; m],
                 length_mismatch: false,
                 invalid_dt: false,
+                skipped_updates: 0,
             },
             h_values: vec![0.0; nf * nb],
             v_values: vec![0.0; nf],
@@ -425,6 +430,12 @@ impl Controller {
             self.bank
                 .step(&self.u, dt, y, &self.valid, &self.rejected_buf);
         }
+        self.output.rejected.skipped_updates = self
+            .bank
+            .filters()
+            .iter()
+            .map(|f| f.skipped_updates())
+            .sum();
         self.fill_problem();
         let (u, outcome) = resolve(
             &self.problem,
@@ -480,7 +491,9 @@ impl Controller {
                     self.cbf_gain,
                 );
                 let k = i * nbu + b;
-                self.problem.cbf_active[k] = row.h_hat < self.delta;
+                // X_t(δ) = {ĥ < δ}; a NaN ĥ is imposed (and its row fails closed), never
+                // left out as "far from the boundary".
+                self.problem.cbf_active[k] = row.h_hat < self.delta || row.h_hat.is_nan();
                 self.problem.cbf[k] = row;
             }
             let crow = clf_row(

@@ -56,6 +56,7 @@ pub struct KalmanFilter {
     innovation: Vec<f64>,
     residue_norm: f64,
     updated: usize,
+    skipped: usize,
     flagged: bool,
     gain_drift: StateMatrix,
     gain_diffusion: StateMatrix,
@@ -84,6 +85,7 @@ impl KalmanFilter {
             innovation: vec![f64::NAN; q],
             residue_norm: 0.0,
             updated: 0,
+            skipped: 0,
             flagged: false,
             gain_drift: StateMatrix::zeros(),
             gain_diffusion: StateMatrix::zeros(),
@@ -134,7 +136,14 @@ impl KalmanFilter {
     pub fn updated_channels(&self) -> usize {
         self.updated
     }
-    /// True when a reading of a channel this filter uses was rejected in the last step.
+    /// Fresh, accepted readings of the last step that the filter could **not** use because
+    /// their innovation variance `c P⁻ cᵀ + r` was not finite and positive (a covariance that
+    /// has blown up or turned NaN). Each one flags the filter, like a rejected reading.
+    pub fn skipped_updates(&self) -> usize {
+        self.skipped
+    }
+    /// True when, in the last step, a reading of a channel this filter uses was rejected, or
+    /// could not be used because its innovation variance was not finite and positive.
     pub fn flagged(&self) -> bool {
         self.flagged
     }
@@ -164,6 +173,7 @@ impl KalmanFilter {
         self.innovation.iter_mut().for_each(|v| *v = f64::NAN);
         self.residue_norm = 0.0;
         self.updated = 0;
+        self.skipped = 0;
         self.flagged = false;
         self.gain_drift = StateMatrix::zeros();
         self.gain_diffusion = StateMatrix::zeros();
@@ -180,7 +190,10 @@ impl KalmanFilter {
 
     /// Measurement update with the channels that this filter uses and that are `valid`
     /// (fresh and accepted). `rejected[k]` marks readings thrown out this step; a rejected
-    /// reading of a used channel flags the filter. `dt` scales the gain terms.
+    /// reading of a used channel flags the filter. A valid reading whose innovation variance
+    /// is not finite and positive is not used either: it is counted
+    /// ([`KalmanFilter::skipped_updates`]) and flags the filter too. `dt` scales the gain
+    /// terms.
     pub fn update(
         &mut self,
         model: &LinearModel,
@@ -193,6 +206,7 @@ impl KalmanFilter {
         let mut count = 0usize;
         let mut info = StateMatrix::zeros();
         self.flagged = false;
+        self.skipped = 0;
         for (k, &used) in self.uses.iter().enumerate() {
             self.innovation[k] = f64::NAN;
             if !used {
@@ -209,6 +223,9 @@ impl KalmanFilter {
             let pc: State = self.p * c.transpose();
             let s = (c * pc)[0] + r;
             if !(s.is_finite() && s > 0.0) {
+                // fail closed: never skipped silently
+                self.skipped += 1;
+                self.flagged = true;
                 continue;
             }
             let e = y[k] - (c * self.x)[0];
@@ -486,6 +503,34 @@ mod tests {
             bank.predicted_measurement(9, 0).is_none()
                 && bank.predicted_measurement(0, 6).is_none()
         );
+    }
+
+    #[test]
+    fn non_finite_innovation_variance_is_counted_and_flags_the_filter() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        // the filter uses the two x channels only (an update with an infinite P entry would
+        // turn the whole of P into NaN, and every later channel would be skipped too)
+        let uses = vec![true, true, false, false, false, false];
+        let y = [0.0; 6];
+        for bad in [f64::INFINITY, f64::NAN] {
+            let mut p0 = StateMatrix::identity();
+            p0[(0, 0)] = bad; // channels 0 and 1 measure x: their S = P₀₀ + r is not finite
+            let mut f = KalmanFilter::new(
+                "f".into(),
+                FilterRole::Baseline,
+                uses.clone(),
+                State::zeros(),
+                p0,
+            );
+            f.update(&model, &y, &[true; 6], &[false; 6], 0.01);
+            assert_eq!(f.skipped_updates(), 2, "P00 = {bad}");
+            assert!(f.flagged(), "P00 = {bad}");
+            assert_eq!(f.residue_rank_key(), f64::INFINITY);
+            // a healthy covariance: nothing skipped, not flagged
+            f.reset(State::zeros(), StateMatrix::identity());
+            f.update(&model, &y, &[true; 6], &[false; 6], 0.01);
+            assert_eq!((f.skipped_updates(), f.flagged()), (0, false));
+        }
     }
 
     #[test]

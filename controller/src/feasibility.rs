@@ -6,9 +6,11 @@
 //!
 //! Every [`HalfSpace`] `nᵀu ≤ o` is scaled exactly as [`crate::qp`] scales it before clarabel
 //! sees it ([`Line::from_half_space`] is the one function both use): `n/‖n‖ · u ≤ o/‖n‖`, so a
-//! violation `a·u − b` is a distance in input space (m/s²). A row with a vanishing or
-//! non-finite normal becomes `0 ≤ 1` (finite `o ≥ 0`: always holds) or `0 ≤ −1` (otherwise:
-//! never holds).
+//! violation `a·u − b` is a distance in input space (m/s²). A row with a vanishing (finite)
+//! normal becomes `0 ≤ 1` (finite `o ≥ 0`: always holds) or `0 ≤ −1` (otherwise: never
+//! holds). A row whose normal or offset is **not finite** (NaN or ±∞) becomes `0 ≤ −1`
+//! whatever its offset: a constraint that cannot be evaluated fails closed, it is never
+//! treated as satisfied.
 //!
 //! # Method: vertex enumeration
 //!
@@ -80,17 +82,19 @@ pub struct Line {
 }
 
 impl Line {
-    /// The scaling of [`crate::qp`]: `n/‖n‖ · u ≤ o/‖n‖`; a vanishing (`‖n‖ ≤ 1e-12`) or
-    /// non-finite normal, or a non-finite offset, gives `0 ≤ 1` if the offset is finite and
+    /// The scaling of [`crate::qp`]: `n/‖n‖ · u ≤ o/‖n‖`. A normal or offset that is not
+    /// finite (or a normal whose norm overflows) gives `0 ≤ −1`: violated by every input
+    /// (fail closed). A vanishing finite normal (`‖n‖ ≤ 1e-12`) gives `0 ≤ 1` if the offset is
     /// non-negative and `0 ≤ −1` otherwise.
     pub fn from_half_space(h: &HalfSpace) -> Self {
         let n = h.normal.norm();
-        if n > 1e-12 && n.is_finite() && h.offset.is_finite() {
+        let finite = n.is_finite() && h.offset.is_finite();
+        if finite && n > 1e-12 {
             Self {
                 a: [h.normal[0] / n, h.normal[1] / n],
                 b: h.offset / n,
             }
-        } else if h.offset.is_finite() && h.offset >= 0.0 {
+        } else if finite && h.offset >= 0.0 {
             Self {
                 a: [0.0, 0.0],
                 b: 1.0,
@@ -294,8 +298,29 @@ mod tests {
         assert!((l.b - 2.0).abs() < 1e-15);
         assert_eq!(Line::from_half_space(&hs(0.0, 0.0, 0.3)).b, 1.0);
         assert_eq!(Line::from_half_space(&hs(0.0, 0.0, -0.3)).b, -1.0);
-        assert_eq!(Line::from_half_space(&hs(f64::NAN, 1.0, 0.3)).b, 1.0);
         assert_eq!(Line::from_half_space(&hs(1.0, 1.0, f64::NAN)).b, -1.0);
+    }
+
+    #[test]
+    fn non_finite_rows_fail_closed() {
+        // A NaN or infinite normal is violated whatever the offset (it used to become the
+        // always-satisfied 0·u ≤ 1 when the offset was finite and ≥ 0).
+        for n in [
+            [f64::NAN, 1.0],
+            [1.0, f64::INFINITY],
+            [f64::NEG_INFINITY, 0.0],
+            [1e200, 1e200], // the norm overflows
+        ] {
+            for o in [0.3, 0.0, -0.3, f64::INFINITY] {
+                let l = Line::from_half_space(&hs(n[0], n[1], o));
+                assert_eq!((l.a, l.b), ([0.0, 0.0], -1.0), "normal {n:?}, offset {o}");
+                assert_eq!(
+                    verdict(&[hs(n[0], n[1], o), hs(0.0, 1.0, 1.0)], None),
+                    Feasibility::Infeasible,
+                    "normal {n:?}, offset {o}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -14,11 +14,13 @@
 //! [`estimator`] (Kalman filters and the bank of eq. 4.1/4.2), [`barrier`] (h, ∂h, ∂²h, h̄_γ),
 //! [`lyapunov`] (the CLF of eq. 6.6), [`constraints`] (Ω of eq. 4.3, Υ of eq. 5.2),
 //! [`qp`] (problem 5.3 through clarabel), [`policy`] (Steps 1–3 with a decision record),
-//! [`params`] (γ, θ, χ² quantiles, checks of Lemma 1 / Prop. 1 / Thm. 5) and
+//! [`params`] (γ, θ, χ² quantiles, checks of Lemma 1 / Prop. 1 / Thm. 5),
+//! [`conditions`] (condition (4.4) of Theorem 3 decided on the barriers that run) and
 //! [`controller`] (the top-level FT-CBF-CLF, baseline and nominal controllers) and
 //! [`drive`] (the compensator 6.3–6.4 turning u into a body command (v, ω)).
 
 pub mod barrier;
+pub mod conditions;
 pub mod constraints;
 pub mod controller;
 pub mod drive;

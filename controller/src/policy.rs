@@ -9,7 +9,11 @@
 //! 1. **Step 1** — all Ω_i (units with ĥ_i < δ, per barrier) and all Υ_i (V(x̂_i) > V̄), hard.
 //! 2. **Step 2** — for each pair with ‖x̂_i − x̂_j‖ > θ_ij, drop unit i (resp. j), i.e. both
 //!    its Ω and Υ, if ‖x̂_i − x̂_ij‖ > θ_ij/2 (resp. for j). Resolve, hard. (Skipped for a
-//!    single unit; not re-solved when nothing was dropped.)
+//!    single unit; not re-solved when nothing was dropped.) Step 2 keeps the invariant of
+//!    Step 3: when its pair tests would drop **every** unit that has CBF rows, the one Step 3
+//!    would keep (smallest residue key, then lowest index) stays, and the record says so
+//!    ([`DecisionRecord::step2_retained`]) — otherwise the problem would have no barrier at
+//!    all and would pass as `Feasible { stage: Step2 }`.
 //! 3. **CLF relaxation** (design decision, not in the paper) — the CLF rows become soft:
 //!    they share one slack that is minimised with a large weight, so the input still makes
 //!    the most progress the CBF rows allow. Its feasibility is that of the CBF rows alone.
@@ -26,8 +30,18 @@
 //! 5. **Fallback** (typed, reported, never silent) — if the CBF rows are still infeasible
 //!    (possible with an input box), the input minimises the largest violation of the
 //!    remaining CBF rows inside the box (soft CBF rows; CLF ignored). If even that fails
-//!    (solver failure), the input is maximum braking: `u = −v̂/τ_b` (τ_b = 0.5 s), clipped
-//!    to the box, with v̂ from the unit with the smallest residue.
+//!    (solver failure), or a remaining CBF row is not finite (see below), the input is
+//!    braking: `u = −v̂/τ_b` (τ_b = 0.5 s), clipped to the box. v̂ is the best available
+//!    velocity estimate: that of the remaining unit with the smallest residue key whose
+//!    velocity is finite; if none, that of a dropped unit (same ranking); only if no unit has
+//!    a finite velocity is `u = 0`. The record says which ([`BrakeVelocity`]).
+//!
+//! **Non-finite rows fail closed.** A CBF or CLF row whose normal or offset is NaN or ±∞
+//! (e.g. a barrier whose gradient is NaN at the estimate) is a row that *no* input satisfies
+//! (`0·u ≤ −1`, see [`crate::feasibility::Line::from_half_space`]); it is counted in
+//! [`DecisionRecord::non_finite_rows`]. Every stage that imposes it is infeasible; when one
+//! remains in the fallback, the fallback brakes ([`BrakeReason::NonFiniteRow`]) instead of
+//! solving the soft problem (as a soft row it would loosen every other row by its slack).
 //!
 //! **Feasibility** of each stage's hard rows (Step 1 and Step 2: CBF and CLF rows; CLF
 //! relaxation and each Step-3 removal: the CBF rows alone, which is the feasibility of the
@@ -165,6 +179,23 @@ pub struct DecisionRecord {
     /// Solves that reported infeasible a set the geometric test of [`crate::feasibility`]
     /// found feasible (treated as "not shown feasible"; see the module docs).
     pub feasibility_disagreements: u32,
+    /// Imposed rows (CBF rows in X_t(δ), CLF rows in Y_t(V̄)) of any unit whose normal or
+    /// offset is not finite this step. Each is treated as violated (fail closed).
+    pub non_finite_rows: u32,
+    /// Set when Step 2's pair tests would have dropped every unit that has CBF rows: the unit
+    /// kept instead (the one Step 3 would keep) and the test it failed.
+    pub step2_retained: Option<Step2Retained>,
+}
+
+/// A unit Step 2 did not drop although its pair test said so, because it was the last unit
+/// with CBF rows (the invariant Step 3 also keeps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step2Retained {
+    /// The unit kept (smallest Step-3 residue key among the units with CBF rows; ties: the
+    /// lowest index).
+    pub unit: usize,
+    /// The pair test it failed (a [`DropReason::PairwiseDeviation`]).
+    pub failed_test: DropReason,
 }
 
 impl DecisionRecord {
@@ -176,6 +207,8 @@ impl DecisionRecord {
             qp_solves: 0,
             solver_failures: 0,
             feasibility_disagreements: 0,
+            non_finite_rows: 0,
+            step2_retained: None,
         }
     }
     /// Decisions about Ω rows of `unit`.
@@ -197,11 +230,42 @@ impl DecisionRecord {
 pub enum SafeAction {
     /// The input in the box minimising the largest violation of the remaining CBF rows.
     MinimiseMaxViolation,
-    /// Maximum braking (the soft problem failed in the solver).
+    /// Braking, `u = −v̂/τ_b` clipped to the box (see the module docs).
     Brake {
+        /// Why the fallback braked.
+        reason: BrakeReason,
+        /// Whose velocity estimate v̂ the input opposes.
+        velocity: BrakeVelocity,
+    },
+}
+
+/// Why the fallback braked instead of minimising the largest violation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BrakeReason {
+    /// The soft problem failed in the solver.
+    SolverFailure {
         /// The solver's status of the failed soft solve, if it ran.
         solver_status: Option<SolverStatus>,
     },
+    /// A remaining CBF row is not finite: no input is known to satisfy it.
+    NonFiniteRow,
+}
+
+/// The velocity estimate the braking input opposes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BrakeVelocity {
+    /// A unit that still had its constraints (smallest residue key with a finite velocity).
+    Remaining {
+        /// Unit index.
+        unit: usize,
+    },
+    /// No remaining unit had a finite velocity: a dropped unit's (same ranking).
+    Dropped {
+        /// Unit index.
+        unit: usize,
+    },
+    /// No unit had a finite velocity estimate: `u = 0`.
+    NoneFinite,
 }
 
 /// Result of the policy.
@@ -400,10 +464,23 @@ pub fn resolve(
     record.qp_solves = 0;
     record.solver_failures = 0;
     record.feasibility_disagreements = 0;
+    record.non_finite_rows = 0;
+    record.step2_retained = None;
     s.alive.clear();
     s.alive.resize(p.units, true);
     s.drop_reason.clear();
     s.drop_reason.resize(p.units, None);
+    for i in 0..p.units {
+        for b in 0..p.barriers {
+            let k = i * p.barriers + b;
+            if p.cbf_active[k] && !is_finite_row(&p.cbf[k].half_space()) {
+                record.non_finite_rows += 1;
+            }
+        }
+        if p.use_clf && p.clf_active[i] && !is_finite_row(&p.clf[i].half_space()) {
+            record.non_finite_rows += 1;
+        }
+    }
 
     // Step 1
     collect(p, s);
@@ -438,6 +515,24 @@ pub fn resolve(
                             },
                         ));
                     }
+                }
+            }
+        }
+        // The invariant of Step 3: never drop the last unit with CBF rows. Keep the one
+        // Step 3 would keep (smallest residue key, then lowest index) and say so.
+        let had_cbf = (0..p.units).any(|i| unit_has_cbf(p, i));
+        let kept_cbf = (0..p.units).any(|i| s.alive[i] && unit_has_cbf(p, i));
+        if had_cbf && !kept_cbf {
+            let keep = (0..p.units)
+                .filter(|&i| unit_has_cbf(p, i))
+                .min_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]));
+            if let Some(k) = keep {
+                s.alive[k] = true;
+                if let Some((_, failed_test)) = s.drop_reason[k].take() {
+                    record.step2_retained = Some(Step2Retained {
+                        unit: k,
+                        failed_test,
+                    });
                 }
             }
         }
@@ -505,31 +600,42 @@ pub fn resolve(
             },
         ),
         _ => {
-            // Fallback: soft CBF rows of the surviving units, no CLF.
+            // Fallback: soft CBF rows of the surviving units, no CLF; brake when a surviving
+            // CBF row is not finite (no input is known to satisfy it) or the solver fails.
             stage = Stage::Fallback;
             s.clf_rows.clear();
-            let soft = solve(qp, s, RowMode::Soft, RowMode::Hard, record);
+            let non_finite = s.cbf_rows.iter().any(|h| !is_finite_row(h));
+            let soft = if non_finite {
+                None
+            } else {
+                Some(solve(qp, s, RowMode::Soft, RowMode::Hard, record))
+            };
             let (u, action) = match soft {
-                QpResult::Feasible { u, .. } => (u, SafeAction::MinimiseMaxViolation),
+                Some(QpResult::Feasible { u, .. }) => (u, SafeAction::MinimiseMaxViolation),
                 other => {
-                    let status = match other {
-                        QpResult::SolverFailure { status } => Some(status),
-                        _ => None,
-                    };
-                    (
-                        brake(p, s, qp.input_limit()),
-                        SafeAction::Brake {
-                            solver_status: status,
+                    let reason = match other {
+                        None => BrakeReason::NonFiniteRow,
+                        Some(QpResult::SolverFailure { status }) => BrakeReason::SolverFailure {
+                            solver_status: Some(status),
                         },
-                    )
+                        Some(_) => BrakeReason::SolverFailure {
+                            solver_status: None,
+                        },
+                    };
+                    let (u, velocity) = brake(p, s, qp.input_limit());
+                    (u, SafeAction::Brake { reason, velocity })
                 }
             };
+            // Largest violation of the remaining CBF rows at u; +∞ when a row is not finite
+            // (its violation is unknown, so it is never reported as small).
             let max_v = s
                 .cbf_rows
                 .iter()
                 .map(|h| {
                     let n = h.normal.norm();
-                    if n > 1e-12 {
+                    if !is_finite_row(h) {
+                        f64::INFINITY
+                    } else if n > 1e-12 {
                         h.violation(&u) / n
                     } else {
                         -h.offset
@@ -592,20 +698,25 @@ pub fn resolve(
     (u, outcome)
 }
 
-fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> Input {
-    let mut best: Option<usize> = None;
-    for i in 0..p.units {
-        if !s.alive[i] {
-            continue;
-        }
-        match best {
-            Some(b) if p.residue_key[i] >= p.residue_key[b] => {}
-            _ => best = Some(i),
-        }
-    }
-    let v = match best {
-        Some(b) => Input::new(p.estimates[b][2], p.estimates[b][3]),
-        None => Input::zeros(),
+/// The normal (and its norm) and the offset are finite: the rows
+/// [`crate::feasibility::Line::from_half_space`] does not turn into `0 ≤ −1` for that reason.
+fn is_finite_row(h: &HalfSpace) -> bool {
+    h.normal.norm().is_finite() && h.offset.is_finite()
+}
+
+/// `u = −v̂/τ_b` clipped to the box, with v̂ the best available finite velocity estimate (see
+/// the module docs), and where it came from.
+fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> (Input, BrakeVelocity) {
+    let velocity = |i: usize| Input::new(p.estimates[i][2], p.estimates[i][3]);
+    let best = |remaining: bool| {
+        (0..p.units)
+            .filter(|&i| s.alive[i] == remaining && velocity(i).iter().all(|v| v.is_finite()))
+            .min_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]))
+    };
+    let (v, source) = match (best(true), best(false)) {
+        (Some(i), _) => (velocity(i), BrakeVelocity::Remaining { unit: i }),
+        (None, Some(i)) => (velocity(i), BrakeVelocity::Dropped { unit: i }),
+        (None, None) => (Input::zeros(), BrakeVelocity::NoneFinite),
     };
     let mut u = -v / BRAKE_TIME_CONSTANT;
     if let Some(l) = limit {
@@ -613,7 +724,8 @@ fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> Input {
         u[1] = u[1].clamp(-l[1], l[1]);
     }
     if u.iter().any(|x| !x.is_finite()) {
+        // only with a non-finite box (the controller validates it): never command NaN
         u = Input::zeros();
     }
-    u
+    (u, source)
 }

@@ -14,8 +14,9 @@
 //! Unused rows are the inactive `0·z ≤ 1`. **Every row is scaled to a unit-norm input
 //! normal** (`n/‖n‖ · u ≤ o/‖n‖`), an equivalent problem; this removes the 1e8 of the CLF
 //! (eq. 6.6) from the numerics, and is why equilibration can stay off across reuses.
-//! A row with a vanishing normal becomes `0 ≤ 1` (if `o ≥ 0`, always satisfied) or
-//! `0 ≤ −1` (if `o < 0`: infeasible, as it should be).
+//! A row with a vanishing finite normal becomes `0 ≤ 1` (if `o ≥ 0`, always satisfied) or
+//! `0 ≤ −1` (if `o < 0`: infeasible, as it should be); a row whose normal or offset is not
+//! finite becomes `0 ≤ −1` (fail closed: never treated as satisfied).
 //!
 //! "Hard" rows have no slack; "soft" rows share the slack s (so the solver minimises the
 //! largest violation, weighted against the input cost). The scaling is

@@ -263,6 +263,18 @@ fn reference(
                 }
             }
         }
+        // Step 2 keeps the last unit with CBF rows (the one Step 3 would keep: smallest
+        // residue key, then lowest index), as Step 3 does (issue 16).
+        let has_cbf = |i: usize| (0..nb).any(|b| p.cbf_active[i * nb + b]);
+        if (0..units).any(has_cbf) && !(0..units).any(|i| alive[i] && has_cbf(i)) {
+            if let Some(k) = (0..units)
+                .filter(|&i| has_cbf(i))
+                .min_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]))
+            {
+                alive[k] = true;
+                dropped[k] = None;
+            }
+        }
         if any {
             (cbf, clf) = rows(&alive);
             solves += 1;

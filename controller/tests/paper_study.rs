@@ -12,7 +12,7 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::{Barrier, HalfPlane};
-use ftcbf_controller::params::FtParameters;
+use ftcbf_controller::params::{ln_gamma, FtParameters};
 use ftcbf_controller::policy::{Stage, Verdict};
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
@@ -86,7 +86,6 @@ struct Trial {
     safe: bool,
     min_h: f64,
     goal_time: Option<f64>,
-    final_dist: f64,
     stages: [usize; 5],
     step2_drops: [usize; 2],
 }
@@ -155,7 +154,6 @@ fn simulate(kind: ControllerKind, p: &StudyParams, seed: u64) -> Trial {
         safe: min_h >= 0.0,
         min_h,
         goal_time,
-        final_dist: x.norm(),
         stages,
         step2_drops,
     }
@@ -163,8 +161,6 @@ fn simulate(kind: ControllerKind, p: &StudyParams, seed: u64) -> Trial {
 
 #[derive(Debug)]
 struct Rates {
-    safe: f64,
-    goal: f64,
     /// Worst min_t h(x_t) over the seeds.
     worst_min_h: f64,
     /// Mean over seeds of min_t h(x_t).
@@ -173,6 +169,13 @@ struct Rates {
     mean_goal_time: f64,
     /// Steps (all seeds) at which Step 2 dropped the honest filter x̂_2.
     honest_step2_drops: usize,
+    /// Seeds in which Step 2 dropped the attacked filter x̂_1 at least once.
+    attacked_step2_seeds: usize,
+    /// Seeds.
+    seeds: usize,
+    /// Seeds that stayed safe / entered the goal.
+    safe_seeds: usize,
+    goal_seeds: usize,
     /// Steps (all seeds) decided by each stage: Step1, Step2, ClfRelaxation, Step3, Fallback.
     stages: [usize; 5],
 }
@@ -184,6 +187,7 @@ fn rates(kind: ControllerKind, p: &StudyParams, seeds: u64) -> Rates {
     let mut sum_min_h = 0.0;
     let mut sum_goal_t = 0.0;
     let mut honest = 0;
+    let mut attacked = 0;
     let mut stages = [0usize; 5];
     for s in 0..seeds {
         let t = simulate(kind, p, 1000 + s);
@@ -193,13 +197,12 @@ fn rates(kind: ControllerKind, p: &StudyParams, seeds: u64) -> Rates {
         worst = worst.min(t.min_h);
         sum_min_h += t.min_h;
         honest += t.step2_drops[1];
+        attacked += usize::from(t.step2_drops[0] > 0);
         for (a, b) in stages.iter_mut().zip(t.stages) {
             *a += b;
         }
     }
     Rates {
-        safe: safe as f64 / seeds as f64,
-        goal: goal as f64 / seeds as f64,
         worst_min_h: worst,
         mean_min_h: sum_min_h / seeds as f64,
         mean_goal_time: if goal > 0 {
@@ -208,51 +211,120 @@ fn rates(kind: ControllerKind, p: &StudyParams, seeds: u64) -> Rates {
             f64::NAN
         },
         honest_step2_drops: honest,
+        attacked_step2_seeds: attacked,
+        seeds: seeds as usize,
+        safe_seeds: safe,
+        goal_seeds: goal,
         stages,
     }
 }
 
-#[test]
-fn ft_cbf_clf_is_safe_and_reaches_goal_baseline_violates() {
-    let p = paper_params();
-    let ft = simulate(ControllerKind::FtCbfClf, &p, 7);
-    let base = simulate(ControllerKind::Baseline, &p, 7);
-    println!("FT-CBF-CLF: {ft:?}");
-    println!("baseline:   {base:?}");
-    assert!(ft.safe, "FT-CBF-CLF violated safety: min h = {}", ft.min_h);
+/// P(X ≤ k) for X ~ Bin(n, p) (exact sum of the pmf, through ln Γ).
+fn binom_cdf(n: u64, p: f64, k: i64) -> f64 {
+    if k < 0 {
+        return 0.0;
+    }
+    if k as u64 >= n {
+        return 1.0;
+    }
+    let pmf = |i: u64| -> f64 {
+        if p <= 0.0 {
+            return if i == 0 { 1.0 } else { 0.0 };
+        }
+        if p >= 1.0 {
+            return if i == n { 1.0 } else { 0.0 };
+        }
+        let ln_c =
+            ln_gamma(n as f64 + 1.0) - ln_gamma(i as f64 + 1.0) - ln_gamma((n - i) as f64 + 1.0);
+        (ln_c + i as f64 * p.ln() + (n - i) as f64 * (1.0 - p).ln()).exp()
+    };
+    (0..=k as u64).map(pmf).sum::<f64>().min(1.0)
+}
+
+/// Significance level of every rate assertion below (one test per claim).
+const ALPHA: f64 = 0.01;
+
+/// `k` successes in `n` seeds do not refute "rate ≥ p0" at level ALPHA: P(X ≤ k | p0) ≥ ALPHA.
+fn assert_rate_at_least(what: &str, k: usize, n: usize, p0: f64) {
+    let p_value = binom_cdf(n as u64, p0, k as i64);
     assert!(
-        ft.goal_time.is_some(),
-        "FT-CBF-CLF never entered the goal set (final distance {})",
-        ft.final_dist
-    );
-    // Step 2 removes the attacked filter (x̂_1 uses y4), never the honest one in this run.
-    assert!(ft.step2_drops[0] > 0);
-    assert!(!base.safe, "baseline stayed safe: min h = {}", base.min_h);
-    assert!(
-        base.min_h < -0.1,
-        "baseline violation too small: {}",
-        base.min_h
+        p_value >= ALPHA,
+        "{what}: {k}/{n} refutes a rate ≥ {p0} (one-sided binomial p = {p_value:.2e} < {ALPHA})"
     );
 }
 
-/// The paper's parameters (γ_i = 0.001, θ = 0.045) over 100 seeds.
+/// `k` in `n` does not refute "rate ≤ p0" at level ALPHA: P(X ≥ k | p0) ≥ ALPHA.
+fn assert_rate_at_most(what: &str, k: usize, n: usize, p0: f64) {
+    let p_value = 1.0 - binom_cdf(n as u64, p0, k as i64 - 1);
+    assert!(
+        p_value >= ALPHA,
+        "{what}: {k}/{n} refutes a rate ≤ {p0} (one-sided binomial p = {p_value:.2e} < {ALPHA})"
+    );
+}
+
+/// `k` in `n` is consistent with the rate p0 (two-sided, ALPHA/2 in each tail).
+fn assert_rate_about(what: &str, k: usize, n: usize, p0: f64) {
+    let low = binom_cdf(n as u64, p0, k as i64);
+    let high = 1.0 - binom_cdf(n as u64, p0, k as i64 - 1);
+    assert!(
+        low >= ALPHA / 2.0 && high >= ALPHA / 2.0,
+        "{what}: {k}/{n} is not consistent with a rate of {p0} (P(X ≤ k) = {low:.2e}, P(X ≥ k) = {high:.2e})"
+    );
+}
+
+#[test]
+fn binomial_helpers_known_answers() {
+    // Bin(4, 1/2): P(X ≤ 1) = 5/16; Bin(100, 0.95): P(X ≤ 89) = 0.01147 (tables), P(X ≤ 88) = 0.004274
+    assert!((binom_cdf(4, 0.5, 1) - 5.0 / 16.0).abs() < 1e-14);
+    assert!(
+        (binom_cdf(100, 0.95, 89) - 0.011_472).abs() < 1e-5,
+        "{}",
+        binom_cdf(100, 0.95, 89)
+    );
+    assert!(
+        (binom_cdf(100, 0.95, 88) - 0.004_274).abs() < 1e-5,
+        "{}",
+        binom_cdf(100, 0.95, 88)
+    );
+    assert_eq!(binom_cdf(10, 0.3, -1), 0.0);
+    assert_eq!(binom_cdf(10, 0.3, 10), 1.0);
+}
+
+/// The paper's parameters (γ_i = 0.001, θ = 0.045) over 100 seeds. Every rate is asserted
+/// with a binomial tolerance (level [`ALPHA`]) against the rate it is claimed to have, never
+/// from one lucky seed.
 ///
-/// They do **not** reach a 0.95 safe rate for FT-CBF-CLF (measured: 0.25): γ = 0.001 is ~50×
-/// smaller than the estimation error it is meant to bound (item 7 gives γ = 0.033 pointwise,
-/// 0.054 over the horizon, for ε = 0.05), so h̄_γ = 0.001 leaves no margin, and the goal set
-/// sits only h = 0.05 from the boundary while the robot hovers there for ~15 s. The
-/// violations are small (noise-sized, a few cm) compared with the baseline's (≈ −0.5, the
-/// attack's bias). Asserted: FT goal rate ≥ 0.95, baseline safe rate ≤ 0.05, FT's worst
-/// violation is within 0.1 (noise) while the baseline's mean minimum is below −0.4, and the
-/// FT rate is printed. See `computed_parameters_for_eps_005` for the ≥ 0.95 safe case.
+/// They do **not** reach a 0.95 safe rate for FT-CBF-CLF (measured: 25/100; the README's
+/// claim "safe in only 25 of 100 seeds" is asserted as a rate of 0.25): γ = 0.001 is ~50×
+/// smaller than the estimation error it is meant to bound (γ = 0.033 pointwise, 0.054 over the
+/// horizon, for ε = 0.05), so h̄_γ = 0.001 leaves no margin, and the goal set sits only
+/// h = 0.05 from the boundary while the robot hovers there for ~15 s. The violations are small
+/// (noise-sized, a few cm) compared with the baseline's (≈ −0.5, the attack's bias).
+/// See `computed_parameters_for_eps_005` for the ≥ 0.95 safe case.
 #[test]
 fn hundred_seeds_safe_and_goal_rates() {
     let p = paper_params();
     let ft = rates(ControllerKind::FtCbfClf, &p, 100);
     let base = rates(ControllerKind::Baseline, &p, 100);
     println!("paper parameters (gamma = 0.001, theta = 0.045), 100 seeds:\n  FT-CBF-CLF {ft:?}\n  baseline   {base:?}");
-    assert!(ft.goal >= 0.95, "FT-CBF-CLF goal rate {}", ft.goal);
-    assert!(base.safe <= 0.05, "baseline safe rate {}", base.safe);
+    let n = ft.seeds;
+    // FT-CBF-CLF: safe at the rate the README states (0.25), and that rate is below 0.95
+    assert_rate_about("FT-CBF-CLF safe (paper parameters)", ft.safe_seeds, n, 0.25);
+    let refutes_095 = binom_cdf(n as u64, 0.95, ft.safe_seeds as i64);
+    assert!(
+        refutes_095 < ALPHA,
+        "the paper's parameters were expected to refute 0.95: p = {refutes_095:.2e}"
+    );
+    // it enters the goal (claim ≥ 0.95) and the baseline is unsafe (claim ≤ 0.05)
+    assert_rate_at_least("FT-CBF-CLF goal", ft.goal_seeds, n, 0.95);
+    assert_rate_at_most("baseline safe", base.safe_seeds, base.seeds, 0.05);
+    // Step 2 removes the attacked filter x̂_1 (claim: in ≥ 0.95 of the seeds)
+    assert_rate_at_least(
+        "Step 2 drops the attacked filter",
+        ft.attacked_step2_seeds,
+        n,
+        0.95,
+    );
     assert!(
         ft.worst_min_h > -0.1,
         "FT-CBF-CLF worst violation {}",
@@ -263,7 +335,6 @@ fn hundred_seeds_safe_and_goal_rates() {
         "baseline mean min h {}",
         base.mean_min_h
     );
-    assert!(ft.safe > base.safe);
     assert!(ft.mean_goal_time < T_END);
     // Steps past Step 1 happen (the attack makes Step 1 infeasible), and Step 2 almost never
     // removes the honest filter (< 0.1 % of all steps).
@@ -300,12 +371,18 @@ fn computed_parameters_for_eps_005() {
         let ft = rates(ControllerKind::FtCbfClf, &p, 100);
         let base = rates(ControllerKind::Baseline, &p, 100);
         println!("computed parameters ({label}, eps = 0.05), 100 seeds:\n  FT-CBF-CLF {ft:?}\n  baseline   {base:?}");
-        assert!(ft.safe >= 0.95, "{label}: FT-CBF-CLF safe rate {}", ft.safe);
+        assert_rate_at_least(
+            &format!("{label}: FT-CBF-CLF safe"),
+            ft.safe_seeds,
+            ft.seeds,
+            0.95,
+        );
         if horizon == 1 {
-            assert!(
-                base.safe <= 0.05,
-                "{label}: baseline safe rate {}",
-                base.safe
+            assert_rate_at_most(
+                &format!("{label}: baseline safe"),
+                base.safe_seeds,
+                base.seeds,
+                0.05,
             );
         }
     }

@@ -23,8 +23,33 @@
 //! footprint radius) centred on p at the height z_c of its geometry:
 //! d(p) = sd((p, z_c)) − r, where sd is the signed distance from the point to the solid
 //! shape (parry point projection; negative inside), and
-//! H(x) = d(p) − margin + k·∇d(p)·v           (the relative-degree-2 lift of §4.2.1).
+//! H(x) = d(p) − margin + k·∇d(p)·v           (a first-order velocity lift, gain k [s]).
 //! ∇H = (∇d + k∇²d·v, k∇d); ∇²H = [[∇²d + k·D(∇²d·v), k∇²d], [k∇²d, 0]].
+//!
+//! **What this lift is, and is not.** H = k·(ḣ₀ + h₀/k) with h₀ = d − margin and ḣ₀ = ∇d·v is
+//! the high-order (exponential) CBF of a relative-degree-2 constraint with the linear class-K
+//! function h₀/k. It is *not* the construction of §4.2.1 (`h₁ = ∂h₀/∂x F x + ½tr(σᵀ∇²h₀σ)
+//! − γ‖∂h₀ K c‖ + h₀`): there is no Itô term and no robust term inside the lift, and the
+//! velocity term has gain k instead of 1 (the paper's h₁ is H/k with k = 1 plus those two
+//! terms; the robust and Itô terms of eq. 4.3 still enter each Ω row built on H). For
+//! half-planes the controller crate has the paper's lift
+//! ([`ftcbf_controller::barrier::HigherOrderHalfPlane`]); the position-space obstacles here
+//! are not half-planes, so it does not apply to them. What H ≥ 0 gives: if H(x_t) ≥ 0 for
+//! all t and h₀(p₀) ≥ 0, then ḣ₀ ≥ −h₀/k, so h₀(p_t) ≥ h₀(p₀)e^{−t/k} ≥ 0 — exactly so when
+//! the position has no diffusion (ṗ = v) and d is C¹ along the path; with process noise on
+//! the position (the controller's Q = q·I) it holds up to that noise's Itô term.
+//!
+//! **When the h̄_γ bound holds.** h̄(γ) = γ·L bounds H(x) − H(x⁰) for ‖x − x⁰‖ ≤ γ when
+//! ‖∇H‖ ≤ L on the segment [x⁰, x]; with ‖∇d‖ ≤ 1 and ‖∇²d‖ ≤ κ that needs (a) speeds
+//! ≤ v_max on the segment (the robot's limit, from the URDF or `[robot] limits`; `[linear]
+//! v_max` for the linear plant — an estimate within γ of the truth may exceed it by γ, which
+//! the bound does not add) and (b) the curvature bound κ of
+//! [`ObstacleBarrier::curvature_bound`] valid on the segment: for a robot disc, the centre at
+//! least r from a convex obstacle (the disc clear of it); for a point robot, round shapes
+//! only, the point outside the shape. Near H = 0 a fast approach can put the disc in contact
+//! (d = margin − k∇d·v < 0); there (b) does not hold for edges and vertices and the bound is
+//! not proven. No bound is invented where none exists: a point robot with a lifted barrier
+//! on a shape with edges is refused (`obstacles[i].shape`).
 //! - Closed forms: half-space (∇d = n_xy, ∇²d = 0, so H is the controller's half-plane
 //!   h = aᵀx − b with a = (n_xy, k·n_xy)); round obstacles — ball, vertical cylinder at
 //!   heights within its length, vertical capsule — where sd = √(|p − c|² + δz²) − R.
@@ -32,10 +57,10 @@
 //!   with step [`BarrierConfig::fd_step`] (default 2 mm: f32 projections are accurate to
 //!   ~1e-6 m, giving curvature errors ~1e-3 1/m). The derivatives are exact where d is
 //!   smooth (faces, edges, vertices away from Voronoi-region boundaries).
-//! - h̄(γ) = γ·L with L = √((1 + k·v_max·κ)² + k²) an upper bound of ‖∇H‖ near H = 0:
-//!   |∇d| ≤ 1 and ‖∇²d‖ ≤ κ = 1/r (distance to a convex set has curvature ≤ 1/distance, and the
-//!   robot centre stays ≥ r from the obstacle while the disc is clear). κ = 0 for half-spaces,
-//!   so h̄ = γ·‖a‖, the controller's closed form. For non-convex meshes L is not a proven bound.
+//! - h̄(γ) = γ·L with L = √((1 + k·v_max·κ)² + k²) an upper bound of ‖∇H‖ near H = 0 under
+//!   the conditions above: |∇d| ≤ 1 and ‖∇²d‖ ≤ κ (distance to a convex set has curvature
+//!   ≤ 1/distance). κ = 0 for half-spaces, so h̄ = γ·‖a‖, the controller's closed form. For
+//!   non-convex meshes L is not a proven bound.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -647,6 +672,30 @@ impl ObstacleBarrier {
         &self.cfg
     }
 
+    /// The bound κ on ‖∇²d‖ [1/m] that [`Barrier::h_bar`] uses, and the condition it rests on
+    /// (module docs): 0 for a half-space; 1/r for a robot disc of radius r > 0 (the centre at
+    /// least r from a convex obstacle); for a point robot (r = 0), 1/R for a ball, a vertical
+    /// capsule and a vertical cylinder at heights within its length (the point outside the
+    /// shape). `None` for a point robot and any other shape: the distance to an edge or vertex
+    /// has unbounded curvature, so no h̄_γ bound exists for the lifted barrier.
+    pub fn curvature_bound(&self) -> Option<f64> {
+        if self.obstacle.is_half_space() {
+            return Some(0.0);
+        }
+        let r = self.cfg.robot_radius;
+        if r > 0.0 {
+            return Some(1.0 / r);
+        }
+        let z = self.cfg.centre_height;
+        match self.obstacle.closed {
+            Some(Closed::RoundSegment { radius, .. }) => Some(1.0 / radius),
+            Some(Closed::VerticalCylinder {
+                z_lo, z_hi, radius, ..
+            }) if z >= z_lo && z <= z_hi => Some(1.0 / radius),
+            _ => None,
+        }
+    }
+
     /// Clearance d(p) = sd − r of the robot disc at planar position p [m] (no margin, no lift).
     pub fn clearance(&self, p: Vector2<f64>) -> f64 {
         self.obstacle
@@ -760,14 +809,19 @@ impl Barrier for ObstacleBarrier {
         }
     }
 
+    /// γ·L with L = √((1 + k·v_max·κ)² + k²), κ = [`ObstacleBarrier::curvature_bound`]; see
+    /// the module docs for the conditions under which it bounds h̄_γ. +∞ when the lift is on
+    /// (k > 0) and no curvature bound is known (the runner refuses such worlds first).
     fn h_bar(&self, gamma: f64) -> f64 {
         let k = self.cfg.k;
-        let kappa = if self.obstacle.is_half_space() {
-            0.0
+        let l = if k == 0.0 {
+            1.0
         } else {
-            1.0 / self.cfg.robot_radius.max(1e-3)
+            match self.curvature_bound() {
+                Some(kappa) => ((1.0 + k * self.cfg.v_max * kappa).powi(2) + k * k).sqrt(),
+                None => f64::INFINITY,
+            }
         };
-        let l = ((1.0 + k * self.cfg.v_max * kappa).powi(2) + k * k).sqrt();
         gamma.max(0.0) * l
     }
 }

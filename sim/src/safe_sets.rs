@@ -1,7 +1,20 @@
 //! Closed-form safe sets of a world file that act on the position only, lifted to relative
-//! degree 2 (§4.2.1): an ellipse h(p) = ±(1 − (p − c)ᵀΦ(p − c)) does not involve the velocity,
-//! so ∂h/∂x · G = 0 and no input appears in its CBF condition. The lift
+//! degree 1: an ellipse h(p) = ±(1 − (p − c)ᵀΦ(p − c)) does not involve the velocity, so
+//! ∂h/∂x · G = 0 and no input appears in its CBF condition. The lift
 //! H(x) = h(p) + k·ḣ = h(p) + k·∇h(p)·v makes the input appear (∂H/∂v = k∇h).
+//!
+//! This is a first-order velocity lift (the high-order/exponential CBF H = k(ḣ + h/k)), **not**
+//! the construction of §4.2.1: that one is for half-planes, has gain 1 on ḣ and puts the Itô
+//! term ½tr(σᵀ∇²hσ) and the robust term −γ‖∂h K c‖ inside h₁ (here they enter only the Ω rows
+//! built on H). H ≥ 0 along a run with h(p₀) ≥ 0 gives h(p_t) ≥ h(p₀)e^{−t/k} ≥ 0 when ṗ = v
+//! (no diffusion on the position). [`LiftedEllipse::h_bar`] is a proven bound of h̄_γ only for
+//! speeds ≤ `v_max` and positions within the ellipse's bounding disc (see there).
+//!
+//! **Theorem 3, condition 1 for these sets.** Λ = ∂H/∂x·G = k∇h(p), so (4.4) is a condition
+//! on the gradients of the *position* ellipse at the estimated positions: Prop. 1 (rank G = n)
+//! does not apply to H as stated, but its argument does in position space, where the input
+//! reaches every direction of ∇h ([`LiftedEllipse::prop1`]). [`ftcbf_controller::conditions`]
+//! decides (4.4) exactly at given estimates.
 
 use ftcbf_controller::{Barrier, BarrierEval, State, StateMatrix};
 use nalgebra::{Matrix2, Vector2};
@@ -108,7 +121,9 @@ impl Barrier for LiftedEllipse {
 
     /// γ·L with L a bound of ‖∇H‖ over positions within the ellipse's bounding disc and speeds
     /// up to `v_max`: ‖∇_p H‖ ≤ 2λ̄(a + k·v_max), ‖∇_v H‖ ≤ 2kλ̄a (a = major semi-axis). An
-    /// upper bound of h̄_γ, hence conservative.
+    /// upper bound of h̄_γ — hence conservative — under those two conditions (for a keep-out
+    /// ellipse the zero set of H lies near the ellipse, so positions within γ of it are
+    /// within the disc of radius a + γ; the bound does not add that γ).
     fn h_bar(&self, gamma: f64) -> f64 {
         let lmax = self.phi.symmetric_eigen().eigenvalues.max();
         let a = self.major();
@@ -118,9 +133,122 @@ impl Barrier for LiftedEllipse {
     }
 }
 
+/// Prop. 1's argument on the lifted ellipse that runs ([`LiftedEllipse::prop1`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiftedProp1 {
+    /// Inside (arena) or outside (keep-out) ellipse.
+    pub inside: bool,
+    /// λ̄(Φ) of the position ellipse [1/m²].
+    pub lambda_max: f64,
+    /// θ̄ = max θ_ij [m].
+    pub theta_bar: f64,
+    /// Lower bound of ‖Φ^½(p̂ − c)‖² over the estimates the condition covers.
+    pub z_min_sq: f64,
+    /// √(2 z_min_sq / λ̄) [m]: θ̄ must stay below it.
+    pub bound: f64,
+    /// θ̄ < bound (and z_min_sq > 0).
+    pub holds: bool,
+}
+
+impl LiftedEllipse {
+    /// Whether this is the inside (arena) of the ellipse.
+    pub fn is_inside(&self) -> bool {
+        self.sign > 0.0
+    }
+
+    /// The input direction of the CBF row: Λ = ∂H/∂x·G = k∇h(p) for the double integrator.
+    pub fn input_gradient(&self, x: &State) -> Vector2<f64> {
+        let d = Vector2::new(x[0], x[1]) - self.center;
+        -2.0 * self.sign * self.k * (self.phi * d)
+    }
+
+    /// Prop. 1 in position space, for the barrier that runs: with z = Φ^½(p̂ − c) and
+    /// Λ_j = k∇h(p̂_j), the input u = ∓(p̂_i − c) gives Λ_j·u = 2k z_jᵀz_i, positive when
+    /// ‖z_i − z_j‖² < ‖z_i‖² + ‖z_j‖². With ‖p̂_i − p̂_j‖ ≤ θ̄ and ‖z‖² ≥ z_min² on the estimates
+    /// concerned, (4.4) holds for every such set when λ̄θ̄² < 2 z_min², i.e.
+    /// θ̄ < √(2 z_min²/λ̄) (Prop. 1's bound with 1 − h̄ replaced by z_min²).
+    ///
+    /// * Inside (arena): the estimates in X_t(δ) have Ĥ = H − h̄ < δ, and
+    ///   h(p̂) ≤ H + k‖∇h‖v_max ≤ δ + h̄ + 2k√λ̄·v_max (‖∇h‖ ≤ 2√λ̄ inside), so
+    ///   z_min² = 1 − min(1, δ + h̄ + 2k√λ̄·v_max). With δ = ∞ every estimate is active, one may
+    ///   sit at the centre (Λ = 0) and the condition cannot hold: give a finite δ.
+    /// * Outside (keep-out): z_min² = 1 + `h_low`, with `h_low` ≤ 0 a lower bound of h(p̂) on
+    ///   the estimates concerned (0: estimates outside the keep-out zone, as Thm. 5 assumes
+    ///   x̂_i ∈ C̄); δ and h̄ do not enter.
+    pub fn prop1(&self, theta_bar: f64, h_bar: f64, delta: f64, h_low: f64) -> LiftedProp1 {
+        let lambda_max = self.phi.symmetric_eigen().eigenvalues.max();
+        let z_min_sq = if self.is_inside() {
+            let h_act = delta + h_bar + 2.0 * self.k * lambda_max.sqrt() * self.v_max;
+            1.0 - h_act.min(1.0)
+        } else {
+            (1.0 + h_low).max(0.0)
+        };
+        let z_min_sq = if z_min_sq.is_nan() { 0.0 } else { z_min_sq };
+        let bound = (2.0 * z_min_sq / lambda_max).sqrt();
+        LiftedProp1 {
+            inside: self.is_inside(),
+            lambda_max,
+            theta_bar,
+            z_min_sq,
+            bound,
+            holds: z_min_sq > 0.0 && theta_bar < bound,
+        }
+    }
+}
+
+impl std::fmt::Display for LiftedProp1 {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Prop. 1 in position space (Λ = k∇h(p)): {} — θ̄ = {:.6} m vs √(2·z_min²/λ̄) = {:.6} m (z_min² = {:.6}, λ̄ = {:.6} 1/m²{})",
+            if self.holds { "HOLDS" } else { "FAILS" },
+            self.theta_bar,
+            self.bound,
+            self.z_min_sq,
+            self.lambda_max,
+            if self.inside {
+                ", from δ, h̄ and k·v_max"
+            } else {
+                ", for estimates outside the keep-out ellipse"
+            }
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn prop1_in_position_space_known_answers() {
+        // circle of radius 2 (λ̄ = 1/4), k = 0.5, v_max = 0.2: h_act = δ + h̄ + 2·0.5·0.5·0.2
+        let arena = LiftedEllipse::new("a", [0.0, 0.0], [2.0, 2.0], 0.0, true, 0.5, 0.2);
+        let v = arena.prop1(0.3, 0.05, 0.15, 0.0);
+        let z2: f64 = 1.0 - (0.15 + 0.05 + 0.1);
+        assert!((v.z_min_sq - z2).abs() < 1e-12);
+        assert!((v.bound - (2.0 * z2 / 0.25).sqrt()).abs() < 1e-12);
+        assert!(v.holds && v.to_string().contains("HOLDS"));
+        assert!(!arena.prop1(2.5, 0.05, 0.15, 0.0).holds);
+        // δ = ∞: estimates at the centre are active, Λ = 0 there: never holds
+        let inf = arena.prop1(1e-3, 0.05, f64::INFINITY, 0.0);
+        assert!(!inf.holds && inf.z_min_sq == 0.0);
+        // keep-out circle of radius 0.5 (λ̄ = 4): θ̄ < √(2(1 + h_low)/4)
+        let rock = LiftedEllipse::new("r", [1.0, 0.0], [0.5, 0.5], 0.0, false, 0.5, 0.2);
+        let v = rock.prop1(0.6, 9.0, f64::INFINITY, 0.0);
+        assert!((v.bound - 0.5f64.sqrt()).abs() < 1e-12 && v.holds);
+        assert!(!rock.prop1(0.6, 0.0, 1.0, -0.5).holds); // bound 0.5
+                                                         // the witness of the proof works on the running barrier: u = −(p̂_i − c) for the arena
+        let (xi, xj) = (
+            State::new(1.5, 0.2, 0.1, 0.0),
+            State::new(1.4, 0.45, -0.1, 0.1),
+        );
+        let u = -Vector2::new(xi[0], xi[1]);
+        for x in [xi, xj] {
+            let l = arena.eval(&x).gradient;
+            assert!((Vector2::new(l[2], l[3]) - arena.input_gradient(&x)).norm() < 1e-15);
+            assert!(arena.input_gradient(&x).dot(&u) > 0.0);
+        }
+    }
 
     fn numeric_grad(b: &dyn Barrier, x: &State) -> State {
         let e = 1e-6;

@@ -47,6 +47,29 @@ pub struct StepCounts {
     pub infeasible: u64,
 }
 
+/// Fail-closed events over a run: each is a step where a safety constraint could have
+/// vanished silently and the controller did something else, on the record (issue 16).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FailClosedCounts {
+    /// Steps with at least one imposed constraint row that was not finite (treated as
+    /// violated).
+    pub non_finite_row_steps: u64,
+    /// Accepted readings a filter could not use (innovation variance not finite and positive),
+    /// summed over filters and steps; each flagged its filter.
+    pub skipped_updates: u64,
+    /// Steps where Step 2 kept the last estimator with barrier rows instead of dropping it.
+    pub step2_retained_steps: u64,
+    /// Steps where the fallback braked (solver failure or a non-finite row).
+    pub brake_steps: u64,
+}
+
+impl FailClosedCounts {
+    /// True when any counter is non-zero.
+    pub fn any(&self) -> bool {
+        *self != Self::default()
+    }
+}
+
 /// The window of one attack, as the world file declared it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AttackWindow {
@@ -61,7 +84,8 @@ pub struct AttackWindow {
     pub outside_fault_patterns: bool,
 }
 
-/// Everything one run measured. The same world + seed gives the same summary, bit for bit.
+/// Everything one run measured. The same world + seed gives the same summary, bit for bit, on
+/// one machine and toolchain (the platform's libm is on the path; see the README).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunSummary {
     /// World name.
@@ -94,6 +118,9 @@ pub struct RunSummary {
     pub control_steps: u64,
     /// Readings rejected by the controller as non-finite or absurd.
     pub rejected_readings: u64,
+    /// Fail-closed events (non-finite rows, unusable readings, Step-2 retention, braking).
+    #[serde(default)]
+    pub fail_closed: FailClosedCounts,
     /// The attacks of the world.
     pub attack_windows: Vec<AttackWindow>,
     /// At least one attack lies outside the declared fault patterns.

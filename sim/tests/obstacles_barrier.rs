@@ -396,15 +396,19 @@ fn round_obstacles_agree_with_the_controllers_disc() {
     );
     let ours = o.barrier(&c);
     let disc = EllipsoidOutside::disc("disc", 1.0, -0.5, 0.3 + R + margin);
+    let mut signs_checked = 0;
     for p in sample_points() {
         let x = State::new(p[0], p[1], 0.0, 0.0);
         let (e1, e2) = (ours.eval(&x), disc.eval(&x));
         if e1.value.abs() > 1e-9 {
             assert_eq!(e1.value > 0.0, e2.value > 0.0, "sign differs at {p:?}");
+            signs_checked += 1;
         }
         let cos = e1.gradient.dot(&e2.gradient) / (e1.gradient.norm() * e2.gradient.norm());
         assert!(cos > 1.0 - 1e-12, "gradient direction at {p:?}");
     }
+    // every sample point is off the boundary, so every sign was compared
+    assert_eq!(signs_checked, sample_points().len());
     // On the boundary both are zero.
     let rr = 0.3 + R + margin;
     let x = State::new(1.0 + rr * 0.6, -0.5 + rr * 0.8, 0.0, 0.0);
@@ -416,9 +420,11 @@ fn h_bar_bounds_the_barrier_growth_within_gamma() {
     // Sample pairs x0 (H(x0) ≈ 0) and x with |x − x0| ≤ γ: H(x) ≤ h̄(γ).
     let c = cfg(0.05, 0.5);
     let gamma = 0.05;
+    let mut per_kind = Vec::new();
     for (kind, o) in all_kinds() {
         let b = o.barrier(&c);
         let bound = b.h_bar(gamma);
+        let mut checked = 0usize;
         for p in sample_points() {
             let x0 = State::new(p[0], p[1], 0.0, 0.0);
             let h0 = b.eval(&x0).value;
@@ -440,8 +446,18 @@ fn h_bar_bounds_the_barrier_growth_within_gamma() {
                     "{kind}: H grew {} > h̄ {bound}",
                     h - h0
                 );
+                checked += 1;
             }
         }
+        per_kind.push((kind, checked));
+    }
+    // A property test that skips every point proves nothing: each shape kind must have had
+    // boundary points (3 directions each) to check.
+    for (kind, checked) in &per_kind {
+        assert!(
+            *checked >= 10,
+            "{kind}: only {checked} boundary samples checked ({per_kind:?})"
+        );
     }
 }
 

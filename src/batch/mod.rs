@@ -156,6 +156,7 @@ pub(crate) mod testutil {
                 },
                 control_steps: 1000,
                 rejected_readings: seed % 4,
+                fail_closed: Default::default(),
                 attack_windows: Vec::new(),
                 attacks_outside_fault_patterns: false,
                 final_state: [1.0, 2.0, 0.0, 0.0],

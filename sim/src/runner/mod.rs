@@ -40,13 +40,13 @@ mod view;
 use ftcbf_controller::controller::{Controller, ControllerConfig};
 use ftcbf_controller::estimator::FilterRole;
 use ftcbf_controller::interface::{ControlLaw, Readings};
-use ftcbf_controller::policy::{QpOutcome, Stage};
+use ftcbf_controller::policy::{QpOutcome, SafeAction, Stage};
 use ftcbf_controller::Input;
 
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
 use crate::sensors::{Quantity, SensorSuite};
-use crate::summary::{AttackWindow, RunSummary, StepCounts};
+use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
 use monitor::Monitor;
@@ -174,6 +174,7 @@ pub struct Simulation<'w> {
     monitor: Monitor,
     steps: StepCounts,
     rejected: u64,
+    fail_closed: FailClosedCounts,
     view: StepView,
     link_poses: bool,
 }
@@ -273,6 +274,7 @@ impl<'w> Simulation<'w> {
             monitor,
             steps: StepCounts::default(),
             rejected: 0,
+            fail_closed: FailClosedCounts::default(),
             view,
             link_poses: false,
         }
@@ -360,6 +362,17 @@ impl<'w> Simulation<'w> {
         if let Some(out) = decision.record {
             count_stage(&mut self.steps, &out.qp);
             self.rejected += out.rejected.count as u64;
+            let fc = &mut self.fail_closed;
+            fc.non_finite_row_steps += u64::from(out.decision.non_finite_rows > 0);
+            fc.skipped_updates += out.rejected.skipped_updates as u64;
+            fc.step2_retained_steps += u64::from(out.decision.step2_retained.is_some());
+            fc.brake_steps += u64::from(matches!(
+                out.qp,
+                QpOutcome::InfeasibleAfterStep3 {
+                    action: SafeAction::Brake { .. },
+                    ..
+                }
+            ));
             let map = &self.setup.channel_of_sensor;
             for (v, c) in self.view.channels.iter_mut().zip(map) {
                 v.rejected = c.is_some_and(|c| out.rejected.channels.get(c) == Some(&true));
@@ -437,6 +450,7 @@ impl<'w> Simulation<'w> {
             steps: self.steps,
             control_steps: self.k,
             rejected_readings: self.rejected,
+            fail_closed: self.fail_closed,
             attacks_outside_fault_patterns: self
                 .attack_windows
                 .iter()

@@ -12,7 +12,7 @@ use ftcbf_controller::{Barrier, Input, State, StateMatrix};
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
-use crate::safe_sets::LiftedEllipse;
+use crate::safe_sets::{LiftedEllipse, LiftedProp1};
 use crate::sensors::Quantity;
 use crate::world::{ControllerKindSpec, Dynamics, Param, SafeSetSpec, World};
 
@@ -90,48 +90,92 @@ fn observation_row(q: Quantity) -> Option<RowVector4<f64>> {
     }
 }
 
-/// Barriers for the world's safe sets (closed form, from the controller crate).
+/// The speed bound the h̄_γ bounds of lifted barriers rest on [m/s]: the robot's limit, or
+/// `[linear] v_max` for the linear plant (which has no limit of its own). `None` when the world
+/// gives none; [`ControlSetup::new`] refuses a world whose barriers need it.
+pub fn speed_bound(world: &World) -> Option<f64> {
+    match &world.robot {
+        Some(r) => Some(r.limits.v_max),
+        None => world.file.linear.as_ref().and_then(|l| l.v_max),
+    }
+}
+
+/// Barriers for the world's safe sets (closed form, from the controller crate). Without a
+/// [`speed_bound`] the ellipses' h̄_γ uses v_max = 0, which is exact only for `lift = 0`
+/// ([`ControlSetup::new`] refuses a lifted ellipse without a speed bound).
 pub fn safe_set_barriers(world: &World) -> Vec<Arc<dyn Barrier>> {
-    let v_max = world.robot.as_ref().map_or(1.0, |r| r.limits.v_max);
     world
         .file
         .safe_sets
         .iter()
         .map(|s| -> Arc<dyn Barrier> {
-            match s {
-                SafeSetSpec::HalfPlane { name, a, b } => Arc::new(HalfPlane::new(
+            match (s, lifted_ellipse(world, s)) {
+                (SafeSetSpec::HalfPlane { name, a, b }, _) => Arc::new(HalfPlane::new(
                     name.clone(),
                     State::new(a[0], a[1], a[2], a[3]),
                     *b,
                 )),
-                SafeSetSpec::EllipseInside {
-                    name,
-                    center,
-                    semi_axes,
-                    angle,
-                    lift,
-                }
-                | SafeSetSpec::EllipseOutside {
-                    name,
-                    center,
-                    semi_axes,
-                    angle,
-                    lift,
-                } => Arc::new(LiftedEllipse::new(
-                    name.clone(),
-                    *center,
-                    *semi_axes,
-                    *angle,
-                    matches!(s, SafeSetSpec::EllipseInside { .. }),
-                    *lift,
-                    v_max,
-                )),
+                (_, Some(e)) => Arc::new(e),
+                (_, None) => unreachable!("every non-half-plane safe set is an ellipse"),
             }
         })
         .collect()
 }
 
-/// The obstacle barriers' geometry settings for this world's robot (a point for `linear`).
+/// Prop. 1 in position space ([`LiftedEllipse::prop1`]) for an ellipse safe set of `world`,
+/// with the parameters in force: θ̄ = max θ_ij, h̄ = max_i h̄_γi of the barrier that runs, δ,
+/// and (keep-out ellipses) estimates outside the ellipse (`h_low = 0`). `None` for a
+/// half-plane. For `ftcbf check` and any report of the guarantees a world has.
+pub fn ellipse_prop1(
+    world: &World,
+    setup: &ControlSetup,
+    spec: &SafeSetSpec,
+) -> Option<LiftedProp1> {
+    let e = lifted_ellipse(world, spec)?;
+    let p = &setup.params;
+    let theta_bar = p.theta.iter().copied().fold(0.0_f64, f64::max);
+    let h_bar = p
+        .gamma
+        .iter()
+        .map(|&g| e.h_bar(g))
+        .fold(f64::NEG_INFINITY, f64::max)
+        .max(0.0);
+    Some(e.prop1(theta_bar, h_bar, p.delta, 0.0))
+}
+
+/// The barrier that runs for an ellipse safe set (with the world's [`speed_bound`], 0 when
+/// none), e.g. to evaluate [`LiftedEllipse::prop1`] on it; `None` for a half-plane.
+pub fn lifted_ellipse(world: &World, spec: &SafeSetSpec) -> Option<LiftedEllipse> {
+    let v_max = speed_bound(world).unwrap_or(0.0);
+    match spec {
+        SafeSetSpec::HalfPlane { .. } => None,
+        SafeSetSpec::EllipseInside {
+            name,
+            center,
+            semi_axes,
+            angle,
+            lift,
+        }
+        | SafeSetSpec::EllipseOutside {
+            name,
+            center,
+            semi_axes,
+            angle,
+            lift,
+        } => Some(LiftedEllipse::new(
+            name.clone(),
+            *center,
+            *semi_axes,
+            *angle,
+            matches!(spec, SafeSetSpec::EllipseInside { .. }),
+            *lift,
+            v_max,
+        )),
+    }
+}
+
+/// The obstacle barriers' geometry settings for this world's robot (a point for `linear`, with
+/// v_max = `[linear] v_max`, or 0 when not given — see [`speed_bound`]).
 pub fn obstacle_barrier_config(world: &World) -> BarrierConfig {
     let c = &world.file.control;
     match &world.robot {
@@ -141,10 +185,68 @@ pub fn obstacle_barrier_config(world: &World) -> BarrierConfig {
             centre_height: 0.0,
             margin: c.obstacle_margin,
             k: c.obstacle_lift,
-            v_max: 1.0,
+            v_max: speed_bound(world).unwrap_or(0.0),
             fd_step: 2e-3,
         },
     }
+}
+
+/// Refuse a world whose h̄_γ bounds would rest on an invented number: a lifted barrier without
+/// a speed bound, or a point robot's lifted barrier on a shape with edges (no curvature bound).
+fn check_h_bar_inputs(world: &World, bcfg: &BarrierConfig) -> Result<(), RunError> {
+    let file = &world.file;
+    let needs_speed = |what: String| {
+        setup_err(
+            world,
+            "linear.v_max",
+            format!(
+                "{what} has an h̄_γ bound that depends on the speed, and the linear plant has no speed limit of its own; give one in [linear] as `v_max = …` [m/s]"
+            ),
+        )
+    };
+    if speed_bound(world).is_none() {
+        for (i, s) in file.safe_sets.iter().enumerate() {
+            if let SafeSetSpec::EllipseInside { lift, .. }
+            | SafeSetSpec::EllipseOutside { lift, .. } = s
+            {
+                if *lift > 0.0 {
+                    return Err(needs_speed(format!(
+                        "safe_sets[{i}] (an ellipse with lift = {lift} s)"
+                    )));
+                }
+            }
+        }
+    }
+    if bcfg.k > 0.0 {
+        for (i, ob) in world.obstacles.iter().enumerate() {
+            if ob.is_half_space() {
+                continue;
+            }
+            if speed_bound(world).is_none() {
+                return Err(needs_speed(format!(
+                    "obstacles[{i}] (`{}`, lifted with control.obstacle_lift = {} s)",
+                    ob.name, bcfg.k
+                )));
+            }
+            if ob.barrier(bcfg).curvature_bound().is_none() {
+                return Err(setup_err(
+                    world,
+                    &format!("obstacles[{i}].shape"),
+                    format!(
+                        "obstacle `{}` is a {}: for a point robot (dynamics = \"linear\") the \
+                         distance to its edges and vertices has unbounded curvature, so its \
+                         lifted barrier (control.obstacle_lift = {} s) has no h̄_γ bound; use a \
+                         ball, a vertical cylinder or capsule, or a half_space, set \
+                         control.obstacle_lift = 0, or simulate a robot (dynamics = \"rapier\")",
+                        ob.name,
+                        ob.spec.shape.kind(),
+                        bcfg.k
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 impl ControlSetup {
@@ -167,9 +269,10 @@ impl ControlSetup {
         .map_err(|e| setup_err(world, "sensors", e.to_string()))?;
 
         // Barriers: closed-form safe sets, then obstacles.
+        let bcfg = obstacle_barrier_config(world);
+        check_h_bar_inputs(world, &bcfg)?;
         let mut barriers = safe_set_barriers(world);
         let safe_sets = barriers.len();
-        let bcfg = obstacle_barrier_config(world);
         for ob in &world.obstacles {
             barriers.push(Arc::new(ob.barrier(&bcfg)));
         }

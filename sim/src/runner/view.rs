@@ -134,6 +134,27 @@ fn decision_note(note: &mut String, out: &ControlOutput, filters: &[String]) {
         };
         let _ = write!(note, "{who} dropped at {stage:?}: {why}; ");
     }
+    if let Some(r) = out.decision.step2_retained {
+        let _ = write!(
+            note,
+            "{} kept at Step2 although its pair test failed: it was the last estimator with barrier rows; ",
+            label(r.unit)
+        );
+    }
+    if out.decision.non_finite_rows > 0 {
+        let _ = write!(
+            note,
+            "{} constraint row(s) not finite: treated as violated; ",
+            out.decision.non_finite_rows
+        );
+    }
+    if out.rejected.skipped_updates > 0 {
+        let _ = write!(
+            note,
+            "{} reading(s) unusable (innovation variance not finite): filters flagged; ",
+            out.rejected.skipped_updates
+        );
+    }
     if let QpOutcome::InfeasibleAfterStep3 {
         action,
         max_cbf_violation,

@@ -235,6 +235,9 @@ impl Validator<'_> {
                 self.positive("linear.dt", lin.dt)?;
                 self.non_negative("linear.process_noise", lin.process_noise)?;
                 self.finite("linear.x0", &lin.x0)?;
+                if let Some(v) = lin.v_max {
+                    self.positive("linear.v_max", v)?;
+                }
                 lin.dt
             }
         };

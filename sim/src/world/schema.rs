@@ -152,6 +152,11 @@ pub struct LinearSection {
     /// Process-noise intensity: Q = process_noise · I₄ [(unit)²/s] (default 1e-3, the paper's).
     #[serde(default = "default_noise")]
     pub process_noise: f64,
+    /// Speed bound [m/s] assumed by the h̄_γ bounds of lifted barriers (ellipse safe sets with
+    /// `lift` > 0, obstacles other than half-spaces). The linear plant has no speed limit of
+    /// its own, so a world with such barriers must give it; none is invented.
+    #[serde(default)]
+    pub v_max: Option<f64>,
 }
 
 fn default_linear_dt() -> f64 {
