@@ -169,6 +169,8 @@ pub struct Simulation<'w> {
     filters: Vec<String>,
     windows: Vec<(String, f64, Option<f64>)>,
     attack_windows: Vec<AttackWindow>,
+    /// The attacks together span more than one fault pattern.
+    attacks_together_outside: bool,
     y: Vec<f64>,
     fresh: Vec<bool>,
     monitor: Monitor,
@@ -244,6 +246,7 @@ impl<'w> Simulation<'w> {
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
+        let attacks_together_outside = attacks.union_outside_fault_patterns(&world.patterns);
         let monitor = Monitor::new(world, &setup);
         let view = StepView::new(
             file.sensors.len(),
@@ -268,6 +271,7 @@ impl<'w> Simulation<'w> {
             filters,
             windows,
             attack_windows,
+            attacks_together_outside,
             y: vec![0.0; q],
             fresh: vec![false; q],
             monitor,
@@ -437,10 +441,9 @@ impl<'w> Simulation<'w> {
             steps: self.steps,
             control_steps: self.k,
             rejected_readings: self.rejected,
-            attacks_outside_fault_patterns: self
-                .attack_windows
-                .iter()
-                .any(|w| w.outside_fault_patterns),
+            attacks_outside_fault_patterns: self.attacks_together_outside
+                || self.attack_windows.iter().any(|w| w.outside_fault_patterns),
+            attacks_together_outside_fault_patterns: self.attacks_together_outside,
             attack_windows: self.attack_windows.clone(),
             final_state: [end.x, end.y, end.vx, end.vy],
         }
