@@ -566,7 +566,7 @@ fn skid_steer_ros_package_loads_grouped_by_side_with_a_collada_chassis() {
     }
     assert!(r.bodies[0].colliders.iter().all(|c| !c.is_wheel));
 
-    // The Collada chassis: millimetres scaled by <unit meter="0.001">, lifted 30 mm by its node,
+    // The Collada chassis: millimetres scaled by <unit meter="0.001">,
     // eight corners welded from the triangles' corners, twelve triangles.
     let chassis = r.bodies[0]
         .colliders
