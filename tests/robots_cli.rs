@@ -68,12 +68,18 @@ fn run_and_regress_flag_attacks_that_together_span_two_patterns() {
     }
     let o = ftcbf(&["run", TWO, "--no-record"]);
     assert!(
-        text(&o).contains("attacks together: their channels lie in no single declared fault pattern"),
+        text(&o)
+            .contains("attacks together: their channels lie in no single declared fault pattern"),
         "{}",
         text(&o)
     );
     // A world whose attack stays inside one pattern is not flagged.
-    let o = ftcbf(&["run", "worlds/paper_turtlebot.toml", "--no-record", "--json"]);
+    let o = ftcbf(&[
+        "run",
+        "worlds/paper_turtlebot.toml",
+        "--no-record",
+        "--json",
+    ]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON on stdout");
     assert_eq!(v["attacks_outside_fault_patterns"], false);
     assert_eq!(v["attacks_together_outside_fault_patterns"], false);

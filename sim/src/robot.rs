@@ -1305,8 +1305,20 @@ fn group_sides(
         v.sort_by(|a, b| b.position.x.total_cmp(&a.position.x));
         v
     };
-    let left = front_to_back(wheels.iter().copied().filter(|w| w.position.y > 0.0).collect());
-    let right = front_to_back(wheels.iter().copied().filter(|w| w.position.y < 0.0).collect());
+    let left = front_to_back(
+        wheels
+            .iter()
+            .copied()
+            .filter(|w| w.position.y > 0.0)
+            .collect(),
+    );
+    let right = front_to_back(
+        wheels
+            .iter()
+            .copied()
+            .filter(|w| w.position.y < 0.0)
+            .collect(),
+    );
     if left.len() != right.len() || left.is_empty() {
         return Err(werr(format!(
             "odd wheel layout: {} wheel(s) on the left [{}] and {} on the right [{}]; a \

@@ -111,7 +111,13 @@ fn pressing_into_a_half_space_wall_reports_the_real_penetration() {
     // Facing the wall head on (the outside_model scene: wall y = −0.3, robot heading −y), at an
     // angle, and backing into a wall behind the robot.
     let cases = [
-        ("facing −y", [0.0, -0.3, 0.0], [0.0, 1.0, 0.0], -std::f64::consts::FRAC_PI_2, 1.0),
+        (
+            "facing −y",
+            [0.0, -0.3, 0.0],
+            [0.0, 1.0, 0.0],
+            -std::f64::consts::FRAC_PI_2,
+            1.0,
+        ),
         ("at 30°", [0.5, 0.0, 0.0], [-1.0, 0.0, 0.0], 0.5236, 1.0),
         ("reversing", [-0.4, 0.0, 0.0], [1.0, 0.0, 0.0], 0.0, -1.0),
     ];
@@ -145,7 +151,9 @@ fn pressing_into_a_half_space_wall_reports_the_real_penetration() {
             min_reported = min_reported.min(out[0]);
             touched |= w.contacts().any(|i| i == 0);
         }
-        println!("{label}: min clearance {min_reported:.5} m, |reported − support| ≤ {worst_gap:.2e} m");
+        println!(
+            "{label}: min clearance {min_reported:.5} m, |reported − support| ≤ {worst_gap:.2e} m"
+        );
         assert!(touched, "{label}: the robot never reached the wall");
         // Pressed at full motor force it sinks millimetres into the contact, never decimetres.
         assert!(

@@ -538,9 +538,7 @@ fn skid_steer_ros_package_loads_grouped_by_side_with_a_collada_chassis() {
         .unwrap_or_else(|e| panic!("the ROS-style skid-steer package must load: {e}"));
     assert_eq!(r.name, "ftcbf_skid4");
     let names = |ws: &[ftcbf_sim::robot::Wheel]| {
-        ws.iter()
-            .map(|w| w.joint_name.clone())
-            .collect::<Vec<_>>()
+        ws.iter().map(|w| w.joint_name.clone()).collect::<Vec<_>>()
     };
     assert!(r.wheels.is_skid_steer());
     assert_eq!(
@@ -578,9 +576,10 @@ fn skid_steer_ros_package_loads_grouped_by_side_with_a_collada_chassis() {
     };
     assert_eq!((vertices.len(), indices.len()), (8, 12));
     let range = |k: usize| {
-        vertices.iter().map(|v| v[k]).fold((f64::MAX, f64::MIN), |(lo, hi), x| {
-            (lo.min(x), hi.max(x))
-        })
+        vertices
+            .iter()
+            .map(|v| v[k])
+            .fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)))
     };
     for (k, (lo, hi)) in [(0, (-0.15, 0.15)), (1, (-0.10, 0.10)), (2, (-0.02, 0.08))] {
         let (a, b) = range(k);
@@ -652,9 +651,14 @@ fn odd_or_ambiguous_wheel_layouts_are_errors_naming_the_joints() {
         "{msg}"
     );
     // A wheel on the centre line belongs to neither side.
-    let msg = load_skid_edited(|t| t.replace(r#"<origin xyz="-0.10 -0.13 0""#, r#"<origin xyz="-0.10 0 0""#))
-        .unwrap_err()
-        .to_string();
+    let msg = load_skid_edited(|t| {
+        t.replace(
+            r#"<origin xyz="-0.10 -0.13 0""#,
+            r#"<origin xyz="-0.10 0 0""#,
+        )
+    })
+    .unwrap_err()
+    .to_string();
     assert!(
         msg.contains("ambiguous wheel layout")
             && msg.contains("`rear_right_wheel_joint` (y = +0.0000 m)"),
@@ -680,13 +684,19 @@ fn odd_or_ambiguous_wheel_layouts_are_errors_naming_the_joints() {
     );
     // Naming two of the four wheels makes a differential drive of them.
     let opts = LoadOptions {
-        wheel_joints: Some(("front_left_wheel_joint".into(), "front_right_wheel_joint".into())),
+        wheel_joints: Some((
+            "front_left_wheel_joint".into(),
+            "front_right_wheel_joint".into(),
+        )),
         ..skid_opts()
     };
     let r = RobotDescription::from_file(skid_urdf(), &opts).unwrap();
     assert!(!r.wheels.is_skid_steer());
     assert!((r.wheels.geometry.separation - 0.26).abs() < 1e-12);
-    assert!(r.wheels.describe().starts_with("differential, left `front_left_wheel_joint`"));
+    assert!(r
+        .wheels
+        .describe()
+        .starts_with("differential, left `front_left_wheel_joint`"));
 }
 
 #[test]
@@ -699,7 +709,10 @@ fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute(
         .unwrap()
         + 1;
     let e = load_skid_edited(|t| {
-        t.replace(r#"<link name="base_link">"#, r#"<link name="${namespace}base_link">"#)
+        t.replace(
+            r#"<link name="base_link">"#,
+            r#"<link name="${namespace}base_link">"#,
+        )
     })
     .unwrap_err();
     assert!(

@@ -486,7 +486,9 @@ mod tests {
         let e = batch_command(&args, &prepare).expect_err("p = 0.5 fails");
         let f = e.downcast_ref::<VerdictFailure>().expect("typed failure");
         assert!(
-            f.failures.iter().any(|l| l.contains(" at p=0.5 ft-cbf-clf: refuted")),
+            f.failures
+                .iter()
+                .any(|l| l.contains(" at p=0.5 ft-cbf-clf: refuted")),
             "{f}"
         );
         assert!(e.to_string().contains("--fail-on unresolved"), "{e}");
