@@ -29,6 +29,8 @@ use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
 const EXIT_INVALID: u8 = 2;
 /// Exit code: a run did not meet its world's `[expect]`.
 const EXIT_EXPECTATION: u8 = 3;
+/// Exit code: a batch verdict matched `ftcbf batch --fail-on`.
+const EXIT_VERDICT: u8 = 4;
 
 /// An error with the exit code it maps to.
 struct Failure {
@@ -55,9 +57,16 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd_run(&a),
         Command::Check(a) => cmd_check(&a),
         Command::Regress(a) => cmd_regress(&a),
-        Command::Batch(a) => {
-            batch::batch_command(&a, &prepare_batch(&a.world)).map_err(Failure::from)
-        }
+        Command::Batch(a) => batch::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| {
+            let code = if e.is::<batch::VerdictFailure>() {
+                EXIT_VERDICT
+            } else if e.chain().any(|c| c.is::<WorldError>()) {
+                EXIT_INVALID
+            } else {
+                1
+            };
+            Failure { code, error: e }
+        }),
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
         Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
             code: if e.chain().any(|c| c.is::<WorldError>()) {
@@ -286,6 +295,12 @@ fn print_summary(s: &RunSummary) {
             }
         );
     }
+    if s.attacks_together_outside_fault_patterns {
+        println!(
+            "  attacks together: their channels lie in no single declared fault pattern — OUTSIDE \
+             the single-fault model: no guarantee applies"
+        );
+    }
 }
 
 fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
@@ -308,6 +323,7 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
                     r.limits.omega_max,
                     r.footprint_radius
                 );
+                println!("  drive: {}", r.wheels.describe());
                 for w in &r.warnings {
                     println!("  warning: {w}");
                 }

@@ -205,6 +205,22 @@ impl CaseResult {
         self.failures.is_empty()
     }
 
+    /// The verdict cell: pass or the failures; a case whose runs leave the declared fault model
+    /// (attacks on more than one pattern, alone or together) says so, so that it never reads as
+    /// a case the guarantee covers.
+    pub fn verdict(&self) -> String {
+        let v = if self.passed() {
+            "pass".to_string()
+        } else {
+            format!("FAIL: {}", self.failures.join("; "))
+        };
+        if self.runs.iter().any(|s| s.attacks_outside_fault_patterns) {
+            format!("{v} (outside the fault model: no guarantee applies)")
+        } else {
+            v
+        }
+    }
+
     fn count(&self, of: impl Fn(&RunSummary) -> bool) -> String {
         let n = self.runs.iter().filter(|s| of(s)).count();
         format!("{n}/{}", self.runs.len())
@@ -245,11 +261,7 @@ pub fn table_text(results: &[CaseResult]) -> String {
             r.worst("min_h", true),
             r.worst("min_clearance", true),
             r.worst("time_to_goal", false),
-            if r.passed() {
-                "pass".to_string()
-            } else {
-                format!("FAIL: {}", r.failures.join("; "))
-            }
+            r.verdict()
         );
     }
     let runs: usize = results.iter().map(|r| r.runs.len()).sum();

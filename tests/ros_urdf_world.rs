@@ -44,3 +44,23 @@ fn bad_limits_name_their_key() {
     .expect_err("negative limit");
     assert!(e.to_string().contains("robot.limits.omega_max"), "{e}");
 }
+
+#[test]
+fn skid_steer_ros_robot_drives_between_pillars_to_the_goal_under_attack() {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_ros/skid_steer_pillars.toml");
+    let w = World::load(&path, &[]).expect("loads");
+    let robot = w.robot.as_ref().expect("rapier world");
+    assert!(robot.wheels.is_skid_steer());
+    assert_eq!((robot.wheels.left.len(), robot.wheels.right.len()), (2, 2));
+    let s = run(&w, &RunOptions::default()).expect("runs");
+    assert!(s.safe && !s.collided, "{s:?}");
+    assert!(!s.attacks_outside_fault_patterns, "{s:?}");
+    assert!(
+        s.goal_reached,
+        "reaches (2.5, 0) within 25 s: {:?}",
+        s.final_state
+    );
+    let clearance = s.min_clearance.expect("obstacles");
+    assert!(clearance > 0.0, "{clearance}");
+}

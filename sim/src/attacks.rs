@@ -751,6 +751,23 @@ impl AttackStack {
             .collect()
     }
 
+    /// True when the attacks, taken together, touch channels of more than one declared fault
+    /// pattern: the union of every attack's channels over the whole run (so also over windows
+    /// that overlap, or follow one another) lies inside no single pattern. The thesis' model has
+    /// one fault pattern r, fixed but unknown, with supp(a_t) ⊆ F(r) at every t; attacks that
+    /// each stay inside one pattern but together span two are outside it, and no guarantee
+    /// applies. `false` when there is no attack.
+    pub fn union_outside_fault_patterns(&self, patterns: &[Vec<usize>]) -> bool {
+        let mut union: Vec<usize> = self
+            .injectors
+            .iter()
+            .flat_map(|i| i.targets.iter().copied())
+            .collect();
+        union.sort_unstable();
+        union.dedup();
+        !union.is_empty() && !patterns.iter().any(|p| union.iter().all(|c| p.contains(c)))
+    }
+
     /// Applies every injector, in file order, to this tick's `samples` (suite order) at time `t`.
     /// Call once per control tick, after [`SensorSuite::sample`], with the detector's predictions
     /// for the coming update. Never panics on any reading (non-finite readings pass through the

@@ -14,8 +14,8 @@
 //! - `half_space { normal }`: the solid fills everything *behind* the plane through `position`
 //!   with outward `normal` (obstacle frame); the normal points into free space.
 //! - `convex_hull { points }`, `tri_mesh { vertices, indices }` are in the obstacle frame;
-//!   `tri_mesh { file = "x.stl", scale = 1.0 }` reads an STL (relative to the world file's
-//!   directory). A closed, consistently oriented mesh has an inside (signed distance); an open
+//!   `tri_mesh { file = "x.stl", scale = 1.0 }` reads a mesh file — STL, Collada `.dae` or OBJ,
+//!   see [`crate::robot::read_mesh`] — relative to the world file's directory. A closed, consistently oriented mesh has an inside (signed distance); an open
 //!   mesh is a surface and its distance is never negative.
 //!
 //! # Barriers
@@ -448,7 +448,7 @@ impl Obstacle {
                             Some(d) if f.is_relative() => d.join(f),
                             _ => f.clone(),
                         };
-                        let (v, i) = crate::robot::read_stl(&path)
+                        let (v, i) = crate::robot::read_mesh(&path)
                             .map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
                         (v.into_iter().map(|p| p.map(|c| c * s)).collect(), i)
                     }

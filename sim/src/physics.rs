@@ -127,8 +127,10 @@ pub struct PhysicsWorld {
     robot_colliders: Vec<ColliderHandle>,
     obstacle_colliders: Vec<ColliderHandle>,
     obstacles: Vec<Obstacle>,
-    left: WheelMotor,
-    right: WheelMotor,
+    /// Motors of the left wheels (one, or several for a skid-steer robot).
+    left: Vec<WheelMotor>,
+    /// Motors of the right wheels.
+    right: Vec<WheelMotor>,
     steps: u64,
     contacts_buf: Vec<usize>,
 }
@@ -383,8 +385,8 @@ impl PhysicsWorld {
             sign: w.forward_sign,
             max_force: w.effort_limit.unwrap_or(cfg.motor_max_force),
         };
-        let left = motor(&robot.wheels.left);
-        let right = motor(&robot.wheels.right);
+        let left = robot.wheels.left.iter().map(motor).collect();
+        let right = robot.wheels.right.iter().map(motor).collect();
 
         // Obstacles.
         let mut obstacle_colliders = Vec::with_capacity(obstacles.len());
@@ -416,11 +418,15 @@ impl PhysicsWorld {
         Ok(out)
     }
 
-    /// Sets the wheel motors' velocity targets [rad/s], positive = rolling forward.
-    /// Non-finite values are treated as 0.
+    /// Sets the wheel motors' velocity targets [rad/s], positive = rolling forward: every wheel
+    /// of a side gets that side's speed. Non-finite values are treated as 0.
     pub fn set_wheel_speeds(&mut self, left_rad_s: f64, right_rad_s: f64) {
         let damping = self.cfg.motor_damping as f32;
-        for (m, w) in [(self.left, left_rad_s), (self.right, right_rad_s)] {
+        let sides = [(&self.left, left_rad_s), (&self.right, right_rad_s)];
+        for (m, w) in sides
+            .into_iter()
+            .flat_map(|(ms, w)| ms.iter().map(move |m| (m, w)))
+        {
             let w = if w.is_finite() { w } else { 0.0 };
             if let Some(j) = self.world.impulse_joints.get_mut(m.joint, true) {
                 j.data
@@ -519,17 +525,7 @@ impl PhysicsWorld {
                     o.shape(),
                 ) {
                     Ok(d) if d.distance > 0.0 => d.distance as f64,
-                    _ => parry3d::query::contact(
-                        r.position(),
-                        r.shape(),
-                        o.position(),
-                        o.shape(),
-                        0.0,
-                    )
-                    .ok()
-                    .flatten()
-                    .map(|c| (c.dist as f64).min(0.0))
-                    .unwrap_or(0.0),
+                    _ => penetration(r, o),
                 };
                 best = best.min(d);
             }
@@ -548,7 +544,7 @@ impl PhysicsWorld {
     }
 
     /// Current wheel angular speeds (left, right) relative to the base [rad/s], positive =
-    /// rolling forward.
+    /// rolling forward; for a skid-steer robot, the mean over the wheels of each side.
     pub fn wheel_speeds(&self) -> (f64, f64) {
         let base = &self.world.bodies[self.bodies[0]];
         let w = |m: &WheelMotor| {
@@ -561,11 +557,30 @@ impl PhysicsWorld {
             let rel = child.angvel() - base.angvel();
             m.sign * rel.dot(axis_world) as f64
         };
-        (w(&self.left), w(&self.right))
+        let mean = |ms: &[WheelMotor]| ms.iter().map(&w).sum::<f64>() / ms.len() as f64;
+        (mean(&self.left), mean(&self.right))
     }
 
     /// The obstacles, in index order.
     pub fn obstacles(&self) -> &[Obstacle] {
         &self.obstacles
     }
+}
+
+/// Signed contact distance (≤ 0: penetration depth) between a robot collider and an obstacle.
+/// The depth is symmetric, but parry 0.31.1's `contact(support map, half-space)` applies the
+/// relative pose the wrong way round (it passes `pos12` where `pos12⁻¹` is needed; its
+/// `distance` does not), which reported −0.47 m for a robot pressed centimetres into a
+/// half-space wall. A half-space is therefore always queried as the first shape.
+fn penetration(robot: &rp::Collider, obstacle: &rp::Collider) -> f64 {
+    let (a, b) = if obstacle.shape().as_halfspace().is_some() {
+        (obstacle, robot)
+    } else {
+        (robot, obstacle)
+    };
+    parry3d::query::contact(a.position(), a.shape(), b.position(), b.shape(), 0.0)
+        .ok()
+        .flatten()
+        .map(|c| (c.dist as f64).min(0.0))
+        .unwrap_or(0.0)
 }

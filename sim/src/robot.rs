@@ -14,16 +14,24 @@
 //! - `package://NAME/rest` is resolved against the caller's search path ([`LoadOptions`]):
 //!   for each directory `d`, `d/NAME/rest`, then `d/rest` when `d` itself is named `NAME`.
 //!   `file://` paths are used as they are; relative paths are relative to the URDF's directory.
-//!   A missing *visual* mesh is a warning ([`RobotDescription::warnings`]); visuals are not
-//!   loaded (the physics never needs them). A missing or unreadable *collision* mesh is an error.
+//!   Meshes are read with the `mesh-loader` crate: STL (ASCII or binary), Collada (`.dae`, with
+//!   its `<unit>` scale and node transforms) and Wavefront OBJ. A missing *visual* mesh is a
+//!   warning ([`RobotDescription::warnings`]); a missing or unreadable *collision* mesh is an
+//!   error naming the file and the package search path.
 //! - Links without `<inertial>` (mass 0) are allowed only where they are rigidly attached
 //!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error.
 //! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>`) are rejected with the line, the enclosing
-//!   link/joint and the attribute, telling the user to run xacro first.
-//! - Drive wheels: the two joints named by the caller, otherwise the `continuous` joints whose
-//!   child link has a cylinder collision; left is the one with the larger root-frame y.
-//!   Wheel radius = that cylinder's radius; separation = planar distance between the two
-//!   wheel joint origins (root frame). Both wheels must share the radius within 0.1 mm.
+//!   link/joint and the attribute, telling the user to run xacro first. Text inside XML
+//!   comments, CDATA sections and processing instructions is never a leftover (ROS packages
+//!   ship plain URDFs with commented-out `<xacro:include …/>` lines).
+//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint whose
+//!   child link has a cylinder collision, grouped by the side of the root frame's x axis its
+//!   joint origin lies on (left = +y). Two such joints make a differential drive; four or more,
+//!   the same number on each side, make a skid-steer drive whose wheels on one side all get the
+//!   same command (as ROS's diff_drive/skid_steer controllers drive them). A wheel on the centre
+//!   line or an unequal number per side is an error naming the joints. Wheel radius = the
+//!   cylinder's radius (all wheels equal within 0.1 mm); separation (the effective track width)
+//!   = planar distance between the centroids of the left and the right wheel joint origins.
 //! - Drive limits: explicit [`LoadOptions::limits`] if given, else derived from the wheel
 //!   joints' `<limit velocity>` (rad/s): `wheel_speed_max = min(velocity)`,
 //!   `v_max = r · wheel_speed_max`, `omega_max = 2 r · wheel_speed_max / separation`.
@@ -168,15 +176,60 @@ pub struct Wheel {
     pub effort_limit: Option<f64>,
 }
 
-/// The two drive wheels.
+/// The drive wheels, grouped by side. A differential drive has one wheel per side; a
+/// skid-steer robot two or more, all of one side driven at the same speed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveWheels {
-    /// Left wheel (+y side).
-    pub left: Wheel,
-    /// Right wheel (−y side).
-    pub right: Wheel,
-    /// Radius and separation.
+    /// Left wheels (+y side of the root frame), front to back.
+    pub left: Vec<Wheel>,
+    /// Right wheels (−y side), front to back.
+    pub right: Vec<Wheel>,
+    /// Radius and (effective) separation.
     pub geometry: WheelGeometry,
+}
+
+impl DriveWheels {
+    /// Every drive wheel: the left ones, then the right ones.
+    pub fn all(&self) -> impl Iterator<Item = &Wheel> + '_ {
+        self.left.iter().chain(&self.right)
+    }
+
+    /// True for a skid-steer layout (more than one wheel per side).
+    pub fn is_skid_steer(&self) -> bool {
+        self.left.len() > 1
+    }
+
+    /// One line for `ftcbf check`: the layout, the wheel joints of each side and the
+    /// (effective) track width, e.g. ``skid steer, left [`fl`, `rl`], right [`fr`, `rr`];
+    /// effective track width 0.5000 m (between the side centroids), wheel radius 0.1000 m``.
+    pub fn describe(&self) -> String {
+        let side = |ws: &[Wheel]| {
+            ws.iter()
+                .map(|w| format!("`{}`", w.joint_name))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let g = self.geometry;
+        if self.is_skid_steer() {
+            format!(
+                "skid steer, {} wheels: left [{}], right [{}] (each side driven as one); \
+                 effective track width {:.4} m (between the side centroids), wheel radius {:.4} m",
+                self.left.len() + self.right.len(),
+                side(&self.left),
+                side(&self.right),
+                g.separation,
+                g.radius
+            )
+        } else {
+            format!(
+                "differential, left {}, right {}; track width {:.4} m, wheel radius {:.4} m",
+                side(&self.left),
+                side(&self.right),
+                g.separation,
+                g.radius
+            )
+        }
+    }
 }
 
 /// A collision shape in its collider frame. Cylinders and capsules stand along the collider
@@ -347,7 +400,7 @@ pub struct RobotDescription {
     pub bodies: Vec<RobotBody>,
     /// Movable joints.
     pub joints: Vec<RobotJoint>,
-    /// The drive wheels.
+    /// The drive wheels (differential or skid steer).
     pub wheels: DriveWheels,
     /// Drive limits.
     pub limits: DriveLimits,
@@ -820,7 +873,7 @@ fn build(
     }
 
     let wheels = find_wheels(robot, origin, &bodies, &joints, &joint_of_urdf, opts)?;
-    for w in [&wheels.left, &wheels.right] {
+    for w in wheels.all() {
         for c in &mut bodies[w.body].colliders {
             c.is_wheel = true;
         }
@@ -943,7 +996,7 @@ fn collision_shape(
                     ))
                 })?;
             let (vertices, indices) =
-                read_stl(&path).map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
+                read_mesh(&path).map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
             let vertices = vertices
                 .into_iter()
                 .map(|v| [v[0] * scale[0], v[1] * scale[1], v[2] * scale[2]])
@@ -973,7 +1026,7 @@ fn visual_mesh(
         return Err(what(&format!("has a bad scale {scale:?}")));
     }
     let (vertices, indices) =
-        read_stl(&path).map_err(|m| what(&format!("unreadable ({}: {m})", path.display())))?;
+        read_mesh(&path).map_err(|m| what(&format!("unreadable ({}: {m})", path.display())))?;
     Ok(Some(RobotVisual {
         link: link.to_string(),
         pose_in_body,
@@ -1019,43 +1072,61 @@ pub fn resolve_mesh_path(
     cand.is_file().then_some(cand)
 }
 
-/// Vertices and triangles of an STL file (ASCII or binary). A binary file whose 80-byte header
-/// happens to start with `solid` is recognised by its size (84 + 50·n bytes).
+/// Vertices and triangles of a mesh file, read with `mesh-loader`: STL (ASCII or binary; a
+/// binary file whose 80-byte header starts with `solid` is still read as binary), Collada
+/// (`.dae`: every instanced geometry, with the document's `<unit>` and node transforms applied)
+/// or Wavefront OBJ. The format is chosen by the extension, else by the content. All meshes of
+/// the file are joined into one, and vertices with bit-identical coordinates are welded (in order
+/// of first appearance), so an STL's triangle soup becomes an indexed mesh.
 #[allow(clippy::type_complexity)]
-pub fn read_stl(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
-    let mut bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-    if bytes.len() >= 84 {
-        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
-        let binary_size = n.checked_mul(50).and_then(|s| s.checked_add(84));
-        if binary_size == Some(bytes.len()) && bytes.starts_with(b"solid") {
-            // Binary STL with a misleading header: blank the header so it is read as binary.
-            bytes[..5].copy_from_slice(b"     ");
+pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+    let scene = mesh_loader::Loader::default()
+        .load(path)
+        .map_err(|e| format!("not a readable STL, Collada or OBJ mesh: {e}"))?;
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
+    let mut indices: Vec<[u32; 3]> = Vec::new();
+    let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
+    for mesh in &scene.meshes {
+        let mut local = Vec::with_capacity(mesh.vertices.len());
+        for v in &mesh.vertices {
+            if !v.iter().all(|c| c.is_finite()) {
+                return Err("the mesh has non-finite vertices".into());
+            }
+            let next = u32::try_from(vertices.len())
+                .map_err(|_| "the mesh has more than 2³² vertices".to_string())?;
+            let id = *weld.entry(v.map(f32::to_bits)).or_insert_with(|| {
+                vertices.push(v.map(f64::from));
+                next
+            });
+            local.push(id);
+        }
+        for f in &mesh.faces {
+            let mut t = [0u32; 3];
+            for (slot, &i) in t.iter_mut().zip(f) {
+                *slot = *local
+                    .get(i as usize)
+                    .ok_or_else(|| "the mesh has an out-of-range vertex index".to_string())?;
+            }
+            indices.push(t);
         }
     }
-    let mut cursor = std::io::Cursor::new(bytes);
-    let mesh = stl_io::read_stl(&mut cursor).map_err(|e| format!("not a valid STL: {e}"))?;
-    if mesh.faces.is_empty() {
-        return Err("the STL has no triangles".into());
-    }
-    let vertices: Vec<[f64; 3]> = mesh
-        .vertices
-        .iter()
-        .map(|v| [v[0] as f64, v[1] as f64, v[2] as f64])
-        .collect();
-    if vertices.iter().any(|v| !finite3(*v)) {
-        return Err("the STL has non-finite vertices".into());
-    }
-    let mut indices = Vec::with_capacity(mesh.faces.len());
-    for f in &mesh.faces {
-        let t = f.vertices;
-        if t.iter()
-            .any(|&i| i >= vertices.len() || i > u32::MAX as usize)
-        {
-            return Err("the STL has an out-of-range vertex index".into());
-        }
-        indices.push([t[0] as u32, t[1] as u32, t[2] as u32]);
+    if indices.is_empty() {
+        return Err("the mesh has no triangles".into());
     }
     Ok((vertices, indices))
+}
+
+/// Distance from the root frame's x axis below which a wheel cannot be assigned to a side [m].
+const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
+
+/// One candidate drive wheel, measured in the root frame.
+#[derive(Debug, Clone, Copy)]
+struct WheelCandidate {
+    joint: usize,
+    radius: f64,
+    position: Vector3<f64>,
+    forward_sign: f64,
+    effort: Option<f64>,
 }
 
 fn find_wheels(
@@ -1103,18 +1174,21 @@ fn find_wheels(
             .map(|(k, _)| k)
             .collect(),
     };
-    if candidates.len() != 2 {
-        let names: Vec<&str> = candidates
-            .iter()
-            .map(|&k| joints[k].name.as_str())
-            .collect();
+    let names = |ks: &mut dyn Iterator<Item = usize>| -> String {
+        ks.map(|k| format!("`{}`", joints[k].name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if candidates.len() < 2 {
         return Err(werr(format!(
-            "expected exactly 2 continuous joints whose child link has a <cylinder> collision, \
-             found {} {names:?}; name the wheel joints explicitly if the URDF has others",
-            candidates.len()
+            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints whose \
+             child link has a <cylinder> collision, found {} [{}]; name the wheel joints \
+             explicitly if the URDF has others",
+            candidates.len(),
+            names(&mut candidates.iter().copied())
         )));
     }
-    let mut wheels = Vec::new();
+    let mut wheels = Vec::with_capacity(candidates.len());
     for &k in &candidates {
         let j = &joints[k];
         if matches!(j.kind, JointKind::Prismatic { .. }) {
@@ -1139,49 +1213,124 @@ fn find_wheels(
         let effort = urdf_j
             .map(|u| u.limit.effort)
             .filter(|e| e.is_finite() && *e > 0.0);
-        wheels.push((
-            k,
+        wheels.push(WheelCandidate {
+            joint: k,
             radius,
-            frame_root.translation.vector,
-            axis_root.y.signum(),
+            position: frame_root.translation.vector,
+            forward_sign: axis_root.y.signum(),
             effort,
-        ));
+        });
     }
-    let (mut a, mut b) = (wheels[0], wheels[1]);
-    if opts.wheel_joints.is_none() && a.2.y < b.2.y {
-        std::mem::swap(&mut a, &mut b);
-    }
-    if (a.1 - b.1).abs() > 1e-4 {
+    let (left, right) = match &opts.wheel_joints {
+        // Named: the caller says which is which; it must agree with the geometry.
+        Some(_) => {
+            let (a, b) = (wheels[0], wheels[1]);
+            if a.position.y <= b.position.y {
+                return Err(werr(format!(
+                    "the left wheel joint `{}` is not on the +y side of the right one `{}`",
+                    joints[a.joint].name, joints[b.joint].name
+                )));
+            }
+            (vec![a], vec![b])
+        }
+        None => group_sides(&wheels, joints, &werr)?,
+    };
+    if let Some(w) = wheels
+        .iter()
+        .find(|w| (w.radius - wheels[0].radius).abs() > 1e-4)
+    {
         return Err(werr(format!(
-            "the wheels have different radii ({} m and {} m)",
-            a.1, b.1
+            "the wheels have different radii (`{}` {} m, `{}` {} m)",
+            joints[wheels[0].joint].name, wheels[0].radius, joints[w.joint].name, w.radius
         )));
     }
-    let separation = (a.2.xy() - b.2.xy()).norm();
+    let centroid = |side: &[WheelCandidate]| {
+        side.iter().map(|w| w.position).sum::<Vector3<f64>>() / side.len() as f64
+    };
+    let separation = if left.len() == 1 {
+        (left[0].position.xy() - right[0].position.xy()).norm()
+    } else {
+        (centroid(&left).xy() - centroid(&right).xy()).norm()
+    };
     if separation <= 0.0 || !separation.is_finite() {
-        return Err(werr("the two wheel joints are at the same place".into()));
-    }
-    if a.2.y <= b.2.y {
         return Err(werr(format!(
-            "the left wheel joint `{}` is not on the +y side of the right one `{}`",
-            joints[a.0].name, joints[b.0].name
+            "the wheel joints {} and {} are at the same place",
+            names(&mut left.iter().map(|w| w.joint)),
+            names(&mut right.iter().map(|w| w.joint))
         )));
     }
-    let mk = |w: (usize, f64, Vector3<f64>, f64, Option<f64>)| Wheel {
-        joint_name: joints[w.0].name.clone(),
-        joint: w.0,
-        body: joints[w.0].child,
-        forward_sign: w.3,
-        effort_limit: w.4,
+    let radius = wheels.iter().map(|w| w.radius).sum::<f64>() / wheels.len() as f64;
+    let mk = |w: &WheelCandidate| Wheel {
+        joint_name: joints[w.joint].name.clone(),
+        joint: w.joint,
+        body: joints[w.joint].child,
+        forward_sign: w.forward_sign,
+        effort_limit: w.effort,
     };
     Ok(DriveWheels {
-        left: mk(a),
-        right: mk(b),
-        geometry: WheelGeometry {
-            radius: 0.5 * (a.1 + b.1),
-            separation,
-        },
+        left: left.iter().map(mk).collect(),
+        right: right.iter().map(mk).collect(),
+        geometry: WheelGeometry { radius, separation },
     })
+}
+
+/// Splits automatically found wheels into (left, right) by the side of the root frame's x axis
+/// their joint origins lie on, each side sorted front to back. Errors name the joints.
+#[allow(clippy::type_complexity)]
+fn group_sides(
+    wheels: &[WheelCandidate],
+    joints: &[RobotJoint],
+    werr: &dyn Fn(String) -> RobotError,
+) -> Result<(Vec<WheelCandidate>, Vec<WheelCandidate>), RobotError> {
+    let describe = |side: &[WheelCandidate]| {
+        side.iter()
+            .map(|w| format!("`{}` (y = {:+.4} m)", joints[w.joint].name, w.position.y))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let centre: Vec<WheelCandidate> = wheels
+        .iter()
+        .copied()
+        .filter(|w| w.position.y.abs() < CENTRE_LINE_TOLERANCE)
+        .collect();
+    if !centre.is_empty() {
+        return Err(werr(format!(
+            "ambiguous wheel layout: {} on the robot's centre line (|y| < {} m), so neither \
+             left nor right; name the two drive wheel joints explicitly",
+            describe(&centre),
+            CENTRE_LINE_TOLERANCE
+        )));
+    }
+    let front_to_back = |mut v: Vec<WheelCandidate>| {
+        v.sort_by(|a, b| b.position.x.total_cmp(&a.position.x));
+        v
+    };
+    let left = front_to_back(
+        wheels
+            .iter()
+            .copied()
+            .filter(|w| w.position.y > 0.0)
+            .collect(),
+    );
+    let right = front_to_back(
+        wheels
+            .iter()
+            .copied()
+            .filter(|w| w.position.y < 0.0)
+            .collect(),
+    );
+    if left.len() != right.len() || left.is_empty() {
+        return Err(werr(format!(
+            "odd wheel layout: {} wheel(s) on the left [{}] and {} on the right [{}]; a \
+             differential drive needs one wheel per side and a skid-steer robot the same number \
+             on each side; name the two drive wheel joints explicitly if the others are passive",
+            left.len(),
+            describe(&left),
+            right.len(),
+            describe(&right)
+        )));
+    }
+    Ok((left, right))
 }
 
 fn derive_limits(
@@ -1190,7 +1339,7 @@ fn derive_limits(
     wheels: &DriveWheels,
 ) -> Result<DriveLimits, RobotError> {
     let mut w_max = f64::INFINITY;
-    for w in [&wheels.left, &wheels.right] {
+    for w in wheels.all() {
         let v = robot
             .joints
             .iter()

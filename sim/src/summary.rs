@@ -123,8 +123,15 @@ pub struct RunSummary {
     pub fail_closed: FailClosedCounts,
     /// The attacks of the world.
     pub attack_windows: Vec<AttackWindow>,
-    /// At least one attack lies outside the declared fault patterns.
+    /// The run is outside the declared fault model: at least one attack lies outside the
+    /// declared fault patterns, or the attacks together do
+    /// (`attacks_together_outside_fault_patterns`). No guarantee applies to such a run.
     pub attacks_outside_fault_patterns: bool,
+    /// The union of all attacked channels over the run lies in no single declared fault
+    /// pattern, although each attack alone may (e.g. `bias` on gnss2_y and `absurd` on
+    /// gnss2_x with patterns {gnss2_x} and {gnss2_y}): outside the single-fault model.
+    #[serde(default)]
+    pub attacks_together_outside_fault_patterns: bool,
     /// True planar state (p_x, p_y, v_x, v_y) at the end [m, m, m/s, m/s].
     pub final_state: [f64; 4],
 }

@@ -330,3 +330,61 @@ fn windows_active_and_fault_pattern_membership() {
     assert_eq!(stack.outside_fault_patterns(&resolved), vec![0]);
     assert_eq!(stack.targets(0), Some(&[0usize, 2][..]));
 }
+
+#[test]
+fn attacks_that_together_span_two_fault_patterns_are_outside_the_model() {
+    let suite = suite();
+    let single = |names: &[&str]| {
+        names
+            .iter()
+            .map(|n| FaultPatternSpec {
+                name: (*n).into(),
+                channels: vec![(*n).into()],
+            })
+            .collect::<Vec<_>>()
+    };
+    // Patterns {gnss2_x} and {gnss2_y}: each attack alone lies in one of them.
+    let patterns = suite
+        .resolve_patterns(&single(&["gnss2_x", "gnss2_y"]))
+        .unwrap();
+    let two = parse(
+        "[[attacks]]\nkind = \"bias\"\nchannels = [\"gnss2_y\"]\nvalue = 0.3\n\n\
+         [[attacks]]\nkind = \"absurd\"\nchannels = [\"gnss2_x\"]\nstart = 5.0\nvalue = 1e9\n",
+    )
+    .unwrap();
+    let stack = AttackStack::new(&two, &suite, 0).unwrap();
+    assert!(
+        stack.outside_fault_patterns(&patterns).is_empty(),
+        "each attack alone is inside"
+    );
+    assert!(
+        stack.union_outside_fault_patterns(&patterns),
+        "together they touch two patterns"
+    );
+    // Windows that never overlap still count: the pattern r is fixed for the whole run.
+    let apart = parse(
+        "[[attacks]]\nkind = \"bias\"\nchannels = [\"gnss2_y\"]\nstart = 0.0\nend = 2.0\nvalue = 0.3\n\n\
+         [[attacks]]\nkind = \"bias\"\nchannels = [\"gnss2_x\"]\nstart = 10.0\nend = 12.0\nvalue = 0.3\n",
+    )
+    .unwrap();
+    let stack = AttackStack::new(&apart, &suite, 0).unwrap();
+    assert!(stack.union_outside_fault_patterns(&patterns));
+    // With one pattern {gnss2_x, gnss2_y} the same attacks are inside the model.
+    let joint = suite
+        .resolve_patterns(&[FaultPatternSpec {
+            name: "gnss2".into(),
+            channels: vec!["gnss2_x".into(), "gnss2_y".into()],
+        }])
+        .unwrap();
+    assert!(!stack.union_outside_fault_patterns(&joint));
+    // Two attacks on the same channel, and no attack at all, are inside.
+    let same = parse(
+        "[[attacks]]\nkind = \"bias\"\nchannels = [\"gnss2_y\"]\nvalue = 0.3\n\n\
+         [[attacks]]\nkind = \"absurd\"\nchannels = [\"gnss2_y\"]\nstart = 5.0\nvalue = 1e9\n",
+    )
+    .unwrap();
+    let stack = AttackStack::new(&same, &suite, 0).unwrap();
+    assert!(!stack.union_outside_fault_patterns(&patterns));
+    let none = AttackStack::new(&[], &suite, 0).unwrap();
+    assert!(!none.union_outside_fault_patterns(&patterns));
+}

@@ -75,9 +75,9 @@ fn burger_geometry_limits_and_mass_come_from_its_urdf() {
         "separation {}",
         g.separation
     );
-    assert_eq!(r.wheels.left.joint_name, "wheel_left_joint");
-    assert_eq!(r.wheels.right.joint_name, "wheel_right_joint");
-    assert_eq!(r.wheels.left.forward_sign, 1.0);
+    assert_eq!(r.wheels.left[0].joint_name, "wheel_left_joint");
+    assert_eq!(r.wheels.right[0].joint_name, "wheel_right_joint");
+    assert_eq!(r.wheels.left[0].forward_sign, 1.0);
     assert!((r.limits.v_max - 0.22).abs() < 1e-9);
     assert!((r.limits.omega_max - 2.75).abs() < 1e-9);
     assert!(
@@ -110,7 +110,7 @@ fn burger_geometry_limits_and_mass_come_from_its_urdf() {
         r.centre_height
     );
     // Wheel joint frame: −π/2 roll puts the cylinder axis along +y.
-    let w = &r.bodies[r.wheels.left.body];
+    let w = &r.bodies[r.wheels.left[0].body];
     assert!(
         (w.pose_in_root.translation.vector - nalgebra::Vector3::new(0.0, 0.08, 0.033)).norm()
             < 1e-12
@@ -178,7 +178,7 @@ fn ros_style_file_loads_with_massless_frames_merged_and_meshes_resolved() {
     assert!((r.wheels.geometry.separation - 0.160).abs() < 1e-12);
     assert_eq!(r.limits, limits);
     // -1.57 instead of −π/2: the axis is still recognised as lateral.
-    assert_eq!(r.wheels.left.forward_sign, 1.0);
+    assert_eq!(r.wheels.left[0].forward_sign, 1.0);
     // Four visual meshes, none found: warnings, not errors.
     assert_eq!(r.warnings.len(), 4, "{:?}", r.warnings);
     assert!(r.warnings[0].contains("package://turtlebot3_description/meshes/bases/burger_base.stl"));
@@ -499,4 +499,298 @@ fn xacro_text_in_comments_and_processing_instructions_is_not_a_leftover() {
         msg.contains("${namespace}") && msg.contains("attribute `name`"),
         "{msg}"
     );
+}
+
+fn ros_ws_src() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ros_ws/src")
+}
+
+fn skid_urdf() -> PathBuf {
+    ros_ws_src().join("ftcbf_skid_description/urdf/skid4.urdf")
+}
+
+fn skid_opts() -> LoadOptions {
+    LoadOptions {
+        package_paths: vec![ros_ws_src()],
+        ..LoadOptions::default()
+    }
+}
+
+/// The skid-steer fixture's text with `edit` applied, loaded with the workspace search path
+/// (the file keeps its directory, so relative paths still resolve).
+fn load_skid_edited(edit: impl Fn(&str) -> String) -> Result<RobotDescription, RobotError> {
+    let text = std::fs::read_to_string(skid_urdf()).unwrap();
+    let edited = edit(&text);
+    assert_ne!(edited, text, "the edit must change the file");
+    static EDITS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = EDITS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = scratch(&format!("skid-edit-{n}"));
+    let path = dir.join("skid4.urdf");
+    std::fs::write(&path, edited).unwrap();
+    let r = RobotDescription::from_file(&path, &skid_opts());
+    let _ = std::fs::remove_dir_all(&dir);
+    r
+}
+
+#[test]
+fn skid_steer_ros_package_loads_grouped_by_side_with_a_collada_chassis() {
+    let r = RobotDescription::from_file(skid_urdf(), &skid_opts())
+        .unwrap_or_else(|e| panic!("the ROS-style skid-steer package must load: {e}"));
+    assert_eq!(r.name, "ftcbf_skid4");
+    let names = |ws: &[ftcbf_sim::robot::Wheel]| {
+        ws.iter().map(|w| w.joint_name.clone()).collect::<Vec<_>>()
+    };
+    assert!(r.wheels.is_skid_steer());
+    assert_eq!(
+        names(&r.wheels.left),
+        ["front_left_wheel_joint", "rear_left_wheel_joint"]
+    );
+    assert_eq!(
+        names(&r.wheels.right),
+        ["front_right_wheel_joint", "rear_right_wheel_joint"]
+    );
+    // Axis +y on every wheel: positive rotation rolls forward.
+    assert!(r.wheels.all().all(|w| w.forward_sign == 1.0));
+    assert!(r.wheels.all().all(|w| w.effort_limit == Some(3.0)));
+    let g = r.wheels.geometry;
+    assert!((g.radius - 0.05).abs() < 1e-12, "{g:?}");
+    assert!((g.separation - 0.26).abs() < 1e-12, "{g:?}");
+    // Limits from `<limit velocity="8">`: v = 0.05·8, ω = 2·0.4/0.26.
+    assert!((r.limits.v_max - 0.4).abs() < 1e-12);
+    assert!((r.limits.omega_max - 0.8 / 0.26).abs() < 1e-12);
+    // Every wheel grips the ground; the chassis does not.
+    for w in r.wheels.all() {
+        assert!(r.bodies[w.body].colliders.iter().all(|c| c.is_wheel));
+    }
+    assert!(r.bodies[0].colliders.iter().all(|c| !c.is_wheel));
+
+    // The Collada chassis: millimetres scaled by <unit meter="0.001">,
+    // eight corners welded from the triangles' corners, twelve triangles.
+    let chassis = r.bodies[0]
+        .colliders
+        .iter()
+        .find(|c| c.link == "base_link")
+        .expect("chassis collider");
+    let CollisionShape::Mesh { vertices, indices } = &chassis.shape else {
+        panic!("expected a mesh, got {:?}", chassis.shape)
+    };
+    assert_eq!((vertices.len(), indices.len()), (8, 12));
+    let range = |k: usize| {
+        vertices
+            .iter()
+            .map(|v| v[k])
+            .fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)))
+    };
+    for (k, (lo, hi)) in [(0, (-0.15, 0.15)), (1, (-0.10, 0.10)), (2, (-0.02, 0.08))] {
+        let (a, b) = range(k);
+        assert!(
+            (a - lo).abs() < 1e-6 && (b - hi).abs() < 1e-6,
+            "axis {k}: [{a}, {b}], expected [{lo}, {hi}]"
+        );
+    }
+    // base_link sits 5 cm above base_footprint (the root frame).
+    assert!((chassis.pose_in_body.translation.z - 0.05).abs() < 1e-12);
+
+    // The visual STL is not installed: a warning naming the file, not an error.
+    assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+    assert!(
+        r.warnings[0].contains("package://ftcbf_skid_description/meshes/chassis.stl")
+            && r.warnings[0].contains("not found"),
+        "{:?}",
+        r.warnings
+    );
+    let text = r.wheels.describe();
+    assert!(
+        text.starts_with("skid steer, 4 wheels")
+            && text.contains("left [`front_left_wheel_joint`, `rear_left_wheel_joint`]")
+            && text.contains("effective track width 0.2600 m"),
+        "{text}"
+    );
+    // And it builds into a physics world.
+    let w = ftcbf_sim::physics::PhysicsWorld::new(&r, Default::default(), &[], &Default::default());
+    assert!(w.is_ok());
+}
+
+#[test]
+fn missing_collada_collision_mesh_names_the_file_and_the_search_path() {
+    let elsewhere = std::env::temp_dir().join("ftcbf-no-such-workspace/src");
+    let opts = LoadOptions {
+        package_paths: vec![elsewhere.clone()],
+        ..LoadOptions::default()
+    };
+    let e = RobotDescription::from_file(skid_urdf(), &opts).unwrap_err();
+    assert!(matches!(e, RobotError::CollisionMesh { .. }), "{e:?}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("package://ftcbf_skid_description/meshes/chassis_collision.dae")
+            && msg.contains("`base_link`")
+            && msg.contains("not found")
+            && msg.contains(&elsewhere.display().to_string()),
+        "{msg}"
+    );
+}
+
+#[test]
+fn odd_or_ambiguous_wheel_layouts_are_errors_naming_the_joints() {
+    // Three wheels: the rear right one becomes a fixed (non-wheel) joint.
+    let e = load_skid_edited(|t| {
+        t.replace(
+            r#"<joint name="rear_right_wheel_joint" type="continuous">"#,
+            r#"<joint name="rear_right_wheel_joint" type="fixed">"#,
+        )
+    })
+    .unwrap_err();
+    assert!(matches!(e, RobotError::Wheels { .. }), "{e:?}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("odd wheel layout")
+            && msg.contains("2 wheel(s) on the left")
+            && msg.contains("`front_left_wheel_joint`")
+            && msg.contains("`rear_left_wheel_joint`")
+            && msg.contains("1 on the right [`front_right_wheel_joint`"),
+        "{msg}"
+    );
+    // A wheel on the centre line belongs to neither side.
+    let msg = load_skid_edited(|t| {
+        t.replace(
+            r#"<origin xyz="-0.10 -0.13 0""#,
+            r#"<origin xyz="-0.10 0 0""#,
+        )
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        msg.contains("ambiguous wheel layout")
+            && msg.contains("`rear_right_wheel_joint` (y = +0.0000 m)"),
+        "{msg}"
+    );
+    // Mixed radii are refused, naming two of the joints.
+    let msg = load_skid_edited(|t| {
+        t.replacen(
+            r#"<collision>
+      <origin xyz="0 0 0" rpy="1.570796 0 0"/>
+      <geometry><cylinder radius="0.05" length="0.04"/></geometry>"#,
+            r#"<collision>
+      <origin xyz="0 0 0" rpy="1.570796 0 0"/>
+      <geometry><cylinder radius="0.06" length="0.04"/></geometry>"#,
+            1,
+        )
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        msg.contains("different radii") && msg.contains("`front_left_wheel_joint` 0.06 m"),
+        "{msg}"
+    );
+    // Naming two of the four wheels makes a differential drive of them.
+    let opts = LoadOptions {
+        wheel_joints: Some((
+            "front_left_wheel_joint".into(),
+            "front_right_wheel_joint".into(),
+        )),
+        ..skid_opts()
+    };
+    let r = RobotDescription::from_file(skid_urdf(), &opts).unwrap();
+    assert!(!r.wheels.is_skid_steer());
+    assert!((r.wheels.geometry.separation - 0.26).abs() < 1e-12);
+    assert!(r
+        .wheels
+        .describe()
+        .starts_with("differential, left `front_left_wheel_joint`"));
+}
+
+#[test]
+fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute() {
+    // `${namespace}base_link` outside any comment, on the line of `<link name="base_link">`.
+    let text = std::fs::read_to_string(skid_urdf()).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.contains(r#"<link name="base_link">"#))
+        .unwrap()
+        + 1;
+    let e = load_skid_edited(|t| {
+        t.replace(
+            r#"<link name="base_link">"#,
+            r#"<link name="${namespace}base_link">"#,
+        )
+    })
+    .unwrap_err();
+    assert!(
+        matches!(&e, RobotError::Xacro { line: l, .. } if *l == line),
+        "{e:?} (expected line {line})"
+    );
+    let msg = e.to_string();
+    assert!(
+        msg.contains("${namespace}") && msg.contains("attribute `name`") && msg.contains("xacro"),
+        "{msg}"
+    );
+    // `<xacro:arg>` as an element, not inside the comment block.
+    let e = load_skid_edited(|t| {
+        t.replace(
+            "  <material name=\"dark_grey\">",
+            "  <xacro:arg name=\"namespace\" default=\"\"/>\n  <material name=\"dark_grey\">",
+        )
+    })
+    .unwrap_err();
+    let arg_line = text
+        .lines()
+        .position(|l| l.contains("<material name=\"dark_grey\">"))
+        .unwrap()
+        + 1;
+    assert!(
+        matches!(&e, RobotError::Xacro { line: l, snippet, .. } if *l == arg_line && snippet.starts_with("<xacro:arg")),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn stl_ascii_obj_and_collada_meshes_read_through_one_loader() {
+    let dir = scratch("formats");
+    let ascii = "solid tetra\n\
+        facet normal 0 0 -1\n outer loop\n  vertex 0 0 0\n  vertex 0 1 0\n  vertex 1 0 0\n endloop\nendfacet\n\
+        facet normal 0 -1 0\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 0 1\n endloop\nendfacet\n\
+        facet normal -1 0 0\n outer loop\n  vertex 0 0 0\n  vertex 0 0 1\n  vertex 0 1 0\n endloop\nendfacet\n\
+        facet normal 1 1 1\n outer loop\n  vertex 1 0 0\n  vertex 0 1 0\n  vertex 0 0 1\n endloop\nendfacet\n\
+        endsolid tetra\n";
+    std::fs::write(dir.join("tetra.stl"), ascii).unwrap();
+    let obj = "# a unit tetrahedron\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    std::fs::write(dir.join("tetra.obj"), obj).unwrap();
+    for name in ["tetra.stl", "tetra.obj"] {
+        let (v, i) = ftcbf_sim::robot::read_mesh(&dir.join(name)).unwrap();
+        assert_eq!((v.len(), i.len()), (4, 4), "{name}");
+        let max: f64 = v.iter().flatten().copied().fold(f64::MIN, f64::max);
+        assert!((max - 1.0).abs() < 1e-12, "{name}");
+    }
+    let dae = ros_ws_src().join("ftcbf_skid_description/meshes/chassis_collision.dae");
+    let (v, i) = ftcbf_sim::robot::read_mesh(&dae).unwrap();
+    assert_eq!((v.len(), i.len()), (8, 12));
+    // Not a mesh at all: a clear error, never a panic.
+    std::fs::write(dir.join("broken.dae"), "<COLLADA><library_geometries>").unwrap();
+    let e = ftcbf_sim::robot::read_mesh(&dir.join("broken.dae")).unwrap_err();
+    assert!(e.contains("not a readable"), "{e}");
+    std::fs::write(dir.join("empty.stl"), "solid nothing\nendsolid nothing\n").unwrap();
+    let e = ftcbf_sim::robot::read_mesh(&dir.join("empty.stl")).unwrap_err();
+    assert!(e.contains("no triangles"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn robotis_style_comments_in_a_plain_urdf_are_not_xacro() {
+    // The fixture carries a commented `<xacro:include … $(find …)>` and a multi-line comment of
+    // `<xacro:property>` lines, as the plain TurtleBot3 URDFs did.
+    let path = fixtures().join("turtlebot3_burger_ros.urdf");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("<!-- <xacro:include filename=\"$(find turtlebot3_description)"));
+    assert!(text.contains("<xacro:property name=\"r200_cam_depth_offset\" value=\"${"));
+    let opts = LoadOptions {
+        limits: Some(DriveLimits {
+            v_max: 0.22,
+            omega_max: 2.84,
+            wheel_speed_max: 0.22 / 0.033,
+        }),
+        ..LoadOptions::default()
+    };
+    let r = RobotDescription::from_file(&path, &opts).unwrap();
+    assert_eq!(r.name, "turtlebot3_burger");
+    assert!(!r.wheels.is_skid_steer());
 }

@@ -6,7 +6,7 @@ use anyhow::Context;
 
 use super::{
     figure, io, merge, run_sweep, table, BatchPlan, BatchResult, Execution, ParamOverride,
-    PreparedWorld, Shard, Sweep, CONFIDENCE,
+    PreparedWorld, Shard, Sweep, Verdict, CONFIDENCE,
 };
 
 /// Loads the world with the given overrides and returns its info and trial runner (wired by
@@ -33,7 +33,10 @@ CSV columns (one row per trial and controller): sweep_key, sweep_value, trial, s
 safe, collided, first_collision_t, first_collision_obstacle, first_violation_t,
 first_violation_set, first_violation_value, min_barrier, min_barrier_name, min_clearance,
 goal_reached, time_to_goal, step1, clf_relaxed, step2, step3, infeasible, control_steps,
-rejected_readings, duration, outside_fault_patterns (empty field = none).")]
+rejected_readings, duration, outside_fault_patterns (empty field = none).
+
+Exit codes: 0 done (and no verdict matched --fail-on); 4 a verdict matched --fail-on (the report
+and every --out file are still written); 2 invalid world file; 1 any other error.")]
 pub struct BatchArgs {
     /// World file (TOML).
     pub world: PathBuf,
@@ -65,6 +68,85 @@ pub struct BatchArgs {
     /// slices' JSON files with `ftcbf merge`.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
+    /// Exit with code 4 (after printing and writing everything) when a verdict is `refuted`
+    /// (--fail-on refuted), or anything but `supported` (--fail-on unresolved: refuted,
+    /// unresolved at this N, or no claim because the world sets no ε). Every controller and
+    /// sweep point is checked. For CI pipelines.
+    #[arg(long, value_enum, value_name = "LEVEL")]
+    pub fail_on: Option<FailOn>,
+}
+
+/// Which batch verdicts make `ftcbf batch --fail-on` fail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FailOn {
+    /// Fail when a verdict is `refuted` (the interval's upper bound is below 1 − ε).
+    Refuted,
+    /// Fail unless every verdict is `supported`.
+    Unresolved,
+}
+
+impl FailOn {
+    fn name(self) -> &'static str {
+        match self {
+            FailOn::Refuted => "refuted",
+            FailOn::Unresolved => "unresolved",
+        }
+    }
+
+    /// Whether `verdict` fails at this level.
+    pub fn fails(self, verdict: Verdict) -> bool {
+        match self {
+            FailOn::Refuted => verdict == Verdict::Refuted,
+            FailOn::Unresolved => verdict != Verdict::Supported,
+        }
+    }
+}
+
+/// Returned by [`batch_command`] (after the report and every output were written) when a
+/// verdict matched `--fail-on`; the CLI maps it to exit code 4.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerdictFailure {
+    /// The level asked for.
+    pub level: FailOn,
+    /// One line per failing verdict: world, sweep point, controller, verdict and interval.
+    pub failures: Vec<String>,
+}
+
+impl std::fmt::Display for VerdictFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} verdict(s) matched --fail-on {}: {}",
+            self.failures.len(),
+            self.level.name(),
+            self.failures.join("; ")
+        )
+    }
+}
+
+impl std::error::Error for VerdictFailure {}
+
+/// The verdicts of `results` that fail at `level`, described for the error message.
+pub fn failing_verdicts(results: &[BatchResult], level: FailOn) -> Vec<String> {
+    let mut out = Vec::new();
+    for res in results {
+        let point = res
+            .plan
+            .overrides
+            .iter()
+            .map(|o| format!(" at {}={}", o.key, o.value))
+            .collect::<String>();
+        for s in res.summaries.iter().filter(|s| level.fails(s.verdict)) {
+            let claim = s
+                .claimed_safety
+                .map_or(String::new(), |c| format!(" against the claim {c:.4}"));
+            out.push(format!(
+                "{}{point} {}: {} (Pr(safe) in [{:.4}, {:.4}]{claim}, {} trials)",
+                res.plan.world, s.controller, s.verdict, s.safe_ci.lower, s.safe_ci.upper, s.trials
+            ));
+        }
+    }
+    out
 }
 
 /// Combine the JSON files of a sharded batch into the result of the whole batch.
@@ -150,7 +232,17 @@ pub fn batch_command(args: &BatchArgs, prepare: &PrepareFn<'_>) -> anyhow::Resul
     {
         eprintln!("wrote {}", p.display());
     }
-    Ok(())
+    match args.fail_on {
+        Some(level) => {
+            let failures = failing_verdicts(&results, level);
+            if failures.is_empty() {
+                Ok(())
+            } else {
+                Err(VerdictFailure { level, failures }.into())
+            }
+        }
+        None => Ok(()),
+    }
 }
 
 /// `ftcbf merge`: merge, print the report on stdout, write the --out files.
@@ -292,6 +384,7 @@ mod tests {
             out: vec![dir.join(out)],
             sweep: Some("p=0.5,0.95".parse().expect("sweep")),
             shard: shard.map(|s| s.parse().expect("shard")),
+            fail_on: None,
         };
         let (full, text) = run_batch_args(&args(None, "full.json"), &prepare, false).expect("full");
         assert_eq!(full.len(), 2);
@@ -327,6 +420,78 @@ mod tests {
         gone.world = dir.join("missing.toml");
         let e = run_batch_args(&gone, &prepare, false).expect_err("missing");
         assert!(e.to_string().contains("missing.toml"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn fail_on_levels_and_exit_error() {
+        let Ok(Cmd::Batch(a)) = parse(&["batch", "w.toml", "--fail-on", "refuted"]) else {
+            panic!("--fail-on did not parse");
+        };
+        assert_eq!(a.fail_on, Some(FailOn::Refuted));
+        let e = parse(&["batch", "w.toml", "--fail-on", "sometimes"]).expect_err("bad level");
+        assert!(e.contains("refuted") && e.contains("unresolved"), "{e}");
+        for (v, refuted, unresolved) in [
+            (Verdict::Supported, false, false),
+            (Verdict::Refuted, true, true),
+            (Verdict::Unresolved, false, true),
+            (Verdict::NoClaim, false, true),
+        ] {
+            assert_eq!(FailOn::Refuted.fails(v), refuted, "{v}");
+            assert_eq!(FailOn::Unresolved.fails(v), unresolved, "{v}");
+        }
+
+        // ε = 0.1 claims 0.9; 200 trials at p = 0.99 (baseline 0.495) and p = 0.5.
+        let dir = scratch("fail-on");
+        let world = dir.join("w.toml");
+        std::fs::write(&world, "name = \"synthetic\"\n").expect("world file");
+        let prepare = |o: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
+            let p = o.first().map_or(0.99, |o| o.value);
+            Ok(PreparedWorld {
+                info: WorldInfo {
+                    name: "synthetic".into(),
+                    seed: 42,
+                    epsilon: Some(0.1),
+                },
+                runner: Box::new(Synthetic {
+                    p_safe: p,
+                    fail_seed: None,
+                }),
+            })
+        };
+        let mut args = BatchArgs {
+            world: world.clone(),
+            trials: 200,
+            jobs: Some(1),
+            seed: None,
+            controllers: vec!["ft-cbf-clf".into()],
+            out: vec![dir.join("r.json")],
+            sweep: None,
+            shard: None,
+            fail_on: Some(FailOn::Refuted),
+        };
+        batch_command(&args, &prepare).expect("p = 0.99 is not refuted");
+        args.controllers.push("baseline".into());
+        let e = batch_command(&args, &prepare).expect_err("baseline at 0.495 is refuted");
+        let f = e.downcast_ref::<VerdictFailure>().expect("typed failure");
+        assert_eq!(f.failures.len(), 1, "{f}");
+        assert!(
+            f.failures[0].starts_with("synthetic baseline: refuted"),
+            "{f}"
+        );
+        assert!(dir.join("r.json").is_file(), "outputs are written first");
+        // A sweep names its point.
+        args.sweep = Some("p=0.99,0.5".parse().expect("sweep"));
+        args.fail_on = Some(FailOn::Unresolved);
+        let e = batch_command(&args, &prepare).expect_err("p = 0.5 fails");
+        let f = e.downcast_ref::<VerdictFailure>().expect("typed failure");
+        assert!(
+            f.failures
+                .iter()
+                .any(|l| l.contains(" at p=0.5 ft-cbf-clf: refuted")),
+            "{f}"
+        );
+        assert!(e.to_string().contains("--fail-on unresolved"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -33,7 +33,10 @@ mod table;
 
 use ftcbf_sim::summary::RunSummary;
 
-pub use cli::{batch_command, merge_command, BatchArgs, MergeArgs, PrepareFn};
+pub use cli::{
+    batch_command, failing_verdicts, merge_command, BatchArgs, FailOn, MergeArgs, PrepareFn,
+    VerdictFailure,
+};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{BatchResult, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict};
@@ -159,6 +162,7 @@ pub(crate) mod testutil {
                 fail_closed: Default::default(),
                 attack_windows: Vec::new(),
                 attacks_outside_fault_patterns: false,
+                attacks_together_outside_fault_patterns: false,
                 final_state: [1.0, 2.0, 0.0, 0.0],
             })
         }

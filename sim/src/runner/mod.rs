@@ -169,6 +169,8 @@ pub struct Simulation<'w> {
     filters: Vec<String>,
     windows: Vec<(String, f64, Option<f64>)>,
     attack_windows: Vec<AttackWindow>,
+    /// The attacks together span more than one fault pattern.
+    attacks_together_outside: bool,
     y: Vec<f64>,
     fresh: Vec<bool>,
     monitor: Monitor,
@@ -245,6 +247,7 @@ impl<'w> Simulation<'w> {
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
+        let attacks_together_outside = attacks.union_outside_fault_patterns(&world.patterns);
         let monitor = Monitor::new(world, &setup);
         let view = StepView::new(
             file.sensors.len(),
@@ -269,6 +272,7 @@ impl<'w> Simulation<'w> {
             filters,
             windows,
             attack_windows,
+            attacks_together_outside,
             y: vec![0.0; q],
             fresh: vec![false; q],
             monitor,
@@ -451,10 +455,9 @@ impl<'w> Simulation<'w> {
             control_steps: self.k,
             rejected_readings: self.rejected,
             fail_closed: self.fail_closed,
-            attacks_outside_fault_patterns: self
-                .attack_windows
-                .iter()
-                .any(|w| w.outside_fault_patterns),
+            attacks_outside_fault_patterns: self.attacks_together_outside
+                || self.attack_windows.iter().any(|w| w.outside_fault_patterns),
+            attacks_together_outside_fault_patterns: self.attacks_together_outside,
             attack_windows: self.attack_windows.clone(),
             final_state: [end.x, end.y, end.vx, end.vy],
         }
