@@ -234,6 +234,8 @@ mod tests {
             rejected_readings: 0,
             attack_windows: Vec::new(),
             attacks_outside_fault_patterns: false,
+            attacks_together_outside_fault_patterns: false,
+            fail_closed: Default::default(),
             final_state: [0.0; 4],
         }
     }

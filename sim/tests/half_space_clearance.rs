@@ -118,7 +118,13 @@ fn pressing_into_a_half_space_wall_reports_the_real_penetration() {
             -std::f64::consts::FRAC_PI_2,
             1.0,
         ),
-        ("at 30°", [0.5, 0.0, 0.0], [-1.0, 0.0, 0.0], 0.5236, 1.0),
+        (
+            "at 30°",
+            [0.5, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            std::f64::consts::FRAC_PI_6,
+            1.0,
+        ),
         ("reversing", [-0.4, 0.0, 0.0], [1.0, 0.0, 0.0], 0.0, -1.0),
     ];
     for (label, p0, n, theta, dir) in cases {

@@ -194,12 +194,8 @@ impl Report {
         let _ = writeln!(s);
         let _ = writeln!(
             s,
-            "{:<8} {:>5} {:>7}  {:<44} {}",
-            "method",
-            "runs",
-            "unsafe",
-            "worst run: ρ (binding)",
-            "best attack on held-out seeds: mean ρ, unsafe"
+            "{:<8} {:>5} {:>7}  {:<44} best attack on held-out seeds: mean ρ, unsafe",
+            "method", "runs", "unsafe", "worst run: ρ (binding)"
         );
         for m in &self.methods {
             let b = m.best();
