@@ -5,51 +5,20 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::{Barrier, BarrierEval, HalfPlane};
-use ftcbf_controller::constraints::CbfRow;
 use ftcbf_controller::policy::{
-    resolve, BrakeReason, BrakeVelocity, ConstraintKind, DecisionRecord, DropReason, PolicyProblem,
-    PolicyScratch, QpOutcome, SafeAction, Stage, Step2Retained, Verdict, BRAKE_TIME_CONSTANT,
+    BrakeReason, BrakeVelocity, ConstraintKind, DecisionRecord, DropReason, QpOutcome, SafeAction,
+    Stage, Step2Retained, Verdict, BRAKE_TIME_CONSTANT,
 };
-use ftcbf_controller::qp::QpSolver;
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
 };
 use nalgebra::Matrix2;
 
-/// Ω as `Λu ≥ ω̄`.
-fn cbf(lx: f64, ly: f64, omega: f64) -> CbfRow {
-    CbfRow {
-        lambda: Input::new(lx, ly),
-        omega_bar: omega,
-        h: 0.0,
-        h_hat: 0.0,
-    }
-}
-
-/// Two units, one barrier each, no CLF, θ = ∞ (Step 2 drops nothing unless set).
-fn two_units(rows: [CbfRow; 2]) -> PolicyProblem {
-    let mut p = PolicyProblem::new(2, 1);
-    p.cbf[0] = rows[0];
-    p.cbf[1] = rows[1];
-    p.cbf_active = vec![true, true];
-    p.use_clf = false;
-    p
-}
-
-fn run(p: &PolicyProblem, limit: Option<Input>) -> (Input, QpOutcome, DecisionRecord) {
-    let mut qp = QpSolver::new(2, 2, Matrix2::identity(), 1e4, limit);
-    let mut s = PolicyScratch::new(2, 1);
-    let mut rec = DecisionRecord::with_capacity(4);
-    let (u, o) = resolve(p, &mut qp, &mut s, &mut rec);
-    (u, o, rec)
-}
+mod common;
+use common::{cbf, run, two_units, verdict};
 
 fn cbf_verdict(rec: &DecisionRecord, unit: usize) -> Verdict {
-    rec.decisions
-        .iter()
-        .find(|d| d.unit == unit && d.kind == ConstraintKind::Cbf { barrier: 0 })
-        .map(|d| d.verdict)
-        .expect("decision recorded")
+    verdict(rec, unit, ConstraintKind::Cbf { barrier: 0 })
 }
 
 /// Both single-drop estimates sit more than θ/2 from a drifting pair estimate: the pair test

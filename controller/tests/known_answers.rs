@@ -6,8 +6,7 @@ use std::sync::Arc;
 use ftcbf_controller::barrier::{Barrier, EllipsoidInside, EllipsoidOutside, HalfPlane};
 use ftcbf_controller::constraints::{CbfRow, ClfRow, HalfSpace};
 use ftcbf_controller::policy::{
-    resolve, ConstraintKind, DecisionRecord, DropReason, PolicyProblem, PolicyScratch, QpOutcome,
-    SafeAction, Stage, Verdict,
+    ConstraintKind, DropReason, PolicyProblem, QpOutcome, SafeAction, Stage, Verdict,
 };
 use ftcbf_controller::qp::{QpResult, QpSolver, RowMode};
 use ftcbf_controller::{
@@ -21,41 +20,14 @@ use rand_chacha::ChaCha8Rng;
 // Policy stages
 // ------------------------------------------------------------------------------------------
 
-/// Ω as `Λu ≥ ω̄`.
-fn cbf(lx: f64, ly: f64, omega: f64) -> CbfRow {
-    CbfRow {
-        lambda: Input::new(lx, ly),
-        omega_bar: omega,
-        h: 0.0,
-        h_hat: 0.0,
-    }
-}
+mod common;
+use common::{cbf, run, verdict};
 
-/// Two units, one barrier, no CLF unless set.
+/// Two units, one barrier, no CLF unless set; θ finite on the pair (10), ∞ on the diagonal.
 fn two_units(rows: [CbfRow; 2]) -> PolicyProblem {
-    let mut p = PolicyProblem::new(2, 1);
-    p.cbf[0] = rows[0];
-    p.cbf[1] = rows[1];
-    p.cbf_active = vec![true, true];
-    p.use_clf = false;
+    let mut p = common::two_units(rows);
     p.theta = vec![f64::INFINITY, 10.0, 10.0, f64::INFINITY];
     p
-}
-
-fn run(p: &PolicyProblem, limit: Option<Input>) -> (Input, QpOutcome, DecisionRecord) {
-    let mut qp = QpSolver::new(2, 2, Matrix2::identity(), 1e4, limit);
-    let mut s = PolicyScratch::new(2, 1);
-    let mut rec = DecisionRecord::with_capacity(4);
-    let (u, o) = resolve(p, &mut qp, &mut s, &mut rec);
-    (u, o, rec)
-}
-
-fn verdict(rec: &DecisionRecord, unit: usize, kind: ConstraintKind) -> Verdict {
-    rec.decisions
-        .iter()
-        .find(|d| d.unit == unit && d.kind == kind)
-        .map(|d| d.verdict)
-        .expect("decision recorded")
 }
 
 const OMEGA: ConstraintKind = ConstraintKind::Cbf { barrier: 0 };

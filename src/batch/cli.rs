@@ -356,25 +356,28 @@ mod tests {
         dir
     }
 
+    /// The synthetic world of these tests (ε = 0.1): safe with probability `p_default`, or the
+    /// first override's value under a sweep.
+    fn synthetic(o: &[ParamOverride], p_default: f64) -> anyhow::Result<PreparedWorld> {
+        Ok(PreparedWorld {
+            info: WorldInfo {
+                name: "synthetic".into(),
+                seed: 42,
+                epsilon: Some(0.1),
+            },
+            runner: Box::new(Synthetic {
+                p_safe: o.first().map_or(p_default, |o| o.value),
+                fail_seed: None,
+            }),
+        })
+    }
+
     #[test]
     fn batch_then_merge_through_files() {
         let dir = scratch("files");
         let world = dir.join("w.toml");
         std::fs::write(&world, "name = \"synthetic\"\n").expect("world file");
-        let prepare = |o: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
-            let p = o.first().map_or(0.9, |o| o.value);
-            Ok(PreparedWorld {
-                info: WorldInfo {
-                    name: "synthetic".into(),
-                    seed: 42,
-                    epsilon: Some(0.1),
-                },
-                runner: Box::new(Synthetic {
-                    p_safe: p,
-                    fail_seed: None,
-                }),
-            })
-        };
+        let prepare = |o: &[ParamOverride]| synthetic(o, 0.9);
         let args = |shard: Option<&str>, out: &str| BatchArgs {
             world: world.clone(),
             trials: 30,
@@ -445,20 +448,7 @@ mod tests {
         let dir = scratch("fail-on");
         let world = dir.join("w.toml");
         std::fs::write(&world, "name = \"synthetic\"\n").expect("world file");
-        let prepare = |o: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
-            let p = o.first().map_or(0.99, |o| o.value);
-            Ok(PreparedWorld {
-                info: WorldInfo {
-                    name: "synthetic".into(),
-                    seed: 42,
-                    epsilon: Some(0.1),
-                },
-                runner: Box::new(Synthetic {
-                    p_safe: p,
-                    fail_seed: None,
-                }),
-            })
-        };
+        let prepare = |o: &[ParamOverride]| synthetic(o, 0.99);
         let mut args = BatchArgs {
             world: world.clone(),
             trials: 200,
