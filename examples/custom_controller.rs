@@ -149,6 +149,7 @@ fn main() -> anyhow::Result<()> {
         world: world.name.clone(),
         world_file: path.display().to_string(),
         world_digest: String::new(),
+        theorem3: None,
         overrides: Vec::new(),
         trials,
         base_seed: world.file.seed,

@@ -32,9 +32,18 @@ pub enum Command {
         after_help = "Examples:\n  ftcbf run worlds/paper_turtlebot.toml                 # writes runs/paper_turtlebot.rrd\n  ftcbf run worlds/paper_linear.toml --controller baseline --no-record\n  ftcbf run worlds/corridor_spoof.toml --seed 7 --json > summary.json\n\nOpen the recording with the rerun viewer:  rerun runs/paper_turtlebot.rrd"
     )]
     Run(RunArgs),
-    /// Validate a world and print the controller's derived parameters and the paper's sufficient
-    /// conditions (Lemma 1, Prop. 1, Thm. 5) for it, without simulating.
-    #[command(after_help = "Example:\n  ftcbf check worlds/elliptic_arena_drift.toml")]
+    /// Validate a world and check every hypothesis of the safety guarantee (Theorem 3) for it,
+    /// with the numbers, without simulating; ends with one verdict line.
+    ///
+    /// Checks disjoint fault patterns, invertible R̄ and detectability (PBH) of every single- and
+    /// pair-drop filter, what bounds γ_i and θ_ij, condition 1 (Lemma 1, Prop. 1, Thm. 5), that
+    /// the declared attacks stay inside one fault pattern, and whether the goal can be held.
+    /// Exits 0 after printing the report (also when the guarantee does not apply), 4 with
+    /// --strict when Theorem 3 does not apply, 2 when the world file is invalid, 1 on any other
+    /// error.
+    #[command(
+        after_help = "Examples:\n  ftcbf check worlds/corridor_spoof.toml\n  ftcbf check --strict worlds/paper_turtlebot.toml   # exit 4 when no guarantee applies"
+    )]
     Check(CheckArgs),
     /// Run every world that has an [expect] table over its regression seeds and print a
     /// pass/fail table; exits 3 if any case fails.
@@ -102,6 +111,9 @@ pub struct RunArgs {
 pub struct CheckArgs {
     /// The world file (TOML).
     pub world: PathBuf,
+    /// Exit with status 4 when Theorem 3 does not apply to the world (for CI).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// `ftcbf regress`

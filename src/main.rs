@@ -11,17 +11,14 @@ use anyhow::Context;
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use ftcbf_sim::check;
 use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
-use ftcbf_sim::ftcbf_controller::params::check_lemma1;
-use ftcbf_sim::ftcbf_controller::State;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::{controller_name, ellipse_prop1, ControlSetup};
+use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{
-    ControllerKindSpec, Dynamics, Override, Param, SafeSetSpec, World, WorldError,
-};
+use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
 
 use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
 
@@ -29,7 +26,8 @@ use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
 const EXIT_INVALID: u8 = 2;
 /// Exit code: a run did not meet its world's `[expect]`.
 const EXIT_EXPECTATION: u8 = 3;
-/// Exit code: a batch verdict matched `ftcbf batch --fail-on`.
+/// Exit code: a verdict failed: `check --strict` and Theorem 3 does not apply to the world, or a
+/// batch verdict matched `ftcbf batch --fail-on`.
 const EXIT_VERDICT: u8 = 4;
 
 /// An error with the exit code it maps to.
@@ -261,9 +259,17 @@ fn print_summary(s: &RunSummary) {
         println!("    min clearance to obstacles = {c:.4} m");
     }
     match s.time_to_goal {
-        Some(t) => println!("  goal:      reached at t = {t:.2} s"),
-        None => println!("  goal:      not reached"),
+        Some(t) => println!("  goal:      entered at t = {t:.2} s"),
+        None => println!("  goal:      not entered"),
     }
+    println!(
+        "  settled:   {} (inside the goal over the last {} s); final distance {:.4} m, V(x) = {}",
+        if s.goal_settled { "yes" } else { "no" },
+        ftcbf_sim::summary::SETTLE_WINDOW,
+        s.final_goal_distance,
+        s.final_clf_value
+            .map_or("n/a".to_string(), |v| format!("{v:.5}"))
+    );
     let st = &s.steps;
     println!(
         "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
@@ -305,127 +311,31 @@ fn print_summary(s: &RunSummary) {
 
 fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
     let world = load(&a.world, &[])?;
-    let f = &world.file;
     println!("world {} ({})", world.name, world.path.display());
-    if let Some(d) = &f.description {
-        println!("  {d}");
+    let report = check::check_world(&world).context("controller setup")?;
+    println!("{report}");
+    if let Some(r) = &world.robot {
+        println!("drive: {}", r.wheels.describe());
     }
-    match f.dynamics {
-        Dynamics::Rapier => {
-            if let Some(r) = &world.robot {
-                println!(
-                    "  plant: {} in rapier3d, dt = {} s; wheel radius {:.4} m, separation {:.4} m, |v| ≤ {:.3} m/s, |ω| ≤ {:.3} rad/s, footprint radius {:.4} m",
-                    r.name,
-                    f.physics.dt,
-                    r.wheels.geometry.radius,
-                    r.wheels.geometry.separation,
-                    r.limits.v_max,
-                    r.limits.omega_max,
-                    r.footprint_radius
-                );
-                println!("  drive: {}", r.wheels.describe());
-                for w in &r.warnings {
-                    println!("  warning: {w}");
-                }
-            }
-        }
-        Dynamics::Linear => println!(
-            "  plant: linearised model (6.2), Euler–Maruyama dt = {} s",
-            f.linear.as_ref().map_or(0.0, |l| l.dt)
-        ),
-    }
-    println!(
-        "  control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
-        controller_name(f.control.controller),
-        f.control.rate_hz,
-        world.ticks_per_control,
-        f.duration,
-        f.seed
-    );
-    let names: Vec<&str> = f.sensors.iter().map(|s| s.name.as_str()).collect();
-    println!("  channels: {}", names.join(", "));
-    for (p, idx) in f.fault_patterns.iter().zip(&world.patterns) {
-        let ch: Vec<&str> = idx.iter().map(|&i| names[i]).collect();
-        println!("  fault pattern {} = {{{}}}", p.name, ch.join(", "));
-    }
-
-    let setup = ControlSetup::new(&world, f.control.controller).context("controller setup")?;
-    let p = &setup.params;
-    println!("parameters (§4.3):");
-    match &p.computed {
-        Some(c) => {
-            println!("  computed for ε = {} (\"auto\"):", p.epsilon);
-            for line in c.to_string().lines() {
-                println!("    {line}");
-            }
-        }
-        None => println!("  given in the world file"),
-    }
-    let fmt = |v: &[f64]| {
-        v.iter()
-            .map(|x| format!("{x:.6}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    println!(
-        "  in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}",
-        fmt(&p.gamma),
-        p.gamma_baseline,
-        fmt(&p.theta),
-        p.delta
-    );
-    for b in &setup.config.barriers {
-        let hb: Vec<String> = p
-            .gamma
-            .iter()
-            .map(|g| format!("{:.6}", b.h_bar(*g)))
-            .collect();
-        println!(
-            "  h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
-            b.name(),
-            hb.join(", "),
-            b.h_bar(p.gamma_baseline)
-        );
-    }
-
-    println!("sufficient conditions:");
-    let model = &setup.config.model;
-    for s in &f.safe_sets {
-        match s {
-            SafeSetSpec::HalfPlane { name, a, .. } => {
-                let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
-                println!("  {name} (half-plane): {v}");
-            }
-            SafeSetSpec::EllipseInside { name, lift, .. }
-            | SafeSetSpec::EllipseOutside { name, lift, .. } => {
-                // Evaluated on the barrier that runs (the lifted ellipse), not on the
-                // unlifted 4×4 ellipsoid: see ftcbf_sim::safe_sets and ftcbf_controller::conditions.
-                if let Some(v) = ellipse_prop1(&world, &setup, s) {
-                    println!(
-                        "  {name} ({} ellipse on the position, lifted H = h + k∇h·v with k = {lift} s, so Λ = k∇h(p); rank G = 2 < n = 4, so Prop. 1 as stated does not apply):",
-                        if v.inside { "inside of an" } else { "outside of an" }
-                    );
-                    println!("    {v}");
-                }
-            }
-        }
-    }
+    // Condition (4.4) decided exactly on every barrier that runs, at the start estimate.
+    let setup =
+        ControlSetup::new(&world, world.file.control.controller).context("controller setup")?;
     let start = [setup.config.x0];
     for (b, name) in setup.config.barriers.iter().zip(&setup.barrier_names) {
         println!(
-            "  {name} at the start estimate: {}",
-            condition_4_4(b.as_ref(), &model.g, &start)
+            "(4.4) for {name} at the start estimate: {}",
+            condition_4_4(b.as_ref(), &setup.config.model.g, &start)
         );
     }
-    for ob in &world.obstacles {
-        println!(
-            "  obstacle {} ({}): lifted signed distance H = d − margin + k∇d·v (a first-order velocity lift, not §4.2.1's construction), Λ = k∇d ≠ 0 outside the shape; h̄_γ = γ·L holds under the conditions in ftcbf_sim::obstacles",
-            ob.name,
-            ob.spec.shape.kind()
-        );
-    }
-    for (i, a) in f.attacks.iter().enumerate() {
-        println!("  attacks[{i}]: {}", a.display_label());
+    if a.strict && !report.verdict.applies {
+        return Err(Failure {
+            code: EXIT_VERDICT,
+            error: anyhow::anyhow!(
+                "{}: --strict: {}",
+                world.path.display(),
+                report.verdict.line()
+            ),
+        });
     }
     Ok(())
 }
@@ -495,6 +405,7 @@ fn prepare_batch(
             name: world.name.clone(),
             seed: world.file.seed,
             epsilon: auto.then_some(c.epsilon),
+            theorem3: check::check_world(&world).ok().map(|r| r.verdict.line()),
         };
         Ok(batch::PreparedWorld {
             info,

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{ftcbf, text};
+use common::{ftcbf, root, text};
 
 fn tmp(name: &str) -> PathBuf {
     common::tmp_in("cli", name)
@@ -90,9 +90,82 @@ fn check_prints_parameters_and_conditions() {
         "Lemma 1",
         "HOLDS",
         "fault pattern r2 = {y4_y}",
+        "verdict: Theorem 3 applies",
     ] {
         assert!(t.contains(needle), "missing {needle:?} in\n{t}");
     }
+}
+
+/// Two receivers as the fault patterns and no velocity sensor: the pair filter keeps no channel.
+const NO_POSITION_FIX: &str = r#"
+name = "two_receivers_no_odometry"
+duration = 10.0
+[robot]
+urdf = "URDF"
+start = { x = 1.0, y = 0.0, theta = 3.14159265 }
+[control]
+input_limit = 0.5
+[goal]
+center = [0.0, 0.0]
+radius = 0.1
+[[safe_sets]]
+kind = "half_plane"
+name = "floor"
+a = [0.0, 1.0, 0.0, 0.2]
+b = -0.05
+[[sensors]]
+name = "gnss1_x"
+measures = "x"
+noise_std = 0.02
+[[sensors]]
+name = "gnss1_y"
+measures = "y"
+noise_std = 0.02
+[[sensors]]
+name = "gnss2_x"
+measures = "x"
+noise_std = 0.02
+[[sensors]]
+name = "gnss2_y"
+measures = "y"
+noise_std = 0.02
+[[sensors]]
+name = "compass"
+measures = "heading"
+noise_std = 0.0
+[[fault_patterns]]
+name = "gnss1"
+channels = ["gnss1_x", "gnss1_y"]
+[[fault_patterns]]
+name = "gnss2"
+channels = ["gnss2_x", "gnss2_y"]
+"#;
+
+#[test]
+fn check_strict_refuses_a_pair_filter_without_any_fix() {
+    let urdf = root().join("robots").join("turtlebot3_burger.urdf");
+    let path = tmp("no_position_fix.toml");
+    std::fs::write(
+        &path,
+        NO_POSITION_FIX.replace("URDF", &urdf.to_string_lossy()),
+    )
+    .expect("fixture world");
+    let p = path.to_string_lossy().into_owned();
+    let lax = ftcbf(&["check", &p]);
+    let strict = ftcbf(&["check", "--strict", &p]);
+    assert_eq!(lax.status.code(), Some(0), "{}", text(&lax));
+    let t = text(&lax);
+    assert!(t.contains("verdict: Theorem 3 does NOT apply"), "{t}");
+    assert!(
+        t.contains("x̂_12 (drops gnss1 ∪ gnss2) keeps no channel at all"),
+        "{t}"
+    );
+    assert!(t.contains("no position and no velocity fix"), "{t}");
+    assert_eq!(strict.status.code(), Some(4), "{}", text(&strict));
+    assert!(text(&strict).contains("--strict"), "{}", text(&strict));
+    // A world where it applies passes --strict.
+    let ok = ftcbf(&["check", "--strict", "worlds/paper_turtlebot.toml"]);
+    assert_eq!(ok.status.code(), Some(0), "{}", text(&ok));
 }
 
 #[test]

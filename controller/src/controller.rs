@@ -9,9 +9,10 @@ use thiserror::Error;
 
 use crate::barrier::Barrier;
 use crate::constraints::{cbf_row, clf_row};
-use crate::estimator::EstimatorBank;
+use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
+use crate::params::{ThetaSchedule, STEP2_WINDOW};
 use crate::policy::{resolve, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
 use crate::qp::QpSolver;
 use crate::types::{Input, State, StateMatrix};
@@ -52,6 +53,16 @@ pub struct ControllerConfig {
     pub gamma_baseline: f64,
     /// θ_ij: one value for all pairs, or C(m,2) values in the order (0,1), (0,2), …, (1,2), …
     pub theta: Vec<f64>,
+    /// η_ij of Step 2's increment test (same layout as `theta`; empty: no increment test, the
+    /// paper's Step 2). See [`crate::policy`].
+    pub theta_increment: Vec<f64>,
+    /// W_ij of the increment test, the norm ‖z‖_W = √(zᵀ W z) in which η_ij is measured (same
+    /// layout as `theta_increment`; empty: the Euclidean norm, W = I). Each must be symmetric
+    /// positive semidefinite. See [`crate::params::increment_metric`].
+    pub increment_metric: Vec<StateMatrix>,
+    /// θ_ij(t), tighter than `theta` early in the run (see [`ThetaSchedule`]); None: θ_ij
+    /// throughout. Each entry must be finite, > 0 and at most the pair's θ_ij.
+    pub theta_schedule: Option<ThetaSchedule>,
     /// δ of X_t(δ): Ω is imposed when ĥ(x̂) < δ (may be +∞: always).
     pub delta: f64,
     /// Class-K gain κ of the CBF condition (`… ≥ −κ ĥ`); the paper uses 1.
@@ -159,6 +170,15 @@ pub struct Controller {
     pattern_of_channel: Vec<Option<usize>>,
     u: Input,
     output: ControlOutput,
+    /// Ring of the separations x̂_a − x̂_aj of the last `sep_window` steps (slot-major, each
+    /// slot `units²` entries), for the increments of Step 2.
+    sep_ring: Vec<State>,
+    sep_window: usize,
+    sep_head: usize,
+    last_dt: f64,
+    /// θ_ij(t) and the time since the first step (sum of the valid dt).
+    theta_schedule: Option<ThetaSchedule>,
+    elapsed: f64,
 }
 
 fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
@@ -216,6 +236,73 @@ impl Controller {
         }
         for &t in &cfg.theta {
             positive("theta", t)?;
+        }
+        if !(cfg.theta_increment.is_empty()
+            || cfg.theta_increment.len() == 1
+            || cfg.theta_increment.len() == pairs)
+        {
+            return Err(ConfigError::Length {
+                key: "theta_increment",
+                expected: format!("0, 1 or C(m,2) = {pairs}"),
+                got: cfg.theta_increment.len(),
+            });
+        }
+        for &t in &cfg.theta_increment {
+            positive("theta_increment", t)?;
+        }
+        if !(cfg.increment_metric.is_empty()
+            || cfg.increment_metric.len() == cfg.theta_increment.len())
+        {
+            return Err(ConfigError::Length {
+                key: "increment_metric",
+                expected: format!(
+                    "0 or as many as theta_increment ({})",
+                    cfg.theta_increment.len()
+                ),
+                got: cfg.increment_metric.len(),
+            });
+        }
+        for w in &cfg.increment_metric {
+            let symmetric = (w - w.transpose()).norm() <= 1e-9 * w.norm();
+            let least = if w.iter().all(|x| x.is_finite()) {
+                w.symmetric_eigenvalues().min()
+            } else {
+                f64::NAN
+            };
+            if !symmetric || least.is_nan() || least < -1e-9 * w.norm() {
+                return Err(ConfigError::BadValue {
+                    key: "increment_metric",
+                    value: least,
+                    expected: "finite, symmetric and positive semidefinite 4×4 matrices (value: the least eigenvalue)",
+                });
+            }
+        }
+        if let Some(sched) = &cfg.theta_schedule {
+            positive("theta_schedule.dt", sched.dt)?;
+            if sched.theta.len() != pairs || sched.theta.iter().any(Vec::is_empty) {
+                return Err(ConfigError::Length {
+                    key: "theta_schedule",
+                    expected: format!("C(m,2) = {pairs} non-empty rows"),
+                    got: sched.theta.len(),
+                });
+            }
+            for (idx, row) in sched.theta.iter().enumerate() {
+                let cap = if cfg.theta.len() == 1 {
+                    cfg.theta[0]
+                } else {
+                    cfg.theta.get(idx).copied().unwrap_or(f64::NAN)
+                };
+                for &t in row {
+                    positive("theta_schedule", t)?;
+                    if t > cap * (1.0 + 1e-12) {
+                        return Err(ConfigError::BadValue {
+                            key: "theta_schedule",
+                            value: t,
+                            expected: "at most the pair's theta (condition 1 is stated with theta)",
+                        });
+                    }
+                }
+            }
         }
         if cfg.delta.is_nan() || cfg.delta <= 0.0 {
             return Err(ConfigError::BadValue {
@@ -300,6 +387,16 @@ impl Controller {
                 } else {
                     cfg.theta[idx]
                 };
+                problem.theta_increment[i * units + j] = match cfg.theta_increment.len() {
+                    0 => f64::INFINITY,
+                    1 => cfg.theta_increment[0],
+                    _ => cfg.theta_increment[idx],
+                };
+                problem.increment_metric[i * units + j] = match cfg.increment_metric.len() {
+                    0 => StateMatrix::identity(),
+                    1 => cfg.increment_metric[0],
+                    _ => cfg.increment_metric[idx],
+                };
             }
         }
         let bank = EstimatorBank::new(cfg.model.clone(), &cfg.fault_patterns, cfg.x0, cfg.p0);
@@ -357,6 +454,12 @@ impl Controller {
             pattern_of_channel,
             u: Input::zeros(),
             output,
+            sep_ring: vec![State::zeros(); (RESIDUE_WINDOW_MAX_STEPS + 1) * units * units],
+            sep_window: 0,
+            sep_head: 0,
+            last_dt: 0.0,
+            theta_schedule: cfg.theta_schedule,
+            elapsed: 0.0,
         })
     }
 
@@ -425,6 +528,8 @@ impl Controller {
             }
         }
         rej.invalid_dt = !(dt.is_finite() && dt > 0.0);
+        self.last_dt = if rej.invalid_dt { 0.0 } else { dt };
+        self.elapsed += self.last_dt;
         if !rej.invalid_dt {
             // valid[k] implies k < y.len(): the filters only read valid channels.
             self.bank
@@ -508,6 +613,7 @@ impl Controller {
             self.problem.clf[i] = crow;
             self.problem.estimates[i] = *x;
             self.problem.residue_key[i] = f.residue_rank_key();
+            self.problem.residue_stat[i] = f.window_statistic();
             self.problem.flagged[i] = f.flagged();
         }
         if self.kind == ControllerKind::FtCbfClf {
@@ -518,7 +624,47 @@ impl Controller {
                     }
                 }
             }
+            if self.last_dt > 0.0 {
+                self.update_increments(m);
+            }
+            if let Some(sched) = &self.theta_schedule {
+                let mut pair = 0;
+                for i in 0..m {
+                    for j in (i + 1)..m {
+                        if let Some(t) = sched.at(pair, self.elapsed) {
+                            self.problem.theta[i * m + j] = t;
+                            self.problem.theta[j * m + i] = t;
+                        }
+                        pair += 1;
+                    }
+                }
+            }
         }
+    }
+
+    /// Step 2's increments Δ(x̂_a − x̂_aj) over the last [`STEP2_WINDOW`] seconds (from the start,
+    /// where x̂_a = x̂_aj = x0, during the first window).
+    fn update_increments(&mut self, m: usize) {
+        let w = ((STEP2_WINDOW / self.last_dt).round() as usize).clamp(1, RESIDUE_WINDOW_MAX_STEPS);
+        let n = m * m;
+        if w != self.sep_window {
+            self.sep_ring.iter_mut().for_each(|s| *s = State::zeros());
+            self.sep_window = w;
+            self.sep_head = 0;
+        }
+        let slot = self.sep_head * n;
+        for a in 0..m {
+            for j in 0..m {
+                if a == j {
+                    continue;
+                }
+                let s = self.problem.estimates[a] - self.problem.pair_estimates[a * m + j];
+                let k = a * m + j;
+                self.problem.separation_increment[k] = s - self.sep_ring[slot + k];
+                self.sep_ring[slot + k] = s;
+            }
+        }
+        self.sep_head = (self.sep_head + 1) % w;
     }
 }
 

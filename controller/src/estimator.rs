@@ -18,6 +18,16 @@
 //! number k of channels used makes filters with different channel counts comparable
 //! (≈ 1 for a healthy filter). An open-loop filter (no channel) has residue 0.
 //!
+//! **Windowed χ² test** (the Step-3 ranking key, [`KalmanFilter::residue_rank_key`]): the sum
+//! S of the normalised innovations squared e_k²/S_k over the last [`RESIDUE_WINDOW`] seconds
+//! (at most [`RESIDUE_WINDOW_MAX_STEPS`] steps) is χ²-distributed with k = the number of scalar
+//! innovations in the window when the filter's channels are honest and its model right. The
+//! key is its Wilson–Hilferty normal score `z = ((S/k)^⅓ − (1 − 2/(9k))) / √(2/(9k))`, ≈ N(0,1)
+//! for an honest filter whatever k is, so filters with different channel counts compare; its
+//! false-alarm rate is `Pr(z > z_α) ≈ α` ([`KalmanFilter::window_p_value`] gives the exact χ²
+//! upper tail). A spoofed channel that the filter partly absorbs still leaves a run of
+//! one-signed innovations that one step hides and a window accumulates.
+//!
 //! **Gain terms for the CBF/CLF constraints.** Eq. 4.3 uses the continuous-time gain K with
 //! `dx̂ = … + K(dy − c x̂ dt)`. Its sampled-data equivalents, exposed per filter, are
 //! `K c̄ ≈ P⁺ c̄ᵀ R⁻¹ c̄ / dt` ([`KalmanFilter::gain_drift`], the drift of x̂ per unit of
@@ -29,7 +39,23 @@
 use nalgebra::RowVector4;
 
 use crate::model::{Discretization, LinearModel};
+use crate::params::chi_square_cdf;
 use crate::types::{Input, State, StateMatrix};
+
+/// Length of the window of the χ² innovation test [s].
+pub const RESIDUE_WINDOW: f64 = 1.0;
+/// Largest number of control steps in the window (the buffer is allocated once).
+pub const RESIDUE_WINDOW_MAX_STEPS: usize = 512;
+
+/// Wilson–Hilferty normal score of a χ²_k statistic `s` (−∞ for k = 0: no evidence).
+pub fn chi_square_z(s: f64, k: u32) -> f64 {
+    if k == 0 {
+        return f64::NEG_INFINITY;
+    }
+    let k = k as f64;
+    let v = 2.0 / (9.0 * k);
+    ((s / k).max(0.0).cbrt() - (1.0 - v)) / v.sqrt()
+}
 
 /// What a filter drops.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,6 +86,12 @@ pub struct KalmanFilter {
     flagged: bool,
     gain_drift: StateMatrix,
     gain_diffusion: StateMatrix,
+    /// Ring buffer of (Σ e²/S, count) per step, the last `win_len` steps.
+    win: Vec<(f64, u32)>,
+    win_head: usize,
+    win_len: usize,
+    win_nis: f64,
+    win_dof: u32,
 }
 
 impl KalmanFilter {
@@ -89,6 +121,11 @@ impl KalmanFilter {
             flagged: false,
             gain_drift: StateMatrix::zeros(),
             gain_diffusion: StateMatrix::zeros(),
+            win: Vec::with_capacity(RESIDUE_WINDOW_MAX_STEPS),
+            win_head: 0,
+            win_len: 0,
+            win_nis: 0.0,
+            win_dof: 0,
         }
     }
 
@@ -147,12 +184,26 @@ impl KalmanFilter {
     pub fn flagged(&self) -> bool {
         self.flagged
     }
-    /// Ranking key of Step 3: `+∞` when flagged, else the residue norm.
+    /// Ranking key of Step 3: `+∞` when flagged, else the normal score of the windowed χ²
+    /// test (see module docs; −∞ before any innovation).
     pub fn residue_rank_key(&self) -> f64 {
         if self.flagged {
             f64::INFINITY
         } else {
-            self.residue_norm
+            chi_square_z(self.win_nis, self.win_dof)
+        }
+    }
+    /// The windowed χ² statistic: (S = Σ e²/S_k over the window, its degrees of freedom).
+    pub fn window_statistic(&self) -> (f64, u32) {
+        (self.win_nis, self.win_dof)
+    }
+    /// Exact upper-tail probability of the windowed statistic under an honest filter,
+    /// `Pr(χ²_k ≥ S)` (1 before any innovation).
+    pub fn window_p_value(&self) -> f64 {
+        if self.win_dof == 0 {
+            1.0
+        } else {
+            1.0 - chi_square_cdf(self.win_dof, self.win_nis)
         }
     }
     /// Continuous-time-equivalent `K c̄` (see module docs).
@@ -177,6 +228,33 @@ impl KalmanFilter {
         self.flagged = false;
         self.gain_drift = StateMatrix::zeros();
         self.gain_diffusion = StateMatrix::zeros();
+        self.win.clear();
+        self.win_head = 0;
+        self.win_len = 0;
+        self.win_nis = 0.0;
+        self.win_dof = 0;
+    }
+
+    /// Push one step's (Σ e²/S, count) into the window of `RESIDUE_WINDOW / dt` steps and
+    /// re-sum it (a fresh sum each step: no drift of a running total).
+    fn push_window(&mut self, nis: f64, count: usize, dt: f64) {
+        let want = if dt > 0.0 {
+            ((RESIDUE_WINDOW / dt).round() as usize).clamp(1, RESIDUE_WINDOW_MAX_STEPS)
+        } else {
+            1
+        };
+        if want != self.win_len {
+            // First step, or a changed period: restart the window.
+            self.win.clear();
+            self.win.resize(want, (0.0, 0));
+            self.win_len = want;
+            self.win_head = 0;
+        }
+        let nis = if nis.is_finite() { nis } else { 0.0 };
+        self.win[self.win_head] = (nis, count as u32);
+        self.win_head = (self.win_head + 1) % self.win_len;
+        self.win_nis = self.win.iter().map(|w| w.0).sum();
+        self.win_dof = self.win.iter().map(|w| w.1).sum();
     }
 
     /// Time update over one period with input `u` held.
@@ -240,6 +318,7 @@ impl KalmanFilter {
             info += c.transpose() * c / r;
         }
         self.updated = count;
+        self.push_window(nis, count, dt);
         self.residue_norm = if count > 0 {
             (nis / count as f64).sqrt()
         } else {

@@ -181,6 +181,122 @@ pub fn observable(model: &LinearModel, uses: &[bool], phi: &StateMatrix) -> bool
     max > 0.0 && sv.iter().filter(|&&v| v > 1e-9 * max).count() == 4
 }
 
+/// Names of the state coordinates (p_x, p_y, v_x, v_y), for reports.
+pub const STATE_NAMES: [&str; 4] = ["x position", "y position", "x velocity", "y velocity"];
+
+/// Detectability of (F, C̄) for one channel subset (the PBH test) and its unobservable subspace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Detectability {
+    /// Whether (F, C̄) is detectable: `rank [λI − F; C̄] = n` for every eigenvalue λ of F with
+    /// Re λ ≥ 0.
+    pub detectable: bool,
+    /// The eigenvalues (re, im) of F with Re λ ≥ 0 at which the PBH rank test fails.
+    pub failing_eigenvalues: Vec<(f64, f64)>,
+    /// Dimension of the unobservable subspace (kernel of [C̄; C̄F; C̄F²; C̄F³]).
+    pub unobservable_dim: usize,
+    /// The unobservable subspace in state terms: coordinate names when it is spanned by
+    /// coordinate axes (e.g. "x position"), else its basis vectors written out.
+    pub unobservable: Vec<String>,
+    /// An orthonormal basis of the unobservable subspace.
+    pub unobservable_basis: Vec<State>,
+}
+
+/// The PBH detectability test of (F, C̄), C̄ = the rows of the channels where `uses[k]`
+/// (continuous-time F; for the double integrator every eigenvalue is 0, so detectable =
+/// observable). Rank decisions use singular values above 1e-9 of the largest (and 1e-12
+/// absolute).
+pub fn detectability(model: &LinearModel, uses: &[bool]) -> Detectability {
+    use nalgebra::{Complex, DMatrix};
+    let rows: Vec<RowVector4<f64>> = (0..model.channels())
+        .filter(|&k| uses.get(k).copied().unwrap_or(false))
+        .map(|k| model.c[k])
+        .collect();
+    let rank = |sv: &nalgebra::DVector<f64>| {
+        let max = sv.max();
+        sv.iter().filter(|&&v| v > 1e-12 && v > 1e-9 * max).count()
+    };
+    // PBH at each eigenvalue with Re λ ≥ 0.
+    let mut failing = Vec::new();
+    let eig = model.f.complex_eigenvalues();
+    let mut seen: Vec<Complex<f64>> = Vec::new();
+    for lam in eig.iter() {
+        if lam.re < -1e-12 || seen.iter().any(|s| (s - lam).norm() < 1e-9) {
+            continue;
+        }
+        seen.push(*lam);
+        let mut m = DMatrix::<Complex<f64>>::zeros(4 + rows.len(), 4);
+        for r in 0..4 {
+            for c in 0..4 {
+                let id = if r == c { *lam } else { Complex::new(0.0, 0.0) };
+                m[(r, c)] = id - Complex::new(model.f[(r, c)], 0.0);
+            }
+        }
+        for (k, row) in rows.iter().enumerate() {
+            for c in 0..4 {
+                m[(4 + k, c)] = Complex::new(row[c], 0.0);
+            }
+        }
+        if rank(&m.singular_values()) < 4 {
+            failing.push((lam.re, lam.im));
+        }
+    }
+    // Unobservable subspace.
+    let mut o = DMatrix::<f64>::zeros(4 * rows.len().max(1), 4);
+    let mut power = StateMatrix::identity();
+    for blk in 0..4 {
+        for (r, c) in rows.iter().enumerate() {
+            o.row_mut(blk * rows.len() + r).copy_from(&(c * power));
+        }
+        power *= model.f;
+    }
+    let unobservable_dim = if rows.is_empty() {
+        4
+    } else {
+        4 - rank(&o.singular_values())
+    };
+    let scale = o.amax().max(1.0);
+    let named: Vec<String> = (0..4)
+        .filter(|&k| o.column(k).amax() <= 1e-12 * scale)
+        .map(|k| STATE_NAMES[k].to_string())
+        .collect();
+    // A basis of the kernel: right singular vectors of the smallest singular values.
+    let svd = o.clone().svd(false, true);
+    let vt = svd.v_t.unwrap_or_else(|| DMatrix::identity(4, 4));
+    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+    order.sort_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]));
+    let mut basis: Vec<State> = order
+        .into_iter()
+        .take(unobservable_dim)
+        .map(|i| State::new(vt[(i, 0)], vt[(i, 1)], vt[(i, 2)], vt[(i, 3)]))
+        .collect();
+    if rows.is_empty() {
+        basis = (0..4)
+            .map(|k| State::from_fn(|r, _| f64::from(r == k)))
+            .collect();
+    }
+    let unobservable = if named.len() == unobservable_dim {
+        named
+    } else {
+        // Not axis-aligned: write the basis out.
+        basis
+            .iter()
+            .map(|v| {
+                format!(
+                    "({:.3}·p_x + {:.3}·p_y + {:.3}·v_x + {:.3}·v_y)",
+                    v[0], v[1], v[2], v[3]
+                )
+            })
+            .collect()
+    };
+    Detectability {
+        detectable: failing.is_empty(),
+        failing_eigenvalues: failing,
+        unobservable_dim,
+        unobservable,
+        unobservable_basis: basis,
+    }
+}
+
 /// The posterior covariance with the largest λ̄ over `n` steps of the Riccati recursion started
 /// at `p0` (predict with Φ, Q_d at `dt`, then the sequential updates of the channels where
 /// `uses[k]`). For a channel set without a steady state (an open-loop or dead-reckoning
@@ -226,6 +342,20 @@ pub fn gamma_bound(p: &StateMatrix, eps: f64) -> f64 {
     (lmax * chi_square_quantile(4, 1.0 - eps)).sqrt()
 }
 
+/// How [`FtParameters`] bounds the estimation errors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoundMethod {
+    /// The paper's §4.3: γ from the steady-state covariance (a finite-horizon covariance from
+    /// P0 where no steady state exists), θ_ij/2 = max(γ_i, γ_j) + γ_ij (triangle inequality).
+    Paper,
+    /// Over the run's horizon from the declared P0: γ_i from the largest covariance filter i
+    /// reaches in `horizon_samples` steps (steady state included when it exists), and θ_ij from
+    /// the covariance of the solution separation, `Cov(x̂_i − x̂_ij) = P_ij − P_i` when fault
+    /// r_i occurs (both filters optimal for the same model, x̂_ij uses a subset of x̂_i's
+    /// channels): θ_ij/2 = max over i, j of `sqrt(λ̄(P_ij − P_i) χ²₄⁻¹(1 − ε'))`.
+    Horizon,
+}
+
 /// γ_i, γ_ij and θ_ij computed for a model, patterns, sampling period, ε and horizon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FtParameters {
@@ -237,6 +367,22 @@ pub struct FtParameters {
     pub gamma_pair: Vec<f64>,
     /// θ_ij in the same order.
     pub theta: Vec<f64>,
+    /// The §4.3 triangle bound 2(max(γ_i, γ_j) + γ_ij) in the same order (equal to `theta`
+    /// for [`BoundMethod::Paper`]).
+    pub theta_triangle: Vec<f64>,
+    /// η_ij of Step 2's increment test, same order: η_ij/2 bounds how far x̂_a and x̂_ij of a
+    /// fault-free a move apart over [`STEP2_WINDOW`] (empty for [`BoundMethod::Paper`]: the
+    /// paper's Step 2 has no increment test).
+    pub theta_increment: Vec<f64>,
+    /// W_ij of Step 2's increment test, same order: the increment is measured in the norm
+    /// ‖z‖_W = √(zᵀ W z), W = C̄⁻¹ for a fixed C̄ that covers every increment covariance of the
+    /// horizon up to the factor folded into η_ij (see [`increment_metric`]). Empty with `theta_increment`.
+    pub increment_metric: Vec<StateMatrix>,
+    /// θ_ij(t) over the horizon (the bound method only): the same quantile of the solution
+    /// separation's covariance at each step, not only at its worst. The pair filter's
+    /// dead-reckoned error grows over the run, so θ_ij(t) is much tighter early on; it never
+    /// exceeds `theta` (its last value), so condition 1 still holds with θ_ij.
+    pub theta_schedule: Option<ThetaSchedule>,
     /// Per-sample, per-event ε' = ε/(N m).
     pub eps_per_sample: f64,
     /// Riccati iterations per filter (singles, pairs, baseline).
@@ -244,11 +390,218 @@ pub struct FtParameters {
     /// Whether every Riccati recursion converged (false: a pair filter without a steady state,
     /// whose γ_ij then comes from its covariance over the horizon).
     pub all_converged: bool,
+    /// The method used.
+    pub method: BoundMethod,
+}
+
+/// θ_ij(t) of Step 2 as a table: `theta[pair][k]` holds after k + 1 steps of `dt` (pairs in
+/// the order of [`FtParameters::theta`]); non-decreasing in k, and held at its last value past
+/// the horizon.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThetaSchedule {
+    /// Step of the table [s].
+    pub dt: f64,
+    /// Per pair, θ_ij after each step.
+    pub theta: Vec<Vec<f64>>,
+}
+
+impl ThetaSchedule {
+    /// θ of pair `pair` after `elapsed` seconds (the first entry before the first step).
+    pub fn at(&self, pair: usize, elapsed: f64) -> Option<f64> {
+        let row = self.theta.get(pair)?;
+        let k = ((elapsed / self.dt).round().max(1.0) as usize - 1).min(row.len().checked_sub(1)?);
+        row.get(k).copied()
+    }
+}
+
+/// Length of the window of Step 2's increment test [s]: how far x̂_a and x̂_ij moved apart over
+/// the last second.
+pub const STEP2_WINDOW: f64 = 1.0;
+
+/// One filter's sequential update as a linear map of its prior error and the measurement noise:
+/// `e⁺ = A e⁻ + B v` (all channels where `uses[k]` fresh), with the posterior covariance.
+fn update_map(
+    model: &LinearModel,
+    uses: &[bool],
+    prior: &StateMatrix,
+) -> (StateMatrix, nalgebra::DMatrix<f64>, StateMatrix) {
+    let q = model.channels();
+    let mut a = StateMatrix::identity();
+    let mut b = nalgebra::DMatrix::<f64>::zeros(4, q);
+    let mut p = *prior;
+    for (k, &u) in uses.iter().enumerate() {
+        if !u || k >= q {
+            continue;
+        }
+        let c: RowVector4<f64> = model.c[k];
+        let pc = p * c.transpose();
+        let s = (c * pc)[0] + model.r[k];
+        let kg = pc / s;
+        let ikc = StateMatrix::identity() - kg * c;
+        a = ikc * a;
+        b = nalgebra::DMatrix::from_fn(4, q, |r, cc| {
+            (0..4).map(|m| ikc[(r, m)] * b[(m, cc)]).sum::<f64>()
+        });
+        for r in 0..4 {
+            b[(r, k)] += kg[r];
+        }
+        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
+        p = (p + p.transpose()) * 0.5;
+    }
+    (a, b, p)
+}
+
+/// Exact second moments of the solution separation `s = x̂_a − x̂_b` of two filters run on the
+/// same measurements from the same start (x̂_a(0) = x̂_b(0), error covariance `p0`), over `n`
+/// steps: the joint error (e_a, e_b) is a linear Gaussian process whose transition and noise
+/// follow from each filter's gains.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SeparationMoments {
+    /// The largest λ̄ over the horizon of `Cov(s_k)`.
+    pub worst_abs: f64,
+    /// λ̄(Cov(s_k)) for k = 1..=n.
+    pub absolute: Vec<f64>,
+    /// `Cov(s_k − s_{k−w})` for k = 1..=n (the increment over the last `w` steps; from the
+    /// start while k < w).
+    pub increments: Vec<StateMatrix>,
+}
+
+/// See [`SeparationMoments`].
+pub fn separation_moments(
+    model: &LinearModel,
+    uses_a: &[bool],
+    uses_b: &[bool],
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+    w: usize,
+) -> SeparationMoments {
+    type M8 = nalgebra::SMatrix<f64, 8, 8>;
+    let d = model.discretize(dt);
+    let q = model.channels();
+    let r = nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_vec(model.r.clone()));
+    let mut sigma = M8::zeros();
+    for (bi, bj) in [(0, 0), (0, 4), (4, 0), (4, 4)] {
+        sigma.fixed_view_mut::<4, 4>(bi, bj).copy_from(p0);
+    }
+    let (mut pa, mut pb) = (*p0, *p0);
+    let sep_cov = |s: &M8| -> StateMatrix {
+        let h = |i: usize, j: usize| s.fixed_view::<4, 4>(i, j).into_owned();
+        h(0, 0) + h(4, 4) - h(0, 4) - h(4, 0)
+    };
+    let lmax = |m: &StateMatrix| ((m + m.transpose()) * 0.5).symmetric_eigenvalues().max();
+    // Σ_{k−w..k}, and the product 𝒜_k ⋯ 𝒜_{k−w+1} of the last w transitions kept by a
+    // two-stack sliding-window product (amortised three 8×8 products per step): `back` holds
+    // the newer transitions with their running product `back_prod` (newest on the left),
+    // `front` the older ones, each with the product of itself and the newer ones in `front`
+    // (the oldest, next to leave, on top).
+    let w = w.max(1);
+    let mut sigmas: std::collections::VecDeque<M8> = std::collections::VecDeque::new();
+    let mut back: Vec<M8> = Vec::new();
+    let mut back_prod = M8::identity();
+    let mut front: Vec<M8> = Vec::new();
+    sigmas.push_back(sigma);
+    let mut worst_abs = 0.0f64;
+    let mut absolute = Vec::with_capacity(n);
+    let mut increments = Vec::with_capacity(n);
+    for _ in 0..n {
+        let prior_a = d.phi * pa * d.phi.transpose() + d.qd;
+        let prior_b = d.phi * pb * d.phi.transpose() + d.qd;
+        let (aa, ba, post_a) = update_map(model, uses_a, &prior_a);
+        let (ab, bb, post_b) = update_map(model, uses_b, &prior_b);
+        pa = post_a;
+        pb = post_b;
+        let mut t = M8::zeros();
+        t.fixed_view_mut::<4, 4>(0, 0).copy_from(&(aa * d.phi));
+        t.fixed_view_mut::<4, 4>(4, 4).copy_from(&(ab * d.phi));
+        // noise: −[A_a; A_b] w + [B_a; B_b] v
+        let mut aw = nalgebra::SMatrix::<f64, 8, 4>::zeros();
+        aw.fixed_view_mut::<4, 4>(0, 0).copy_from(&aa);
+        aw.fixed_view_mut::<4, 4>(4, 0).copy_from(&ab);
+        let mut bv = nalgebra::DMatrix::<f64>::zeros(8, q);
+        bv.view_mut((0, 0), (4, q)).copy_from(&ba);
+        bv.view_mut((4, 0), (4, q)).copy_from(&bb);
+        let nv = &bv * &r * bv.transpose();
+        let noise = aw * d.qd * aw.transpose() + M8::from_fn(|i, j| nv[(i, j)]);
+        sigma = t * sigma * t.transpose() + noise;
+        sigma = (sigma + sigma.transpose()) * 0.5;
+        back.push(t);
+        back_prod = t * back_prod;
+        sigmas.push_back(sigma);
+        if sigmas.len() > w + 1 {
+            sigmas.pop_front();
+            if front.is_empty() {
+                let mut acc = M8::identity();
+                for e in back.drain(..).rev() {
+                    acc *= e;
+                    front.push(acc);
+                }
+                back_prod = M8::identity();
+            }
+            front.pop();
+        }
+        let abs_k = lmax(&sep_cov(&sigma));
+        absolute.push(abs_k);
+        worst_abs = worst_abs.max(abs_k);
+        // Cov(z_k, z_{k−w}) = 𝒜_k ⋯ 𝒜_{k−w+1} Σ_{k−w}
+        let old = sigmas[0];
+        let prod = match front.last() {
+            Some(f) => back_prod * f,
+            None => back_prod,
+        };
+        let cross = prod * old;
+        let inc = sigma + old - cross - cross.transpose();
+        let c = sep_cov(&inc);
+        increments.push((c + c.transpose()) * 0.5);
+    }
+    SeparationMoments {
+        worst_abs,
+        absolute,
+        increments,
+    }
+}
+
+/// The fixed norm of Step 2's increment test for one pair, from the increment covariances of
+/// both single filters against the pair filter over the horizon (`a`, `b`, as
+/// [`SeparationMoments::increments`]): C̄ = C_a(k_a) + C_b(k_b) at the steps of largest trace
+/// (plus a ridge of 10⁻⁹ of its trace, so it is invertible), W = C̄⁻¹, and the factor
+/// c = max over both sequences of λ̄(L⁻¹ C_k L⁻ᵀ) (C̄ = L Lᵀ). Then C_k ≼ c C̄, so
+/// zᵀ W z ≤ c · zᵀ C_k⁻¹ z, and Pr(‖z‖²_W > c q) ≤ Pr(χ²₄ > q): η/2 = √(c q) keeps the false-alarm
+/// rate of every step of the horizon at most that of the χ²₄ quantile q. Returns (W, c).
+/// The covariance weighting is what makes the test sharp: the honest separation of two filters
+/// fed the same odometry barely moves in velocity, while a spoof drags the velocity estimate.
+pub fn increment_metric(a: &[StateMatrix], b: &[StateMatrix]) -> (StateMatrix, f64) {
+    let largest = |cs: &[StateMatrix]| {
+        cs.iter()
+            .copied()
+            .max_by(|x, y| x.trace().total_cmp(&y.trace()))
+            .unwrap_or_else(StateMatrix::zeros)
+    };
+    let mut bar = largest(a) + largest(b);
+    let ridge = 1e-9 * bar.trace().max(f64::MIN_POSITIVE);
+    bar += StateMatrix::identity() * ridge;
+    let Some(chol) = bar.cholesky() else {
+        return (
+            StateMatrix::identity(),
+            bar.symmetric_eigenvalues().max().max(0.0),
+        );
+    };
+    let l_inv = chol.l().try_inverse().unwrap_or_else(StateMatrix::identity);
+    let scale = a
+        .iter()
+        .chain(b)
+        .map(|c| {
+            let m = l_inv * c * l_inv.transpose();
+            ((m + m.transpose()) * 0.5).symmetric_eigenvalues().max()
+        })
+        .fold(0.0f64, f64::max);
+    (chol.inverse(), scale)
 }
 
 impl FtParameters {
     /// Compute for total failure probability `eps` over `horizon_samples` samples, for filters
-    /// started from a known state (P0 = 0). See [`FtParameters::compute_from`].
+    /// started from a known state (P0 = 0), by the paper's method. See
+    /// [`FtParameters::compute_with`].
     pub fn compute(
         model: &LinearModel,
         patterns: &[Vec<usize>],
@@ -256,21 +609,18 @@ impl FtParameters {
         eps: f64,
         horizon_samples: usize,
     ) -> Self {
-        Self::compute_from(
+        Self::compute_with(
             model,
             patterns,
             dt,
             eps,
             horizon_samples,
             &StateMatrix::zeros(),
+            BoundMethod::Paper,
         )
     }
 
-    /// Compute for total failure probability `eps` over `horizon_samples` samples. Filters with a
-    /// steady state use it (§4.3); a pair filter without one (its channels leave the position
-    /// unobservable, e.g. two GNSS patterns dropped leave only odometry) uses the largest
-    /// covariance it reaches within the horizon from `p0` ([`horizon_riccati`]), so θ_ij stays
-    /// finite and Step 2 can still decide.
+    /// [`FtParameters::compute_with`] by the paper's method ([`BoundMethod::Paper`]).
     pub fn compute_from(
         model: &LinearModel,
         patterns: &[Vec<usize>],
@@ -279,9 +629,41 @@ impl FtParameters {
         horizon_samples: usize,
         p0: &StateMatrix,
     ) -> Self {
+        Self::compute_with(
+            model,
+            patterns,
+            dt,
+            eps,
+            horizon_samples,
+            p0,
+            BoundMethod::Paper,
+        )
+    }
+
+    /// Compute for total failure probability `eps` over `horizon_samples` samples from the
+    /// initial covariance `p0`, by `method` (see [`BoundMethod`]). A filter without a steady
+    /// state (its channels leave a direction undetectable, e.g. two GNSS patterns dropped leave
+    /// only odometry) uses the largest covariance it reaches within the horizon from `p0`
+    /// ([`horizon_riccati`]), so γ and θ stay finite over the run.
+    pub fn compute_with(
+        model: &LinearModel,
+        patterns: &[Vec<usize>],
+        dt: f64,
+        eps: f64,
+        horizon_samples: usize,
+        p0: &StateMatrix,
+        method: BoundMethod,
+    ) -> Self {
         let q = model.channels();
         let m = patterns.len().max(1);
-        let eps1 = eps / (horizon_samples.max(1) as f64 * m as f64);
+        let n = horizon_samples.max(1);
+        // Events per sample for fault r_i: ‖x̂_i − x‖ > γ_i, and per other pattern j the
+        // absolute (and, for the horizon method, the increment) separation test.
+        let events = match method {
+            BoundMethod::Paper => m,
+            BoundMethod::Horizon => 2 * m - 1,
+        };
+        let eps1 = eps / (n as f64 * events as f64);
         let mask = |drop: &[&Vec<usize>]| {
             let mut u = vec![true; q];
             for p in drop {
@@ -293,46 +675,94 @@ impl FtParameters {
             }
             u
         };
+        let lmax = |p: &StateMatrix| ((p + p.transpose()) * 0.5).symmetric_eigenvalues().max();
         let mut iterations = Vec::new();
         let mut all_converged = true;
-        let mut gamma = Vec::new();
-        for p in patterns {
-            let s = steady_state_riccati(model, &mask(&[p]), dt);
+        // γ of one channel set: steady state (paper) or the worst of steady state and horizon.
+        let mut gamma_of = |uses: &[bool], iterations: &mut Vec<usize>| -> f64 {
+            let s = steady_state_riccati(model, uses, dt);
             iterations.push(s.iterations);
             all_converged &= s.converged;
-            gamma.push(gamma_bound(&s.posterior, eps1));
-        }
+            let horizon = || horizon_riccati(model, uses, dt, p0, n);
+            match (method, s.converged) {
+                (BoundMethod::Paper, true) => gamma_bound(&s.posterior, eps1),
+                (_, false) => gamma_bound(&horizon(), eps1),
+                (BoundMethod::Horizon, true) => {
+                    let h = horizon();
+                    let worst = if lmax(&h) > lmax(&s.posterior) {
+                        h
+                    } else {
+                        s.posterior
+                    };
+                    gamma_bound(&worst, eps1)
+                }
+            }
+        };
+        let gamma: Vec<f64> = patterns
+            .iter()
+            .map(|p| gamma_of(&mask(&[p]), &mut iterations))
+            .collect();
         let mut gamma_pair = Vec::new();
         let mut theta = Vec::new();
+        let mut theta_triangle = Vec::new();
+        let mut theta_increment = Vec::new();
+        let mut metrics = Vec::new();
+        let mut schedule = Vec::new();
+        let w = ((STEP2_WINDOW / dt).round() as usize).max(1);
         for i in 0..patterns.len() {
             for j in (i + 1)..patterns.len() {
-                let s = steady_state_riccati(model, &mask(&[&patterns[i], &patterns[j]]), dt);
-                iterations.push(s.iterations);
-                all_converged &= s.converged;
-                let gp = if s.converged {
-                    gamma_bound(&s.posterior, eps1)
-                } else {
-                    let pair = mask(&[&patterns[i], &patterns[j]]);
-                    gamma_bound(
-                        &horizon_riccati(model, &pair, dt, p0, horizon_samples),
-                        eps1,
-                    )
-                };
+                let pair = mask(&[&patterns[i], &patterns[j]]);
+                let gp = gamma_of(&pair, &mut iterations);
                 gamma_pair.push(gp);
-                theta.push(2.0 * (gamma[i].max(gamma[j]) + gp));
+                let tri = 2.0 * (gamma[i].max(gamma[j]) + gp);
+                theta_triangle.push(tri);
+                match method {
+                    BoundMethod::Paper => theta.push(tri),
+                    BoundMethod::Horizon => {
+                        let chi = chi_square_quantile(4, 1.0 - eps1);
+                        let si =
+                            separation_moments(model, &mask(&[&patterns[i]]), &pair, dt, p0, n, w);
+                        let sj =
+                            separation_moments(model, &mask(&[&patterns[j]]), &pair, dt, p0, n, w);
+                        theta.push(2.0 * (si.worst_abs.max(sj.worst_abs).max(0.0) * chi).sqrt());
+                        let mut running = 0.0f64;
+                        schedule.push(
+                            si.absolute
+                                .iter()
+                                .zip(&sj.absolute)
+                                .map(|(a, b)| {
+                                    running = running.max(*a).max(*b).max(0.0);
+                                    2.0 * (running * chi).sqrt()
+                                })
+                                .collect::<Vec<f64>>(),
+                        );
+                        let (metric, scale) = increment_metric(&si.increments, &sj.increments);
+                        theta_increment.push(2.0 * (scale * chi).sqrt());
+                        metrics.push(metric);
+                    }
+                }
             }
         }
-        let sb = steady_state_riccati(model, &vec![true; q], dt);
-        iterations.push(sb.iterations);
-        all_converged &= sb.converged;
+        let gamma_baseline = gamma_of(&vec![true; q], &mut iterations);
         Self {
             gamma,
-            gamma_baseline: gamma_bound(&sb.posterior, eps1),
+            gamma_baseline,
             gamma_pair,
             theta,
+            theta_triangle,
+            theta_increment,
+            increment_metric: metrics,
+            theta_schedule: match method {
+                BoundMethod::Paper => None,
+                BoundMethod::Horizon => Some(ThetaSchedule {
+                    dt,
+                    theta: schedule,
+                }),
+            },
             eps_per_sample: eps1,
             riccati_iterations: iterations,
             all_converged,
+            method,
         }
     }
 }
@@ -344,8 +774,23 @@ impl fmt::Display for FtParameters {
             writeln!(f, "gamma_{} = {:.6}", i + 1, g)?;
         }
         writeln!(f, "gamma_baseline = {:.6}", self.gamma_baseline)?;
-        for (k, (g, t)) in self.gamma_pair.iter().zip(&self.theta).enumerate() {
-            writeln!(f, "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6}")?;
+        for (k, ((g, t), tri)) in self
+            .gamma_pair
+            .iter()
+            .zip(&self.theta)
+            .zip(&self.theta_triangle)
+            .enumerate()
+        {
+            match self.method {
+                BoundMethod::Paper => {
+                    writeln!(f, "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6}")?
+                }
+                BoundMethod::Horizon => writeln!(
+                    f,
+                    "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6} (solution separation; the triangle bound of §4.3 would be {tri:.6}), eta_ij = {:.6} (separation increment over {STEP2_WINDOW} s, in the covariance-weighted norm ‖z‖_W)",
+                    self.theta_increment.get(k).copied().unwrap_or(f64::NAN)
+                )?,
+            }
         }
         write!(
             f,

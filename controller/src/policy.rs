@@ -9,7 +9,15 @@
 //! 1. **Step 1** — all Ω_i (units with ĥ_i < δ, per barrier) and all Υ_i (V(x̂_i) > V̄), hard.
 //! 2. **Step 2** — for each pair with ‖x̂_i − x̂_j‖ > θ_ij, drop unit i (resp. j), i.e. both
 //!    its Ω and Υ, if ‖x̂_i − x̂_ij‖ > θ_ij/2 (resp. for j). Resolve, hard. (Skipped for a
-//!    single unit; not re-solved when nothing was dropped.) Step 2 keeps the invariant of
+//!    single unit; not re-solved when nothing was dropped.) With increment thresholds η_ij
+//!    (finite [`PolicyProblem::theta_increment`]) the test uses the seminorm
+//!    S(z) = max(‖z(t)‖/(θ_ij/2), ‖z(t) − z(t − 1 s)‖_W/(η_ij/2)) of the estimate trajectories
+//!    (‖·‖_W the covariance-weighted norm of [`PolicyProblem::increment_metric`]):
+//!    the pair conflicts when S(x̂_i − x̂_j) > 2 and unit a goes when S(x̂_a − x̂_ij) > 1.
+//!    S is a seminorm (the max of two), so the triangle inequality of Theorem 3's case (iii)
+//!    holds for it, and S(x̂_j − x̂_k) ≤ 2 still implies ‖x̂_j − x̂_k‖ ≤ θ_jk for condition 1.
+//!    The increment sees a drifting spoof long before its offset reaches θ_ij/2.
+//!    Step 2 keeps the invariant of
 //!    Step 3: when its pair tests would drop **every** unit that has CBF rows, the one Step 3
 //!    would keep (smallest residue key, then lowest index) stays, and the record says so
 //!    ([`DecisionRecord::step2_retained`]) — otherwise the problem would have no barrier at
@@ -23,8 +31,9 @@
 //!    Theorem 3 that never happens to the fault-free filter, so Step 2 keeps the paper's
 //!    guarantee, and it is what removes the faulty filter's CLF (whose pull is the usual
 //!    reason Step 1 is infeasible under an attack).
-//! 4. **Step 3** — drop the unit with the largest residue (flagged units, i.e. with a
-//!    rejected reading, rank as +∞) among those that still have CBF rows, and resolve, until
+//! 4. **Step 3** — drop the unit with the largest residue key — the normal score of a windowed
+//!    χ² test of its normalised innovations over the last second, ≈ N(0, 1) for an honest
+//!    filter (flagged units, i.e. with a rejected reading, rank as +∞) among those that still have CBF rows, and resolve, until
 //!    feasible. The last unit with CBF rows is never dropped: dropping it would leave no
 //!    barrier at all.
 //! 5. **Fallback** (typed, reported, never silent) — if the CBF rows are still infeasible
@@ -61,7 +70,7 @@ use clarabel::solver::SolverStatus;
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
 use crate::feasibility::{check_half_spaces, Line};
 use crate::qp::{QpResult, QpSolver, RowMode};
-use crate::types::{Input, State};
+use crate::types::{Input, State, StateMatrix};
 
 /// Braking time constant of the last-resort action (s).
 pub const BRAKE_TIME_CONSTANT: f64 = 0.5;
@@ -114,12 +123,29 @@ pub enum DropReason {
         /// ‖x̂_i − x̂_ij‖ (compared with θ_ij/2).
         deviation_from_pair: f64,
     },
+    /// Step 2, increment test: ‖Δ(x̂_i − x̂_j)‖ > η_ij or ‖x̂_i − x̂_j‖ > θ_ij, and
+    /// ‖Δ(x̂_i − x̂_ij)‖ > η_ij/2 (Δ: change over the last second).
+    SeparationIncrement {
+        /// The other unit j.
+        other: usize,
+        /// ‖Δ(x̂_i − x̂_j)‖.
+        increment_distance: f64,
+        /// η_ij.
+        eta: f64,
+        /// ‖Δ(x̂_i − x̂_ij)‖ (compared with η_ij/2).
+        increment_from_pair: f64,
+    },
     /// Step 3: the largest residue among the units with CBF rows.
     LargestResidue {
-        /// Its ranking key (+∞ when flagged).
+        /// Its ranking key (+∞ when flagged): the normal score of the windowed χ² test of its
+        /// innovations (see [`crate::estimator`]).
         residue: f64,
         /// A reading of a channel it uses was rejected this step.
         flagged: bool,
+        /// The windowed statistic S = Σ e²/S_k behind the key.
+        window_chi2: f64,
+        /// Its degrees of freedom (scalar innovations in the window).
+        window_dof: u32,
     },
 }
 
@@ -313,8 +339,17 @@ pub struct PolicyProblem {
     pub pair_estimates: Vec<State>,
     /// θ_ij, index `i * units + j` (symmetric).
     pub theta: Vec<f64>,
+    /// η_ij of the increment test, index `i * units + j` (symmetric; +∞: no increment test).
+    pub theta_increment: Vec<f64>,
+    /// Δ(x̂_a − x̂_aj) over the Step-2 window, index `a * units + j`.
+    pub separation_increment: Vec<State>,
+    /// W of the increment test per ordered pair `i * units + j` (the norm ‖z‖_W = √(zᵀ W z) in
+    /// which `theta_increment` is measured; identity: Euclidean).
+    pub increment_metric: Vec<StateMatrix>,
     /// Step-3 ranking keys (+∞ when flagged).
     pub residue_key: Vec<f64>,
+    /// The windowed χ² statistic and its degrees of freedom behind each key (for the record).
+    pub residue_stat: Vec<(f64, u32)>,
     /// Flagged units.
     pub flagged: Vec<bool>,
     /// δ (for the record).
@@ -348,7 +383,11 @@ impl PolicyProblem {
             estimates: vec![State::zeros(); units],
             pair_estimates: vec![State::zeros(); units * units],
             theta: vec![f64::INFINITY; units * units],
+            theta_increment: vec![f64::INFINITY; units * units],
+            separation_increment: vec![State::zeros(); units * units],
+            increment_metric: vec![StateMatrix::identity(); units * units],
             residue_key: vec![0.0; units],
+            residue_stat: vec![(0.0, 0); units],
             flagged: vec![false; units],
             delta: f64::INFINITY,
             v_bar: 0.0,
@@ -495,26 +534,46 @@ pub fn resolve(
         for i in 0..p.units {
             for j in (i + 1)..p.units {
                 let theta = p.theta[i * p.units + j];
+                let eta = p.theta_increment[i * p.units + j];
                 let distance = (p.estimates[i] - p.estimates[j]).norm();
-                if distance.is_nan() || distance <= theta {
+                let inc_i = p.separation_increment[i * p.units + j];
+                let inc_j = p.separation_increment[j * p.units + i];
+                let metric = &p.increment_metric[i * p.units + j];
+                let w_norm = |z: State| (z.transpose() * metric * z)[0].max(0.0).sqrt();
+                let inc_distance = w_norm(inc_i - inc_j);
+                // S(z) = max(‖z‖/(θ/2), ‖Δz‖/(η/2)) is a seminorm: the pair conflicts when
+                // S(x̂_i − x̂_j) > 2, and unit a goes when S(x̂_a − x̂_ij) > 1.
+                let conflict = distance > theta || inc_distance > eta;
+                if !conflict {
                     continue;
                 }
                 let pair = p.pair_estimates[i * p.units + j];
-                for (a, other) in [(i, j), (j, i)] {
-                    let dev = (p.estimates[a] - pair).norm();
-                    if dev > theta / 2.0 && s.alive[a] {
-                        s.alive[a] = false;
-                        dropped_any = true;
-                        s.drop_reason[a] = Some((
-                            Stage::Step2,
-                            DropReason::PairwiseDeviation {
-                                other,
-                                distance,
-                                theta,
-                                deviation_from_pair: dev,
-                            },
-                        ));
+                for (a, other, inc) in [(i, j, inc_i), (j, i, inc_j)] {
+                    if !s.alive[a] {
+                        continue;
                     }
+                    let dev = (p.estimates[a] - pair).norm();
+                    let inc_dev = w_norm(inc);
+                    let reason = if dev > theta / 2.0 {
+                        DropReason::PairwiseDeviation {
+                            other,
+                            distance,
+                            theta,
+                            deviation_from_pair: dev,
+                        }
+                    } else if inc_dev > eta / 2.0 {
+                        DropReason::SeparationIncrement {
+                            other,
+                            increment_distance: inc_distance,
+                            eta,
+                            increment_from_pair: inc_dev,
+                        }
+                    } else {
+                        continue;
+                    };
+                    s.alive[a] = false;
+                    dropped_any = true;
+                    s.drop_reason[a] = Some((Stage::Step2, reason));
                 }
             }
         }
@@ -574,6 +633,8 @@ pub fn resolve(
                 DropReason::LargestResidue {
                     residue: p.residue_key[w],
                     flagged: p.flagged[w],
+                    window_chi2: p.residue_stat.get(w).map_or(f64::NAN, |s| s.0),
+                    window_dof: p.residue_stat.get(w).map_or(0, |s| s.1),
                 },
             ));
             collect(p, s);

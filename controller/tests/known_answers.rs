@@ -120,7 +120,9 @@ fn step3_drops_the_largest_residue() {
             stage: Stage::Step3,
             reason: DropReason::LargestResidue {
                 residue: 5.0,
-                flagged: false
+                flagged: false,
+                window_chi2: 0.0,
+                window_dof: 0,
             }
         }
     );
@@ -361,6 +363,9 @@ fn small_config() -> ControllerConfig {
         gamma: vec![0.001, 0.001],
         gamma_baseline: 0.001,
         theta: vec![0.045],
+        theta_increment: Vec::new(),
+        increment_metric: Vec::new(),
+        theta_schedule: None,
         delta: 1.0,
         cbf_gain: 1.0,
         clf: ClfConfig::paper(1.0),

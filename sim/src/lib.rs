@@ -8,6 +8,7 @@
 //! identity); SI units, angles in radians.
 
 pub mod attacks;
+pub mod check;
 pub mod drive;
 pub mod observe;
 pub mod obstacles;

@@ -236,6 +236,9 @@ mod tests {
             attacks_outside_fault_patterns: false,
             attacks_together_outside_fault_patterns: false,
             fail_closed: Default::default(),
+            goal_settled: t_goal.is_some(),
+            final_goal_distance: 0.0,
+            final_clf_value: None,
             final_state: [0.0; 4],
         }
     }

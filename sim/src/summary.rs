@@ -84,6 +84,9 @@ pub struct AttackWindow {
     pub outside_fault_patterns: bool,
 }
 
+/// Length of the final stretch of a run over which "settled in the goal" is judged [s].
+pub const SETTLE_WINDOW: f64 = 2.0;
+
 /// Everything one run measured. The same world + seed gives the same summary, bit for bit, on
 /// one machine and toolchain (the platform's libm is on the path; see the README).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -108,10 +111,20 @@ pub struct RunSummary {
     pub min_barrier: Vec<NamedValue>,
     /// Smallest true clearance robot–obstacle over the run [m] (`None` without obstacles).
     pub min_clearance: Option<f64>,
-    /// The goal set was entered.
+    /// The goal set was entered ("entered the goal": at least one plant tick inside it).
     pub goal_reached: bool,
     /// First time in the goal set [s].
     pub time_to_goal: Option<f64>,
+    /// "Settled in the goal": the true state was inside the goal set at every plant tick of the
+    /// last [`SETTLE_WINDOW`] seconds of the run (the whole run if it is shorter).
+    #[serde(default)]
+    pub goal_settled: bool,
+    /// Distance to the goal at the end, in the goal's metric (position, or full state) [m].
+    #[serde(default)]
+    pub final_goal_distance: f64,
+    /// The CLF V(x_true) at the end (eq. 6.6; `None` when the CLF could not be built).
+    #[serde(default)]
+    pub final_clf_value: Option<f64>,
     /// Which step of the policy decided, per control step.
     pub steps: StepCounts,
     /// Number of control steps.

@@ -13,7 +13,8 @@
 //! `first_violation_value` (h(x_true) then), `min_barrier` (smallest h(x_true) over all sets and
 //! obstacle barriers), `min_barrier_name`, `min_clearance` [m], `goal_reached`, `time_to_goal`
 //! [s], `step1, clf_relaxed, step2, step3, infeasible` (control steps decided by each policy
-//! step), `control_steps`, `rejected_readings`, `duration` [s], `outside_fault_patterns`.
+//! step), `control_steps`, `rejected_readings`, `duration` [s], `outside_fault_patterns`,
+//! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` [m].
 //! Fields containing `,`, `"` or a line break are quoted (RFC 4180).
 
 use std::fmt::Write as _;
@@ -112,7 +113,7 @@ pub const CSV_HEADER: &str =
     "sweep_key,sweep_value,trial,seed,controller,safe,collided,first_collision_t,\
 first_collision_obstacle,first_violation_t,first_violation_set,first_violation_value,min_barrier,\
 min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2,step3,infeasible,\
-control_steps,rejected_readings,duration,outside_fault_patterns";
+control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance";
 
 fn csv_text(out: &mut String, s: &str) {
     if s.contains([',', '"', '\n', '\r']) {
@@ -167,7 +168,7 @@ pub fn to_csv(results: &[BatchResult]) -> String {
             csv_text(&mut out, r.min_barrier_name.as_deref().unwrap_or(""));
             let _ = writeln!(
                 out,
-                ",{},{},{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 opt_f(r.min_clearance),
                 r.goal_reached,
                 opt_f(r.time_to_goal),
@@ -179,7 +180,9 @@ pub fn to_csv(results: &[BatchResult]) -> String {
                 r.control_steps,
                 r.rejected_readings,
                 float_text(r.duration),
-                r.outside_fault_patterns
+                r.outside_fault_patterns,
+                r.goal_settled,
+                float_text(r.final_goal_distance)
             );
         }
     }
@@ -351,6 +354,8 @@ mod tests {
             rejected_readings: u(23),
             duration: f[24].parse().expect("duration"),
             outside_fault_patterns: b(25),
+            goal_settled: b(26),
+            final_goal_distance: f[27].parse().expect("final_goal_distance"),
         }
     }
 
@@ -375,7 +380,7 @@ mod tests {
         assert_eq!(rows[0].join(","), CSV_HEADER);
         assert_eq!(rows.len(), 1 + res.records.len());
         for (row, rec) in rows[1..].iter().zip(&res.records) {
-            assert_eq!(row.len(), 26);
+            assert_eq!(row.len(), CSV_HEADER.split(',').count());
             assert_eq!(row[0], "attacks[0].value");
             assert_eq!(
                 row[1].parse::<f64>().map(f64::to_bits).ok(),

@@ -64,6 +64,8 @@ pub struct WorldInfo {
     pub seed: u64,
     /// The ε of the world's claim Pr(x_t ∈ C ∀t) ≥ 1 − ε, if it states one. Must lie in (0, 1).
     pub epsilon: Option<f64>,
+    /// `ftcbf check`'s verdict line on Theorem 3 for the world, if it was checked.
+    pub theorem3: Option<String>,
 }
 
 /// A loaded world (with any overrides applied) ready to run trials.
@@ -150,6 +152,9 @@ pub(crate) mod testutil {
                 min_clearance: Some(margin + 0.05),
                 goal_reached: goal,
                 time_to_goal: goal.then(|| 10.0 + 5.0 * unit(seed, 7)),
+                goal_settled: goal && unit(seed, 10) < 0.5,
+                final_goal_distance: 0.2 * unit(seed, 11),
+                final_clf_value: Some(unit(seed, 12)),
                 steps: StepCounts {
                     step1: 900 + (seed % 50),
                     clf_relaxed: seed % 7,
@@ -180,6 +185,7 @@ pub(crate) mod testutil {
             shard,
             epsilon: Some(0.1),
             confidence: CONFIDENCE,
+            theorem3: None,
         }
     }
 

@@ -158,6 +158,9 @@ pub struct BatchPlan {
     pub epsilon: Option<f64>,
     /// Confidence level of the intervals ([`CONFIDENCE`]).
     pub confidence: f64,
+    /// `ftcbf check`'s verdict line on Theorem 3 for the world (absent in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub theorem3: Option<String>,
 }
 
 impl BatchPlan {

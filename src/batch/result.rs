@@ -45,6 +45,12 @@ pub struct TrialRecord {
     pub min_clearance: Option<f64>,
     /// The goal set was entered.
     pub goal_reached: bool,
+    /// Inside the goal set over the last stretch of the run (see `RunSummary::goal_settled`).
+    #[serde(default)]
+    pub goal_settled: bool,
+    /// Distance to the goal at the end [m].
+    #[serde(default, with = "io::float_or_text")]
+    pub final_goal_distance: f64,
     /// First time in the goal set [s].
     #[serde(with = "io::float_or_text::option")]
     pub time_to_goal: Option<f64>,
@@ -87,6 +93,8 @@ impl TrialRecord {
             min_barrier_name: worst.map(|w| w.name.clone()),
             min_clearance: s.min_clearance,
             goal_reached: s.goal_reached,
+            goal_settled: s.goal_settled,
+            final_goal_distance: s.final_goal_distance,
             time_to_goal: s.time_to_goal,
             steps: s.steps,
             control_steps: s.control_steps,
@@ -243,10 +251,19 @@ pub struct ControllerSummary {
     pub collision_rate: f64,
     /// Trials with a safe-set violation.
     pub violations: u64,
-    /// Trials that reached the goal.
+    /// Trials that entered the goal.
     pub goals: u64,
     /// goals / n.
     pub goal_rate: f64,
+    /// Trials that settled in the goal (inside it over the run's last stretch).
+    #[serde(default)]
+    pub settled: u64,
+    /// settled / n.
+    #[serde(default)]
+    pub settled_rate: f64,
+    /// Distance to the goal at the end: median over trials [m].
+    #[serde(default)]
+    pub final_goal_distance_p50: f64,
     /// Time to goal over the trials that reached it: p50, p90, max [s].
     pub time_to_goal: Option<UpperQuantiles>,
     /// Minimum clearance over trials with obstacles: min, p10, p50 [m].
@@ -432,6 +449,16 @@ fn summarize<'a>(
     let safe = count(&|r| r.safe);
     let collisions = count(&|r| r.collided);
     let goals = count(&|r| r.goal_reached);
+    let settled = count(&|r| r.goal_settled);
+    let mut final_d: Vec<f64> = recs.iter().map(|r| r.final_goal_distance).collect();
+    final_d.sort_by(f64::total_cmp);
+    let final_goal_distance_p50 = if final_d.is_empty() {
+        0.0
+    } else if final_d.len() % 2 == 1 {
+        final_d[final_d.len() / 2]
+    } else {
+        0.5 * (final_d[final_d.len() / 2 - 1] + final_d[final_d.len() / 2])
+    };
     let safe_ci = stats::clopper_pearson(safe, n, plan.confidence)
         .ok_or_else(|| anyhow!("controller `{controller}`: no trials to summarise"))?;
     let claimed_safety = plan.claimed_safety();
@@ -472,6 +499,9 @@ fn summarize<'a>(
         violations: count(&|r| r.first_violation_t.is_some()),
         goals,
         goal_rate: rate(goals, n),
+        settled,
+        settled_rate: rate(settled, n),
+        final_goal_distance_p50,
         time_to_goal: UpperQuantiles::of(
             recs.iter()
                 .filter(|r| r.goal_reached)

@@ -129,6 +129,9 @@ fn plan_header(res: &BatchResult, out: &mut String) {
         }
         _ => out.push_str("; the world states no claim (no epsilon)\n"),
     }
+    if let Some(v) = &p.theorem3 {
+        let _ = writeln!(out, "check: {v}");
+    }
     out.push('\n');
 }
 
@@ -144,13 +147,15 @@ fn safety_table(res: &BatchResult, out: &mut String) {
         "verdict",
         "collided",
         "violated",
-        "goal",
+        "entered goal",
+        "settled",
+        "final dist p50 [m]",
         "t_goal p50/p90/max [s]",
         "clearance min/p10/p50 [m]",
     ];
     use Align::{Left, Right};
     let align = [
-        Left, Right, Right, Right, Left, Right, Right, Right, Right, Right,
+        Left, Right, Right, Right, Left, Right, Right, Right, Right, Right, Right, Right,
     ];
     let rows: Vec<Vec<String>> = res
         .summaries
@@ -165,6 +170,8 @@ fn safety_table(res: &BatchResult, out: &mut String) {
                 format!("{} ({:.3})", s.collisions, s.collision_rate),
                 s.violations.to_string(),
                 format!("{} ({:.3})", s.goals, s.goal_rate),
+                format!("{} ({:.3})", s.settled, s.settled_rate),
+                format!("{:.3}", s.final_goal_distance_p50),
                 upper(s.time_to_goal, 2),
                 lower(s.min_clearance, 3),
             ]
@@ -290,11 +297,12 @@ pub fn sweep_text(results: &[BatchResult]) -> String {
         ci.as_str(),
         "verdict",
         "collision rate",
-        "goal rate",
+        "entered goal",
+        "settled",
         "t_goal p50 [s]",
     ];
     use Align::{Left, Right};
-    let align = [Right, Left, Right, Right, Left, Right, Right, Right];
+    let align = [Right, Left, Right, Right, Left, Right, Right, Right, Right];
     let mut rows = Vec::new();
     for r in results {
         let value = r
@@ -311,6 +319,7 @@ pub fn sweep_text(results: &[BatchResult]) -> String {
                 verdict_cell(s.verdict, s.outside_fault_pattern_trials),
                 format!("{:.3}", s.collision_rate),
                 format!("{:.3}", s.goal_rate),
+                format!("{:.3}", s.settled_rate),
                 opt(s.time_to_goal.map(|t| t.p50), 2),
             ]);
         }

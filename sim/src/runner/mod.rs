@@ -438,6 +438,8 @@ impl<'w> Simulation<'w> {
         let m = &self.monitor;
         let end = self.plant.truth();
         let collided = m.first_collision.is_some();
+        let (goal_settled, final_goal_distance, final_clf_value) =
+            m.goal_outcome(self.world, &end);
         RunSummary {
             world: self.world.name.clone(),
             seed: self.seed,
@@ -451,6 +453,9 @@ impl<'w> Simulation<'w> {
             min_clearance: m.min_clearance,
             goal_reached: m.time_to_goal.is_some(),
             time_to_goal: m.time_to_goal,
+            goal_settled,
+            final_goal_distance,
+            final_clf_value,
             steps: self.steps,
             control_steps: self.k,
             rejected_readings: self.rejected,

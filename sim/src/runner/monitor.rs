@@ -3,7 +3,8 @@
 
 use std::sync::Arc;
 
-use ftcbf_controller::Barrier;
+use ftcbf_controller::lyapunov::QuadraticClf;
+use ftcbf_controller::{Barrier, State};
 
 use crate::state::TruthState;
 use crate::summary::{CollisionEvent, NamedValue, ViolationEvent};
@@ -25,6 +26,10 @@ pub(super) struct Monitor {
     pub(super) first_collision: Option<CollisionEvent>,
     pub(super) first_violation: Option<ViolationEvent>,
     pub(super) time_to_goal: Option<f64>,
+    /// Time of the last plant tick outside the goal set.
+    pub(super) last_outside_goal: Option<f64>,
+    /// The CLF, for V(x_true) at the end.
+    clf: Option<QuadraticClf>,
 }
 
 impl Monitor {
@@ -41,7 +46,32 @@ impl Monitor {
             first_collision: None,
             first_violation: None,
             time_to_goal: None,
+            last_outside_goal: None,
+            clf: QuadraticClf::new(
+                &setup.config.model.f,
+                &setup.config.model.g,
+                setup.config.goal,
+                world.file.goal.radius,
+                &setup.config.clf,
+            )
+            .ok(),
         }
+    }
+
+    /// Settled in the goal at time `t_end` (inside it at every tick of the last
+    /// [`crate::summary::SETTLE_WINDOW`] seconds), the distance to the goal in its metric, and
+    /// V(x) at `x`.
+    pub(super) fn goal_outcome(&self, world: &World, t: &TruthState) -> (bool, f64, Option<f64>) {
+        let window_start = t.t - crate::summary::SETTLE_WINDOW;
+        let settled = self.time_to_goal.is_some()
+            && in_goal(world, t)
+            && self.last_outside_goal.is_none_or(|lo| lo < window_start);
+        let x = State::new(t.x, t.y, t.vx, t.vy);
+        (
+            settled,
+            goal_distance(world, t),
+            self.clf.as_ref().map(|c| c.value(&x)),
+        )
     }
 
     /// After one plant tick: safe sets on the truth, contacts (with an event when one starts),
@@ -81,8 +111,12 @@ impl Monitor {
             }
             *touching = now;
         }
-        if self.time_to_goal.is_none() && in_goal(world, &tt) {
-            self.time_to_goal = Some(tt.t);
+        if in_goal(world, &tt) {
+            if self.time_to_goal.is_none() {
+                self.time_to_goal = Some(tt.t);
+            }
+        } else {
+            self.last_outside_goal = Some(tt.t);
         }
     }
 
@@ -126,14 +160,18 @@ impl Monitor {
     }
 }
 
-fn in_goal(world: &World, t: &TruthState) -> bool {
+fn goal_distance(world: &World, t: &TruthState) -> f64 {
     let goal = &world.file.goal;
     let [gx, gy] = goal.center;
     match goal.metric {
-        GoalMetric::Position => (t.x - gx).hypot(t.y - gy) <= goal.radius,
+        GoalMetric::Position => (t.x - gx).hypot(t.y - gy),
         GoalMetric::State => {
             let d = [t.x - gx, t.y - gy, t.vx, t.vy];
-            d.iter().map(|v| v * v).sum::<f64>().sqrt() <= goal.radius
+            d.iter().map(|v| v * v).sum::<f64>().sqrt()
         }
     }
+}
+
+fn in_goal(world: &World, t: &TruthState) -> bool {
+    goal_distance(world, t) <= world.file.goal.radius
 }

@@ -7,14 +7,16 @@ use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
-use ftcbf_controller::params::FtParameters;
+use ftcbf_controller::params::{BoundMethod, FtParameters, ThetaSchedule};
 use ftcbf_controller::{Barrier, Input, State, StateMatrix};
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
 use crate::safe_sets::{LiftedEllipse, LiftedProp1};
 use crate::sensors::Quantity;
-use crate::world::{ControllerKindSpec, Dynamics, Param, SafeSetSpec, World};
+use crate::world::{
+    BoundsSpec, ControllerKindSpec, Dynamics, Param, ProcessModel, SafeSetSpec, World,
+};
 
 use super::RunError;
 
@@ -25,8 +27,6 @@ pub const DEFAULT_RAPIER_PROCESS_NOISE: f64 = 1e-2;
 pub const MIN_VARIANCE: f64 = 1e-8;
 /// Readings larger than this are rejected by the controller as absurd [m or m/s].
 pub const MAX_ABS_READING: f64 = 1e6;
-/// Initial estimate covariance P0 = P0_VARIANCE · I.
-pub const P0_VARIANCE: f64 = 1e-2;
 
 /// The controller kind for a world-file name.
 pub fn controller_kind(spec: ControllerKindSpec) -> ControllerKind {
@@ -71,6 +71,13 @@ pub struct ParamReport {
     pub gamma_baseline: f64,
     /// θ_ij per pair (or one value for all).
     pub theta: Vec<f64>,
+    /// η_ij of Step 2's increment test per pair (empty: none — given θ or `bounds = "paper"`).
+    pub theta_increment: Vec<f64>,
+    /// W_ij of the increment test per pair (the covariance-weighted norm η_ij is measured in;
+    /// empty with `theta_increment`).
+    pub increment_metric: Vec<StateMatrix>,
+    /// θ_ij(t) (computed, `theta = "auto"` with the horizon bounds only).
+    pub theta_schedule: Option<ThetaSchedule>,
     /// δ (∞ = constraints always active).
     pub delta: f64,
     /// Computed by §4.3 (`auto`), with the details.
@@ -255,15 +262,11 @@ impl ControlSetup {
         let file = &world.file;
         let ch = Channels::of(world);
         let patterns = model_patterns(world, &ch.channel_of_sensor)?;
-        let q_intensity = file.control.process_noise.unwrap_or(match file.dynamics {
-            Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
-            Dynamics::Rapier => DEFAULT_RAPIER_PROCESS_NOISE,
-        });
         let model = LinearModel::new(
             LinearModel::double_integrator_f(),
             LinearModel::double_integrator_g(),
             ch.c_rows,
-            StateMatrix::identity() * q_intensity,
+            filter_process_noise(world),
             ch.r,
         )
         .map_err(|e| setup_err(world, "sensors", e.to_string()))?;
@@ -291,13 +294,16 @@ impl ControlSetup {
             gamma: params.gamma.clone(),
             gamma_baseline: params.gamma_baseline,
             theta: params.theta.clone(),
+            theta_increment: params.theta_increment.clone(),
+            increment_metric: params.increment_metric.clone(),
+            theta_schedule: params.theta_schedule.clone(),
             delta: params.delta,
             cbf_gain: file.control.cbf_gain,
             clf,
             input_cost: Matrix2::identity(),
             input_limit: file.control.input_limit.map(|l| Input::new(l, l)),
             x0: initial_estimate(world),
-            p0: StateMatrix::identity() * P0_VARIANCE,
+            p0: initial_covariance(world),
             max_abs_reading: MAX_ABS_READING,
         };
         Ok(Self {
@@ -379,6 +385,45 @@ fn model_patterns(
     Ok(patterns)
 }
 
+/// Where the filters' process noise enters, with the world's default (`isotropic` for the
+/// linear plant, whose own noise it is; `acceleration` for a rapier robot).
+pub fn process_model(world: &World) -> ProcessModel {
+    world
+        .file
+        .control
+        .process_model
+        .unwrap_or(match world.file.dynamics {
+            Dynamics::Linear => ProcessModel::Isotropic,
+            Dynamics::Rapier => ProcessModel::Acceleration,
+        })
+}
+
+/// The filters' process-noise intensity q [(m/s²)²·s or unit²/s].
+pub fn process_noise_intensity(world: &World) -> f64 {
+    let file = &world.file;
+    file.control.process_noise.unwrap_or(match file.dynamics {
+        Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
+        Dynamics::Rapier => DEFAULT_RAPIER_PROCESS_NOISE,
+    })
+}
+
+/// The filters' Q: diag(0, 0, q, q) (white acceleration) or q·I₄ (the paper's).
+pub fn filter_process_noise(world: &World) -> StateMatrix {
+    let q = process_noise_intensity(world);
+    match process_model(world) {
+        ProcessModel::Isotropic => StateMatrix::identity() * q,
+        ProcessModel::Acceleration => {
+            StateMatrix::from_diagonal(&ftcbf_controller::State::new(0.0, 0.0, q, q))
+        }
+    }
+}
+
+/// The filters' initial covariance P0 = diag(σ_p², σ_p², σ_v², σ_v²) from `[control] initial_std`.
+pub fn initial_covariance(world: &World) -> StateMatrix {
+    let [sp, sv] = world.file.control.initial_std;
+    StateMatrix::from_diagonal(&State::new(sp * sp, sp * sp, sv * sv, sv * sv))
+}
+
 /// γ_i, γ of the all-channel filter, θ_ij and δ: given, or computed per §4.3 (`auto`).
 fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> ParamReport {
     let file = &world.file;
@@ -387,13 +432,17 @@ fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> Pa
     let needs_auto =
         matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
     let computed = needs_auto.then(|| {
-        FtParameters::compute_from(
+        FtParameters::compute_with(
             model,
             patterns,
             control_dt,
             file.control.epsilon,
             horizon,
-            &(StateMatrix::identity() * P0_VARIANCE),
+            &initial_covariance(world),
+            match file.control.bounds {
+                BoundsSpec::Horizon => BoundMethod::Horizon,
+                BoundsSpec::Paper => BoundMethod::Paper,
+            },
         )
     });
     let m = patterns.len();
@@ -413,10 +462,22 @@ fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> Pa
         // m < 2: no pairs, so no θ_ij (C(m,2) = 0 values).
         (Param::Auto, _) => Vec::new(),
     };
+    let (theta_increment, increment_metric, theta_schedule) = match (file.control.theta, &computed)
+    {
+        (Param::Auto, Some(p)) => (
+            p.theta_increment.clone(),
+            p.increment_metric.clone(),
+            p.theta_schedule.clone(),
+        ),
+        _ => (Vec::new(), Vec::new(), None),
+    };
     ParamReport {
         gamma,
         gamma_baseline,
         theta,
+        theta_increment,
+        increment_metric,
+        theta_schedule,
         delta: file.control.delta.unwrap_or(f64::INFINITY),
         computed,
         epsilon: file.control.epsilon,

@@ -127,8 +127,22 @@ fn decision_note(note: &mut String, out: &ControlOutput, filters: &[String]) {
                 "‖x̂_{who} − x̂_{}‖ = {distance:.4} > θ = {theta:.4} and ‖x̂_{who} − x̂_pair‖ = {deviation_from_pair:.4} > θ/2",
                 label(other)
             ),
-            DropReason::LargestResidue { residue, flagged } => format!(
-                "largest residue {residue:.4}{}",
+            DropReason::SeparationIncrement {
+                other,
+                increment_distance,
+                eta,
+                increment_from_pair,
+            } => format!(
+                "over the last second ‖Δ(x̂_{who} − x̂_{})‖ = {increment_distance:.4} (conflict above η = {eta:.4}) and ‖Δ(x̂_{who} − x̂_pair)‖ = {increment_from_pair:.4} > η/2",
+                label(other)
+            ),
+            DropReason::LargestResidue {
+                residue,
+                flagged,
+                window_chi2,
+                window_dof,
+            } => format!(
+                "largest residue score z = {residue:.3} (windowed χ² = {window_chi2:.2} on {window_dof} dof){}",
                 if flagged { " (flagged: rejected reading)" } else { "" }
             ),
         };

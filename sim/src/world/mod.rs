@@ -284,6 +284,10 @@ impl Validator<'_> {
         if let Some(q) = c.process_noise {
             self.positive("control.process_noise", q)?;
         }
+        self.finite("control.initial_std", &c.initial_std)?;
+        for v in c.initial_std {
+            self.non_negative("control.initial_std", v)?;
+        }
         if let Some(v) = c.clf.v_bar {
             self.non_negative("control.clf.v_bar", v)?;
         }

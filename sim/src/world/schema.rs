@@ -116,7 +116,7 @@ pub struct StartPose {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhysicsSection {
-    /// Physics step [s] (default 1/240).
+    /// Physics step [s] (default 0.005: 200 Hz, 4 plant steps per 50 Hz control step, so the default rates fit together).
     #[serde(default = "default_physics_dt")]
     pub dt: f64,
     /// Coulomb friction coefficient of wheels, ground and obstacles (default 1.0).
@@ -134,7 +134,7 @@ impl Default for PhysicsSection {
 }
 
 fn default_physics_dt() -> f64 {
-    1.0 / 240.0
+    0.005
 }
 fn default_friction() -> f64 {
     1.0
@@ -239,8 +239,25 @@ pub struct ControlSection {
     /// ε for `"auto"` parameters: the run should be safe with probability ≥ 1 − ε (default 0.05).
     #[serde(default = "default_epsilon")]
     pub epsilon: f64,
-    /// The filters' process-noise intensity Q = q · I₄ (default: the linear plant's, or 1e-3).
+    /// The filters' process-noise intensity q (default: the linear plant's, or 1e-2 for a rapier
+    /// robot); where it enters is set by `process_model`.
     pub process_noise: Option<f64>,
+    /// Where the filters' process noise enters: `acceleration` (Q = diag(0, 0, q, q), white
+    /// acceleration, the physically right model for a driven robot) or `isotropic`
+    /// (Q = q·I₄ on position and velocity, the paper's §6.2 setting). Default: `isotropic` for
+    /// `dynamics = "linear"` (it is the plant's own noise), `acceleration` for a rapier robot.
+    pub process_model: Option<ProcessModel>,
+    /// The filters' initial uncertainty: standard deviations of the start position [m] and the
+    /// start velocity [m/s] per axis, P0 = diag(σ_p², σ_p², σ_v², σ_v²) (default [0.01, 0.01]: a
+    /// robot placed at a marked start, at rest). Also the start of the finite-horizon bounds
+    /// of `check` for filters without a steady state.
+    #[serde(default = "default_initial_std")]
+    pub initial_std: [f64; 2],
+    /// How `"auto"` γ and θ are bounded: `horizon` (default: from `initial_std` over the run,
+    /// θ from the covariance of the solution separation x̂_i − x̂_ij) or `paper` (§4.3:
+    /// steady-state γ, θ by the triangle inequality).
+    #[serde(default)]
+    pub bounds: BoundsSpec,
     /// The CLF (eq. 6.6).
     #[serde(default)]
     pub clf: ClfSection,
@@ -250,6 +267,54 @@ pub struct ControlSection {
     /// Obstacle barriers: gain k of the relative-degree-2 lift H = d + k·ḋ [s] (default 0.5).
     #[serde(default = "default_lift")]
     pub obstacle_lift: f64,
+}
+
+/// Where the filters' process noise enters (`[control] process_model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProcessModel {
+    /// White noise on acceleration only: Q = diag(0, 0, q, q).
+    Acceleration,
+    /// The paper's Q = q·I₄ (noise on position and velocity).
+    Isotropic,
+}
+
+impl ProcessModel {
+    /// The name used in world files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProcessModel::Acceleration => "acceleration",
+            ProcessModel::Isotropic => "isotropic",
+        }
+    }
+}
+
+/// `[control] bounds`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundsSpec {
+    /// Over the run's horizon from the declared initial uncertainty; solution separation.
+    #[default]
+    Horizon,
+    /// The paper's §4.3.
+    Paper,
+}
+
+impl BoundsSpec {
+    /// The name used in world files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BoundsSpec::Horizon => "horizon",
+            BoundsSpec::Paper => "paper",
+        }
+    }
+}
+
+/// Default `[control] initial_std` [m, m/s].
+pub const DEFAULT_INITIAL_STD: [f64; 2] = [0.01, 0.01];
+
+fn default_initial_std() -> [f64; 2] {
+    DEFAULT_INITIAL_STD
 }
 
 fn default_rate() -> f64 {

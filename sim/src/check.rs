@@ -1,0 +1,748 @@
+//! The hypothesis checker behind `ftcbf check`: for a world as written, every hypothesis the
+//! guarantee of Theorem 3 (Pr(x_t ∈ C ∀t) ≥ 1 − ε under any single fault pattern) rests on,
+//! each with its numbers, and one verdict.
+//!
+//! Checked, in order:
+//! 1. **Disjoint patterns** (§3.1): F(r_i) ∩ F(r_j) = ∅.
+//! 2. **Invertible R̄** for every filter (§4.1): the smallest variance of the channels it keeps
+//!    (a channel declared noise-free is floored at [`crate::runner::setup::MIN_VARIANCE`]).
+//! 3. **Detectability** of (F, c̄) for every single-drop filter x̂_i and pair-drop filter x̂_ij
+//!    (PBH test, [`ftcbf_controller::params::detectability`]), with the unobservable directions
+//!    named in state terms.
+//! 4. **Finite γ_i and θ_ij** and what bounds them: the steady state of the Riccati recursion
+//!    (detectable filters), or the largest covariance reached over the world's duration from
+//!    the declared initial uncertainty `[control] initial_std` (finite horizon). A finite-horizon
+//!    bound is accepted for a filter whose unobservable directions are positions only (its
+//!    velocity is measured: the position error is an integral of a bounded velocity error —
+//!    dead reckoning). A filter that also loses every velocity fix runs open loop: its bound
+//!    rests on the assumed process noise alone, nothing measured bounds it, and any
+//!    unmodelled actuation (motor lag, slip, clipping) enters it without limit — (4.5) cannot
+//!    be certified, and the verdict says so.
+//! 5. **Condition 1 of Theorem 3** as far as it can be decided statically: Lemma 1 for
+//!    half-planes, Prop. 1 on the position part of lifted ellipses (θ̄ ≤ √(2(1 − h̄)/λ̄(Φ))),
+//!    Thm. 5 at the start for an inside ellipse; for obstacles the lift gives Λ ≠ 0 per filter
+//!    and agreement across filters is stated as an assumption.
+//! 6. **Attacks inside one fault pattern**: the union of the declared attacks' channels lies in
+//!    one F(r_i) (the theorem covers one fault at a time).
+//! 7. **Holding the goal** (not part of the safety guarantee; reported): at rest the CBF row of
+//!    a half-plane needs h(x̂) ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ; if no point of the goal set reaches that,
+//!    the robot cannot settle there with the guarantee's margins.
+
+use std::fmt;
+
+use ftcbf_controller::params::{
+    check_lemma1, check_prop1, check_theorem5, detectability, steady_state_gain_product,
+    Detectability,
+};
+use ftcbf_controller::{Input, State};
+
+use crate::runner::setup::{
+    controller_name, initial_covariance, process_model, process_noise_intensity, ControlSetup,
+    MIN_VARIANCE,
+};
+use crate::runner::RunError;
+use crate::safe_sets::ellipse_phi_state;
+use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
+
+/// Outcome of one hypothesis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// Verified from the world.
+    Holds,
+    /// Verified false: Theorem 3 does not apply.
+    Fails,
+    /// Cannot be decided statically; stated as an assumption of the verdict.
+    Assumed,
+    /// Reported only; not a hypothesis of the safety guarantee.
+    Info,
+}
+
+impl Status {
+    fn tag(self) -> &'static str {
+        match self {
+            Status::Holds => "HOLDS  ",
+            Status::Fails => "FAILS  ",
+            Status::Assumed => "ASSUMED",
+            Status::Info => "INFO   ",
+        }
+    }
+}
+
+/// One checked hypothesis with its numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hypothesis {
+    /// Short name (e.g. "detectable x̂_12").
+    pub name: String,
+    /// Outcome.
+    pub status: Status,
+    /// The numbers behind it.
+    pub detail: String,
+}
+
+/// What bounds a filter's error covariance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CovarianceBound {
+    /// The Riccati recursion has a steady state.
+    SteadyState,
+    /// No steady state; the largest covariance over the horizon from the declared P0, accepted
+    /// (positions dead-reckoned from measured velocity).
+    FiniteHorizon {
+        /// Horizon [s].
+        seconds: f64,
+    },
+    /// No steady state and no velocity fix: open loop, not certifiable.
+    OpenLoop {
+        /// Horizon [s].
+        seconds: f64,
+    },
+}
+
+/// One filter of the bank.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterCheck {
+    /// "x̂_1 (drops gnss1)", "x̂_12 (drops gnss1 ∪ gnss2)".
+    pub label: String,
+    /// Channels it uses.
+    pub channels: Vec<String>,
+    /// Smallest variance on the diagonal of R̄ (∞ when it uses no channel).
+    pub r_bar_min: f64,
+    /// PBH detectability and unobservable directions.
+    pub detectability: Detectability,
+    /// What bounds its covariance.
+    pub bound: CovarianceBound,
+    /// γ in force for it (γ_i or γ_ij), when computed.
+    pub gamma: Option<f64>,
+}
+
+/// Whether the goal can be held at rest with the guarantee's margins, per (half-plane, filter).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GoalHold {
+    /// Barrier name.
+    pub barrier: String,
+    /// Filter label.
+    pub filter: String,
+    /// h̄_γ + γ‖(Kc̄)ᵀ a‖/κ: the smallest h(x̂) the CBF row admits at rest.
+    pub needed_h: f64,
+    /// The largest h on the goal set (at rest for a position goal).
+    pub max_h_in_goal: f64,
+}
+
+impl GoalHold {
+    /// Whether some point of the goal set admits rest.
+    pub fn holds(&self) -> bool {
+        self.max_h_in_goal >= self.needed_h
+    }
+}
+
+/// The one-line verdict.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// Theorem 3 applies: Pr(safe) ≥ 1 − ε for any single fault pattern.
+    pub applies: bool,
+    /// ε.
+    pub epsilon: f64,
+    /// Why not (empty when it applies).
+    pub reasons: Vec<String>,
+    /// Conditions it rests on that the checker cannot decide statically.
+    pub assumptions: Vec<String>,
+    /// Some bound is finite-horizon: the guarantee covers the world's duration only.
+    pub horizon: Option<f64>,
+}
+
+impl Verdict {
+    /// The verdict line.
+    pub fn line(&self) -> String {
+        if self.applies {
+            let over = self
+                .horizon
+                .map_or(String::new(), |t| format!(" over the run's {t} s"));
+            format!(
+                "Theorem 3 applies: Pr(safe) ≥ 1 − ε = {} for any single fault pattern{over}",
+                1.0 - self.epsilon
+            )
+        } else {
+            format!("Theorem 3 does NOT apply: {}", self.reasons.join("; "))
+        }
+    }
+
+    /// One word for tables: `applies`, `applies (T s)` or `no`.
+    pub fn short(&self) -> String {
+        match (self.applies, self.horizon) {
+            (true, None) => "applies".to_string(),
+            (true, Some(t)) => format!("applies ({t} s)"),
+            (false, _) => "no".to_string(),
+        }
+    }
+}
+
+/// Everything `ftcbf check` reports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    /// World name.
+    pub world: String,
+    /// Description lines (plant, control, channels, patterns, parameters).
+    pub context: Vec<String>,
+    /// The filters of the bank (singles, then pairs).
+    pub filters: Vec<FilterCheck>,
+    /// Hypotheses in order.
+    pub hypotheses: Vec<Hypothesis>,
+    /// Goal-holding numbers per half-plane and filter.
+    pub goal: Vec<GoalHold>,
+    /// The verdict.
+    pub verdict: Verdict,
+}
+
+fn fmt_list(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.6}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Which pattern's channels (sensor indices) contain every attacked channel, if one does.
+fn attacked_pattern(world: &World) -> Result<Option<usize>, String> {
+    let names: Vec<&str> = world.file.sensors.iter().map(|s| s.name.as_str()).collect();
+    let mut attacked: Vec<usize> = Vec::new();
+    for a in &world.file.attacks {
+        for c in &a.channels {
+            if let Some(i) = names.iter().position(|n| n == c) {
+                if !attacked.contains(&i) {
+                    attacked.push(i);
+                }
+            }
+        }
+    }
+    if attacked.is_empty() {
+        return Ok(None);
+    }
+    for (pi, p) in world.patterns.iter().enumerate() {
+        if attacked.iter().all(|c| p.contains(c)) {
+            return Ok(Some(pi));
+        }
+    }
+    let mut touched: Vec<String> = Vec::new();
+    for &c in &attacked {
+        match world.patterns.iter().position(|p| p.contains(&c)) {
+            Some(pi) => {
+                let n = &world.file.fault_patterns[pi].name;
+                if !touched.contains(n) {
+                    touched.push(n.clone());
+                }
+            }
+            None => touched.push(format!("{} (in no pattern)", names[c])),
+        }
+    }
+    Err(format!(
+        "the declared attacks touch {}; Theorem 3 covers one fault pattern at a time",
+        touched.join(" and ")
+    ))
+}
+
+/// Check `world` (see the module docs).
+pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
+    let f = &world.file;
+    let setup = ControlSetup::new(world, f.control.controller)?;
+    let model = &setup.config.model;
+    let sensor_names: Vec<&str> = f.sensors.iter().map(|s| s.name.as_str()).collect();
+    let channel_names: Vec<String> = setup
+        .sensor_of_channel
+        .iter()
+        .map(|&s| sensor_names[s].to_string())
+        .collect();
+    let pattern_names: Vec<&str> = f.fault_patterns.iter().map(|p| p.name.as_str()).collect();
+    let patterns = &setup.config.fault_patterns;
+    let m = patterns.len();
+    let p = &setup.params;
+    let horizon = f.duration;
+    let eps = f.control.epsilon;
+
+    // ---- context ----
+    let mut context = Vec::new();
+    if let Some(d) = &f.description {
+        context.push(d.clone());
+    }
+    match f.dynamics {
+        Dynamics::Rapier => {
+            if let Some(r) = &world.robot {
+                context.push(format!(
+                    "plant: {} in rapier3d, dt = {} s; wheel radius {:.4} m, separation {:.4} m, |v| ≤ {:.3} m/s, |ω| ≤ {:.3} rad/s, footprint radius {:.4} m",
+                    r.name,
+                    f.physics.dt,
+                    r.wheels.geometry.radius,
+                    r.wheels.geometry.separation,
+                    r.limits.v_max,
+                    r.limits.omega_max,
+                    r.footprint_radius
+                ));
+                for w in &r.warnings {
+                    context.push(format!("warning: {w}"));
+                }
+            }
+        }
+        Dynamics::Linear => context.push(format!(
+            "plant: linearised model (6.2), Euler–Maruyama dt = {} s",
+            f.linear.as_ref().map_or(0.0, |l| l.dt)
+        )),
+    }
+    context.push(format!(
+        "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
+        controller_name(f.control.controller),
+        f.control.rate_hz,
+        world.ticks_per_control,
+        f.duration,
+        f.seed
+    ));
+    context.push(format!("channels: {}", sensor_names.join(", ")));
+    for (pi, idx) in world.patterns.iter().enumerate() {
+        let ch: Vec<&str> = idx.iter().map(|&i| sensor_names[i]).collect();
+        context.push(format!(
+            "fault pattern {} = {{{}}}",
+            pattern_names[pi],
+            ch.join(", ")
+        ));
+    }
+    let p0 = initial_covariance(world);
+    context.push(format!(
+        "filters: process noise q = {:e} ({}: Q = {}), P0 = diag({:e}, {:e}, {:e}, {:e}) from initial_std = [{}, {}]",
+        process_noise_intensity(world),
+        process_model(world).as_str(),
+        match process_model(world) {
+            crate::world::ProcessModel::Acceleration => "diag(0, 0, q, q)",
+            crate::world::ProcessModel::Isotropic => "q·I₄",
+        },
+        p0[(0, 0)],
+        p0[(1, 1)],
+        p0[(2, 2)],
+        p0[(3, 3)],
+        f.control.initial_std[0],
+        f.control.initial_std[1]
+    ));
+    match &p.computed {
+        Some(c) => {
+            context.push(format!(
+                "parameters computed for ε = {} (\"auto\", bounds = \"{}\"):",
+                p.epsilon,
+                f.control.bounds.as_str()
+            ));
+            for line in c.to_string().lines() {
+                context.push(format!("  {line}"));
+            }
+        }
+        None => context.push("parameters given in the world file".to_string()),
+    }
+    context.push(format!(
+        "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}",
+        fmt_list(&p.gamma),
+        p.gamma_baseline,
+        fmt_list(&p.theta),
+        p.delta
+    ));
+    for b in &setup.config.barriers {
+        let hb: Vec<f64> = p.gamma.iter().map(|g| b.h_bar(*g)).collect();
+        context.push(format!(
+            "h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
+            b.name(),
+            fmt_list(&hb),
+            b.h_bar(p.gamma_baseline)
+        ));
+    }
+
+    let mut hypotheses = Vec::new();
+    let mut reasons = Vec::new();
+    let mut assumptions = Vec::new();
+    let mut finite_horizon = false;
+
+    // ---- 1. disjoint patterns ----
+    let mut overlap = None;
+    for i in 0..m {
+        for j in (i + 1)..m {
+            if let Some(c) = patterns[i].iter().find(|c| patterns[j].contains(c)) {
+                overlap = Some((i, j, *c));
+            }
+        }
+    }
+    match overlap {
+        None => hypotheses.push(Hypothesis {
+            name: "disjoint fault patterns (§3.1)".into(),
+            status: Status::Holds,
+            detail: format!("{m} patterns, no shared channel"),
+        }),
+        Some((i, j, c)) => {
+            let d = format!(
+                "{} and {} share {}",
+                pattern_names[i], pattern_names[j], channel_names[c]
+            );
+            reasons.push(format!("fault patterns overlap ({d})"));
+            hypotheses.push(Hypothesis {
+                name: "disjoint fault patterns (§3.1)".into(),
+                status: Status::Fails,
+                detail: d,
+            });
+        }
+    }
+
+    // ---- 2-4. filters ----
+    let q = model.channels();
+    let mask = |drop: &[usize]| {
+        let mut u = vec![true; q];
+        for &pi in drop {
+            for &c in &patterns[pi] {
+                u[c] = false;
+            }
+        }
+        u
+    };
+    let mut filters = Vec::new();
+    let mut drops: Vec<Vec<usize>> = (0..m).map(|i| vec![i]).collect();
+    for i in 0..m {
+        for j in (i + 1)..m {
+            drops.push(vec![i, j]);
+        }
+    }
+    let mut pair_index = 0;
+    for d in &drops {
+        let uses = mask(d);
+        let label = match d.as_slice() {
+            [i] => format!("x̂_{} (drops {})", i + 1, pattern_names[*i]),
+            [i, j] => format!(
+                "x̂_{}{} (drops {} ∪ {})",
+                i + 1,
+                j + 1,
+                pattern_names[*i],
+                pattern_names[*j]
+            ),
+            _ => unreachable!("one or two patterns per filter"),
+        };
+        let channels: Vec<String> = (0..q)
+            .filter(|&k| uses[k])
+            .map(|k| channel_names[k].clone())
+            .collect();
+        let r_bar_min = (0..q)
+            .filter(|&k| uses[k])
+            .map(|k| model.r[k])
+            .fold(f64::INFINITY, f64::min);
+        let det = detectability(model, &uses);
+        let velocity_lost = det
+            .unobservable_basis
+            .iter()
+            .any(|b| b[2].abs() > 1e-9 || b[3].abs() > 1e-9);
+        let bound = if det.detectable {
+            CovarianceBound::SteadyState
+        } else if velocity_lost {
+            CovarianceBound::OpenLoop { seconds: horizon }
+        } else {
+            CovarianceBound::FiniteHorizon { seconds: horizon }
+        };
+        let gamma = p.computed.as_ref().map(|c| {
+            if d.len() == 1 {
+                c.gamma[d[0]]
+            } else {
+                c.gamma_pair[pair_index]
+            }
+        });
+        if d.len() == 2 {
+            pair_index += 1;
+        }
+        // R̄ invertible.
+        let floored = (0..q).any(|k| uses[k] && model.r[k] <= MIN_VARIANCE);
+        hypotheses.push(Hypothesis {
+            name: format!("invertible R̄ for {label}"),
+            status: Status::Holds,
+            detail: if channels.is_empty() {
+                "no channel left: open-loop estimator (§4.1), R̄ is empty".to_string()
+            } else {
+                format!(
+                    "diagonal, smallest variance {:.3e}{}",
+                    r_bar_min,
+                    if floored {
+                        format!(" (a noise-free channel floored at {MIN_VARIANCE:e})")
+                    } else {
+                        String::new()
+                    }
+                )
+            },
+        });
+        // Detectability and bound.
+        let unobs = if det.unobservable.is_empty() {
+            "none".to_string()
+        } else {
+            det.unobservable.join(", ")
+        };
+        let gtxt = gamma.map_or(String::new(), |g| format!(", γ = {g:.6}"));
+        let (status, detail) = match bound {
+            CovarianceBound::SteadyState => (
+                Status::Holds,
+                format!(
+                    "uses {{{}}}; PBH rank 4 at every eigenvalue of F with Re λ ≥ 0; steady-state covariance{gtxt}",
+                    channels.join(", ")
+                ),
+            ),
+            CovarianceBound::FiniteHorizon { seconds } => {
+                finite_horizon = true;
+                (
+                    Status::Holds,
+                    format!(
+                        "uses {{{}}}; NOT detectable (PBH fails at λ = 0; unobservable: {unobs}) — §3.1's assumption fails, but the velocity is measured, so the position error is dead-reckoned: finite-horizon bound over {seconds} s from initial_std{gtxt}",
+                        channels.join(", ")
+                    ),
+                )
+            }
+            CovarianceBound::OpenLoop { seconds } => {
+                let why = if channels.is_empty() {
+                    "keeps no channel at all".to_string()
+                } else {
+                    format!("keeps only {{{}}}", channels.join(", "))
+                };
+                reasons.push(format!(
+                    "{label} {why}: no position and no velocity fix (unobservable: {unobs}); its error over {seconds} s is bounded only by the assumed process noise, nothing measured bounds it, so (4.5) cannot be certified"
+                ));
+                (
+                    Status::Fails,
+                    format!(
+                        "{why}; NOT detectable (unobservable: {unobs}); open loop{gtxt}"
+                    ),
+                )
+            }
+        };
+        hypotheses.push(Hypothesis {
+            name: format!("detectable (F, c̄) for {label}"),
+            status,
+            detail,
+        });
+        filters.push(FilterCheck {
+            label,
+            channels,
+            r_bar_min,
+            detectability: det,
+            bound,
+            gamma,
+        });
+    }
+
+    // ---- γ, θ finite ----
+    let finite =
+        p.gamma.iter().chain(&p.theta).all(|v| v.is_finite()) && p.gamma_baseline.is_finite();
+    hypotheses.push(Hypothesis {
+        name: "finite γ_i and θ_ij".into(),
+        status: if finite { Status::Holds } else { Status::Fails },
+        detail: format!(
+            "γ_i = [{}], θ_ij = [{}]{}",
+            fmt_list(&p.gamma),
+            fmt_list(&p.theta),
+            match &p.computed {
+                Some(c) => format!(
+                    ", per-sample ε' = {:.3e} (union bound over the {} samples of the run and each sample's events)",
+                    c.eps_per_sample,
+                    (horizon / world.control_dt()).ceil(),
+                ),
+                None => " (given in the world file; not derived from ε)".to_string(),
+            }
+        ),
+    });
+    if !finite {
+        reasons.push("γ or θ is not finite".to_string());
+    }
+    if p.computed.is_none() {
+        assumptions.push(
+            "γ and θ are given in the world file: (4.5) holds only if they bound the errors"
+                .to_string(),
+        );
+    }
+
+    // ---- 5. condition 1 ----
+    let theta_bar = p.theta.iter().copied().fold(0.0, f64::max);
+    for (bi, s) in f.safe_sets.iter().enumerate() {
+        let barrier = &setup.config.barriers[bi];
+        let h_bar = p
+            .gamma
+            .iter()
+            .map(|g| barrier.h_bar(*g))
+            .fold(0.0, f64::max);
+        match s {
+            SafeSetSpec::HalfPlane { name, a, .. } => {
+                let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
+                if !v.holds {
+                    reasons.push(format!(
+                        "{name}: aᵀG = 0, (4.4) cannot hold (relative degree {:?}; add a velocity term to a)",
+                        v.relative_degree
+                    ));
+                }
+                hypotheses.push(Hypothesis {
+                    name: format!("condition 1 (4.4) for {name} (half-plane)"),
+                    status: if v.holds {
+                        Status::Holds
+                    } else {
+                        Status::Fails
+                    },
+                    detail: v.to_string(),
+                });
+            }
+            SafeSetSpec::EllipseInside {
+                name,
+                center,
+                semi_axes,
+                angle,
+                ..
+            }
+            | SafeSetSpec::EllipseOutside {
+                name,
+                center,
+                semi_axes,
+                angle,
+                ..
+            } => {
+                let phi = ellipse_phi_state(*semi_axes, *angle);
+                // Prop. 1 on the position part: the lift makes ∂H/∂v = k∇h(p), a full-rank
+                // action on the position gradient, so its law-of-cosines argument applies.
+                // rank G = 2 < n, so Prop. 1 is applied to the position gradient only.
+                let mut v = check_prop1(&phi, &model.g, theta_bar, h_bar.min(1.0));
+                v.holds = theta_bar <= v.bound;
+                if !v.holds {
+                    reasons.push(format!(
+                        "{name}: θ̄ = {theta_bar:.4} exceeds Prop. 1's bound {:.4}: two estimates within θ̄ may need opposite inputs",
+                        v.bound
+                    ));
+                }
+                hypotheses.push(Hypothesis {
+                    name: format!("condition 1 (4.4) for {name} (lifted ellipse, Prop. 1 on the position part)"),
+                    status: if v.holds { Status::Holds } else { Status::Fails },
+                    detail: format!(
+                        "θ̄ = {theta_bar:.6} vs √(2(1 − h̄)/λ̄(Φ)) = {:.6} (h̄ = {:.6}, λ̄ = {:.6})",
+                        v.bound, v.h_bar, v.lambda_max
+                    ),
+                });
+                if matches!(s, SafeSetSpec::EllipseInside { .. }) {
+                    let centre = State::new(center[0], center[1], 0.0, 0.0);
+                    let start = setup.config.x0;
+                    let w = Input::new(centre[0] - start[0], centre[1] - start[1]);
+                    let t5 = check_theorem5(&phi, &centre, &model.g, &w, &[start]);
+                    hypotheses.push(Hypothesis {
+                        name: format!("Thm. 5 for {name} at the start"),
+                        status: Status::Info,
+                        detail: t5.to_string(),
+                    });
+                }
+            }
+        }
+    }
+    for ob in &world.obstacles {
+        hypotheses.push(Hypothesis {
+            name: format!("condition 1 (4.4) for obstacle {} ({})", ob.name, ob.spec.shape.kind()),
+            status: Status::Assumed,
+            detail: format!(
+                "lifted signed distance: ∂H/∂v = k∇d with ‖∇d‖ = 1, so Λ ≠ 0 for each filter; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see the obstacle on the same side"
+            ),
+        });
+    }
+    if !world.obstacles.is_empty() {
+        assumptions.push(format!(
+            "condition 1 across filters near obstacles (estimates within θ̄ = {theta_bar:.4} m agree on a direction)"
+        ));
+    }
+    if matches!(f.dynamics, Dynamics::Rapier) {
+        assumptions.push(
+            "the linear model (6.2) with the compensator describes the rapier robot".to_string(),
+        );
+    }
+
+    // ---- 6. attacks inside one pattern ----
+    match attacked_pattern(world) {
+        Ok(Some(pi)) => hypotheses.push(Hypothesis {
+            name: "attacks inside one fault pattern".into(),
+            status: Status::Holds,
+            detail: format!("every attacked channel is in {}", pattern_names[pi]),
+        }),
+        Ok(None) => hypotheses.push(Hypothesis {
+            name: "attacks inside one fault pattern".into(),
+            status: Status::Holds,
+            detail: "no attack declared".to_string(),
+        }),
+        Err(e) => {
+            reasons.push(e.clone());
+            hypotheses.push(Hypothesis {
+                name: "attacks inside one fault pattern".into(),
+                status: Status::Fails,
+                detail: e,
+            });
+        }
+    }
+
+    // ---- 7. goal holding ----
+    let mut goal = Vec::new();
+    let kappa = f.control.cbf_gain;
+    let dt = world.control_dt();
+    let gc = State::new(f.goal.center[0], f.goal.center[1], 0.0, 0.0);
+    for (bi, s) in f.safe_sets.iter().enumerate() {
+        if let SafeSetSpec::HalfPlane { name, a, b } = s {
+            let av = State::new(a[0], a[1], a[2], a[3]);
+            let reach = match f.goal.metric {
+                GoalMetric::State => av.norm(),
+                GoalMetric::Position => (a[0] * a[0] + a[1] * a[1]).sqrt(),
+            };
+            let max_h = av.dot(&gc) - b + f.goal.radius * reach;
+            for (i, fc) in filters.iter().enumerate().take(m) {
+                let kc = steady_state_gain_product(model, &mask(&[i]), dt);
+                let needed = setup.config.barriers[bi].h_bar(p.gamma[i])
+                    + p.gamma[i] * (kc.transpose() * av).norm() / kappa;
+                goal.push(GoalHold {
+                    barrier: name.clone(),
+                    filter: fc.label.clone(),
+                    needed_h: needed,
+                    max_h_in_goal: max_h,
+                });
+            }
+        }
+    }
+    for g in &goal {
+        hypotheses.push(Hypothesis {
+            name: format!("goal can be held at rest ({}, {})", g.barrier, g.filter),
+            status: Status::Info,
+            detail: format!(
+                "{}: at rest the CBF row needs h ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ = {:.6}; the goal set reaches h ≤ {:.6}{}",
+                if g.holds() { "yes" } else { "NO" },
+                g.needed_h,
+                g.max_h_in_goal,
+                if g.holds() {
+                    ""
+                } else {
+                    " — the robot can pass through the goal but cannot settle in it with these margins"
+                }
+            ),
+        });
+    }
+
+    let applies = reasons.is_empty();
+    Ok(CheckReport {
+        world: world.name.clone(),
+        context,
+        filters,
+        hypotheses,
+        goal,
+        verdict: Verdict {
+            applies,
+            epsilon: eps,
+            reasons,
+            assumptions,
+            horizon: (applies && finite_horizon).then_some(horizon),
+        },
+    })
+}
+
+impl fmt::Display for CheckReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for line in &self.context {
+            writeln!(f, "  {line}")?;
+        }
+        writeln!(f, "hypotheses of Theorem 3:")?;
+        for h in &self.hypotheses {
+            writeln!(f, "  [{}] {}: {}", h.status.tag(), h.name, h.detail)?;
+        }
+        if !self.verdict.assumptions.is_empty() {
+            writeln!(f, "assumed, not checkable from the world file:")?;
+            for a in &self.verdict.assumptions {
+                writeln!(f, "  - {a}")?;
+            }
+        }
+        write!(f, "verdict: {}", self.verdict.line())
+    }
+}
