@@ -492,6 +492,20 @@ fn attempt(
     r
 }
 
+/// Where the stages have got to: the stage that ran last, whether the CLF rows of its
+/// problem are soft, and its result.
+struct Progress {
+    stage: Stage,
+    clf_relaxed: bool,
+    result: QpResult,
+}
+
+impl Progress {
+    fn feasible(&self) -> bool {
+        matches!(self.result, QpResult::Feasible { .. })
+    }
+}
+
 /// Run Steps 1–3 (see the module docs). Fills `record` and returns the input and outcome.
 pub fn resolve(
     p: &PolicyProblem,
@@ -499,6 +513,52 @@ pub fn resolve(
     s: &mut PolicyScratch,
     record: &mut DecisionRecord,
 ) -> (Input, QpOutcome) {
+    start(p, s, record);
+
+    // Step 1
+    collect(p, s);
+    let mut at = Progress {
+        stage: Stage::Step1,
+        clf_relaxed: false,
+        result: attempt(qp, s, RowMode::Hard, record),
+    };
+    if !at.feasible() && p.units > 1 {
+        step2(p, qp, s, record, &mut at);
+    }
+    if !at.feasible() && !s.clf_rows.is_empty() {
+        relax_clf(qp, s, record, &mut at);
+    }
+    if !at.feasible() && p.units > 1 {
+        step3(p, qp, s, record, &mut at);
+    }
+
+    let (u, outcome) = match at.result {
+        QpResult::Feasible {
+            u,
+            slack,
+            iterations,
+        } => (
+            u,
+            QpOutcome::Feasible {
+                stage: at.stage,
+                clf_relaxed: at.clf_relaxed,
+                clf_slack: if at.clf_relaxed { slack } else { 0.0 },
+                iterations,
+            },
+        ),
+        _ => {
+            at.stage = Stage::Fallback;
+            fallback(p, qp, s, record)
+        }
+    };
+    record.stage = at.stage;
+    record_decisions(p, s, at.stage, at.clf_relaxed, record);
+    (u, outcome)
+}
+
+/// Reset the record and the scratch for a new decision (every unit alive, nothing dropped)
+/// and count the imposed rows that are not finite.
+fn start(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) {
     record.decisions.clear();
     record.qp_solves = 0;
     record.solver_failures = 0;
@@ -520,243 +580,294 @@ pub fn resolve(
             record.non_finite_rows += 1;
         }
     }
+}
 
-    // Step 1
-    collect(p, s);
-    let mut clf_relaxed = false;
-    let mut stage = Stage::Step1;
-    let mut result = attempt(qp, s, RowMode::Hard, record);
-
-    // Step 2
-    if !matches!(result, QpResult::Feasible { .. }) && p.units > 1 {
-        stage = Stage::Step2;
-        let mut dropped_any = false;
-        for i in 0..p.units {
-            for j in (i + 1)..p.units {
-                let theta = p.theta[i * p.units + j];
-                let eta = p.theta_increment[i * p.units + j];
-                let distance = (p.estimates[i] - p.estimates[j]).norm();
-                let inc_i = p.separation_increment[i * p.units + j];
-                let inc_j = p.separation_increment[j * p.units + i];
-                let metric = &p.increment_metric[i * p.units + j];
-                let w_norm = |z: State| (z.transpose() * metric * z)[0].max(0.0).sqrt();
-                let inc_distance = w_norm(inc_i - inc_j);
-                // S(z) = max(‖z‖/(θ/2), ‖Δz‖/(η/2)) is a seminorm: the pair conflicts when
-                // S(x̂_i − x̂_j) > 2, and unit a goes when S(x̂_a − x̂_ij) > 1.
-                let conflict = distance > theta || inc_distance > eta;
-                if !conflict {
-                    continue;
-                }
-                let pair = p.pair_estimates[i * p.units + j];
-                for (a, other, inc) in [(i, j, inc_i), (j, i, inc_j)] {
-                    if !s.alive[a] {
-                        continue;
-                    }
-                    let dev = (p.estimates[a] - pair).norm();
-                    let inc_dev = w_norm(inc);
-                    let reason = if dev > theta / 2.0 {
-                        DropReason::PairwiseDeviation {
-                            other,
-                            distance,
-                            theta,
-                            deviation_from_pair: dev,
-                        }
-                    } else if inc_dev > eta / 2.0 {
-                        DropReason::SeparationIncrement {
-                            other,
-                            increment_distance: inc_distance,
-                            eta,
-                            increment_from_pair: inc_dev,
-                        }
-                    } else {
-                        continue;
-                    };
-                    s.alive[a] = false;
-                    dropped_any = true;
-                    s.drop_reason[a] = Some((Stage::Step2, reason));
-                }
-            }
-        }
-        // The invariant of Step 3: never drop the last unit with CBF rows. Keep the one
-        // Step 3 would keep (smallest residue key, then lowest index) and say so.
-        let had_cbf = (0..p.units).any(|i| unit_has_cbf(p, i));
-        let kept_cbf = (0..p.units).any(|i| s.alive[i] && unit_has_cbf(p, i));
-        if had_cbf && !kept_cbf {
-            let keep = (0..p.units)
-                .filter(|&i| unit_has_cbf(p, i))
-                .min_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]));
-            if let Some(k) = keep {
-                s.alive[k] = true;
-                if let Some((_, failed_test)) = s.drop_reason[k].take() {
-                    record.step2_retained = Some(Step2Retained {
-                        unit: k,
-                        failed_test,
-                    });
-                }
-            }
-        }
-        if dropped_any {
-            collect(p, s);
-            result = attempt(qp, s, RowMode::Hard, record);
-        }
-    }
-
-    // CLF relaxation
-    if !matches!(result, QpResult::Feasible { .. }) && !s.clf_rows.is_empty() {
-        stage = Stage::ClfRelaxation;
-        clf_relaxed = true;
-        result = attempt(qp, s, RowMode::Soft, record);
-    }
-
-    // Step 3
-    if !matches!(result, QpResult::Feasible { .. }) && p.units > 1 {
-        loop {
-            let mut candidates = 0;
-            let mut worst: Option<usize> = None;
-            for i in 0..p.units {
-                if s.alive[i] && unit_has_cbf(p, i) {
-                    candidates += 1;
-                    match worst {
-                        Some(w) if p.residue_key[i] <= p.residue_key[w] => {}
-                        _ => worst = Some(i),
-                    }
-                }
-            }
-            let Some(w) = worst else { break };
-            if candidates <= 1 {
-                break;
-            }
-            stage = Stage::Step3;
-            s.alive[w] = false;
-            s.drop_reason[w] = Some((
-                Stage::Step3,
-                DropReason::LargestResidue {
-                    residue: p.residue_key[w],
-                    flagged: p.flagged[w],
-                    window_chi2: p.residue_stat.get(w).map_or(f64::NAN, |s| s.0),
-                    window_dof: p.residue_stat.get(w).map_or(0, |s| s.1),
-                },
-            ));
-            collect(p, s);
-            clf_relaxed = !s.clf_rows.is_empty();
-            result = attempt(qp, s, RowMode::Soft, record);
-            if matches!(result, QpResult::Feasible { .. }) {
-                break;
+/// Step 2: drop the units the pair tests single out, keep the last unit with CBF rows, and
+/// resolve (hard) when something was dropped.
+fn step2(
+    p: &PolicyProblem,
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+    at: &mut Progress,
+) {
+    at.stage = Stage::Step2;
+    let mut dropped_any = false;
+    for i in 0..p.units {
+        for j in (i + 1)..p.units {
+            if step2_pair(p, s, i, j) {
+                dropped_any = true;
             }
         }
     }
+    step2_keep_last_cbf_unit(p, s, record);
+    if dropped_any {
+        collect(p, s);
+        at.result = attempt(qp, s, RowMode::Hard, record);
+    }
+}
 
-    let (u, outcome) = match result {
-        QpResult::Feasible {
-            u,
-            slack,
-            iterations,
-        } => (
-            u,
-            QpOutcome::Feasible {
-                stage,
-                clf_relaxed,
-                clf_slack: if clf_relaxed { slack } else { 0.0 },
-                iterations,
+/// ‖z‖_W = √(zᵀ W z) (a negative rounding of the quadratic form counts as 0).
+fn w_norm(metric: &StateMatrix, z: State) -> f64 {
+    (z.transpose() * metric * z)[0].max(0.0).sqrt()
+}
+
+/// Step 2's test of the pair (i, j), i < j: when the pair conflicts, drop each unit still
+/// alive that has moved too far from x̂_ij. Returns whether it dropped one.
+fn step2_pair(p: &PolicyProblem, s: &mut PolicyScratch, i: usize, j: usize) -> bool {
+    let theta = p.theta[i * p.units + j];
+    let eta = p.theta_increment[i * p.units + j];
+    let distance = (p.estimates[i] - p.estimates[j]).norm();
+    let inc_i = p.separation_increment[i * p.units + j];
+    let inc_j = p.separation_increment[j * p.units + i];
+    let metric = &p.increment_metric[i * p.units + j];
+    let inc_distance = w_norm(metric, inc_i - inc_j);
+    // S(z) = max(‖z‖/(θ/2), ‖Δz‖/(η/2)) is a seminorm: the pair conflicts when
+    // S(x̂_i − x̂_j) > 2, and unit a goes when S(x̂_a − x̂_ij) > 1.
+    let conflict = distance > theta || inc_distance > eta;
+    if !conflict {
+        return false;
+    }
+    let pair = p.pair_estimates[i * p.units + j];
+    let mut dropped = false;
+    for (a, other, inc) in [(i, j, inc_i), (j, i, inc_j)] {
+        if !s.alive[a] {
+            continue;
+        }
+        let dev = (p.estimates[a] - pair).norm();
+        let inc_dev = w_norm(metric, inc);
+        let reason = if dev > theta / 2.0 {
+            DropReason::PairwiseDeviation {
+                other,
+                distance,
+                theta,
+                deviation_from_pair: dev,
+            }
+        } else if inc_dev > eta / 2.0 {
+            DropReason::SeparationIncrement {
+                other,
+                increment_distance: inc_distance,
+                eta,
+                increment_from_pair: inc_dev,
+            }
+        } else {
+            continue;
+        };
+        s.alive[a] = false;
+        dropped = true;
+        s.drop_reason[a] = Some((Stage::Step2, reason));
+    }
+    dropped
+}
+
+/// The invariant of Step 3: never drop the last unit with CBF rows. Keep the one Step 3 would
+/// keep (smallest residue key, then lowest index) and say so.
+fn step2_keep_last_cbf_unit(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) {
+    let had_cbf = (0..p.units).any(|i| unit_has_cbf(p, i));
+    let kept_cbf = (0..p.units).any(|i| s.alive[i] && unit_has_cbf(p, i));
+    if had_cbf && !kept_cbf {
+        let keep = (0..p.units)
+            .filter(|&i| unit_has_cbf(p, i))
+            .min_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]));
+        if let Some(k) = keep {
+            s.alive[k] = true;
+            if let Some((_, failed_test)) = s.drop_reason[k].take() {
+                record.step2_retained = Some(Step2Retained {
+                    unit: k,
+                    failed_test,
+                });
+            }
+        }
+    }
+}
+
+/// CLF relaxation: the CLF rows of the units still alive become soft.
+fn relax_clf(
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+    at: &mut Progress,
+) {
+    at.stage = Stage::ClfRelaxation;
+    at.clf_relaxed = true;
+    at.result = attempt(qp, s, RowMode::Soft, record);
+}
+
+/// Step 3: drop the unit with the largest residue key among those with CBF rows and resolve
+/// (soft CLF rows), until feasible or one such unit is left.
+fn step3(
+    p: &PolicyProblem,
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+    at: &mut Progress,
+) {
+    loop {
+        let (candidates, worst) = largest_residue(p, s);
+        let Some(w) = worst else { break };
+        if candidates <= 1 {
+            break;
+        }
+        at.stage = Stage::Step3;
+        s.alive[w] = false;
+        s.drop_reason[w] = Some((
+            Stage::Step3,
+            DropReason::LargestResidue {
+                residue: p.residue_key[w],
+                flagged: p.flagged[w],
+                window_chi2: p.residue_stat.get(w).map_or(f64::NAN, |s| s.0),
+                window_dof: p.residue_stat.get(w).map_or(0, |s| s.1),
             },
-        ),
-        _ => {
-            // Fallback: soft CBF rows of the surviving units, no CLF; brake when a surviving
-            // CBF row is not finite (no input is known to satisfy it) or the solver fails.
-            stage = Stage::Fallback;
-            s.clf_rows.clear();
-            let non_finite = s.cbf_rows.iter().any(|h| !is_finite_row(h));
-            let soft = if non_finite {
-                None
-            } else {
-                Some(solve(qp, s, RowMode::Soft, RowMode::Hard, record))
-            };
-            let (u, action) = match soft {
-                Some(QpResult::Feasible { u, .. }) => (u, SafeAction::MinimiseMaxViolation),
-                other => {
-                    let reason = match other {
-                        None => BrakeReason::NonFiniteRow,
-                        Some(QpResult::SolverFailure { status }) => BrakeReason::SolverFailure {
-                            solver_status: Some(status),
-                        },
-                        Some(_) => BrakeReason::SolverFailure {
-                            solver_status: None,
-                        },
-                    };
-                    let (u, velocity) = brake(p, s, qp.input_limit());
-                    (u, SafeAction::Brake { reason, velocity })
-                }
-            };
-            // Largest violation of the remaining CBF rows at u; +∞ when a row is not finite
-            // (its violation is unknown, so it is never reported as small).
-            let max_v = s
-                .cbf_rows
-                .iter()
-                .map(|h| {
-                    let n = h.normal.norm();
-                    if !is_finite_row(h) {
-                        f64::INFINITY
-                    } else if n > 1e-12 {
-                        h.violation(&u) / n
-                    } else {
-                        -h.offset
-                    }
-                })
-                .fold(0.0_f64, f64::max);
-            (
-                u,
-                QpOutcome::InfeasibleAfterStep3 {
-                    action,
-                    max_cbf_violation: max_v,
-                },
-            )
+        ));
+        collect(p, s);
+        at.clf_relaxed = !s.clf_rows.is_empty();
+        at.result = attempt(qp, s, RowMode::Soft, record);
+        if at.feasible() {
+            break;
+        }
+    }
+}
+
+/// The units still alive that have CBF rows (how many), and the one with the largest residue
+/// key among them (ties: the highest index).
+fn largest_residue(p: &PolicyProblem, s: &PolicyScratch) -> (usize, Option<usize>) {
+    let mut candidates = 0;
+    let mut worst: Option<usize> = None;
+    for i in 0..p.units {
+        if s.alive[i] && unit_has_cbf(p, i) {
+            candidates += 1;
+            match worst {
+                Some(w) if p.residue_key[i] <= p.residue_key[w] => {}
+                _ => worst = Some(i),
+            }
+        }
+    }
+    (candidates, worst)
+}
+
+/// Fallback: soft CBF rows of the surviving units, no CLF; brake when a surviving CBF row is
+/// not finite (no input is known to satisfy it) or the solver fails.
+fn fallback(
+    p: &PolicyProblem,
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+) -> (Input, QpOutcome) {
+    s.clf_rows.clear();
+    let non_finite = s.cbf_rows.iter().any(|h| !is_finite_row(h));
+    let soft = if non_finite {
+        None
+    } else {
+        Some(solve(qp, s, RowMode::Soft, RowMode::Hard, record))
+    };
+    let (u, action) = match soft {
+        Some(QpResult::Feasible { u, .. }) => (u, SafeAction::MinimiseMaxViolation),
+        other => {
+            let reason = brake_reason(other);
+            let (u, velocity) = brake(p, s, qp.input_limit());
+            (u, SafeAction::Brake { reason, velocity })
         }
     };
-    record.stage = stage;
+    (
+        u,
+        QpOutcome::InfeasibleAfterStep3 {
+            action,
+            max_cbf_violation: max_cbf_violation(&s.cbf_rows, &u),
+        },
+    )
+}
 
-    // The record.
+/// Why the fallback brakes, from its soft solve (`None`: not attempted, a row is not finite).
+fn brake_reason(soft: Option<QpResult>) -> BrakeReason {
+    match soft {
+        None => BrakeReason::NonFiniteRow,
+        Some(QpResult::SolverFailure { status }) => BrakeReason::SolverFailure {
+            solver_status: Some(status),
+        },
+        Some(_) => BrakeReason::SolverFailure {
+            solver_status: None,
+        },
+    }
+}
+
+/// Largest violation of the remaining CBF rows at u; +∞ when a row is not finite (its
+/// violation is unknown, so it is never reported as small).
+fn max_cbf_violation(rows: &[HalfSpace], u: &Input) -> f64 {
+    rows.iter()
+        .map(|h| {
+            let n = h.normal.norm();
+            if !is_finite_row(h) {
+                f64::INFINITY
+            } else if n > 1e-12 {
+                h.violation(u) / n
+            } else {
+                -h.offset
+            }
+        })
+        .fold(0.0_f64, f64::max)
+}
+
+/// The record: one decision per (unit, barrier) CBF row and per unit CLF row.
+fn record_decisions(
+    p: &PolicyProblem,
+    s: &PolicyScratch,
+    stage: Stage,
+    clf_relaxed: bool,
+    record: &mut DecisionRecord,
+) {
     for i in 0..p.units {
         for b in 0..p.barriers {
-            let k = i * p.barriers + b;
-            let verdict = if !p.cbf_active[k] {
-                Verdict::Inactive(InactiveReason::FarFromBoundary {
-                    h_hat: p.cbf[k].h_hat,
-                    delta: p.delta,
-                })
-            } else if let Some((st, reason)) = s.drop_reason[i] {
-                Verdict::Dropped { stage: st, reason }
-            } else if stage == Stage::Fallback {
-                Verdict::Relaxed
-            } else {
-                Verdict::Kept
-            };
             record.decisions.push(ConstraintDecision {
                 unit: i,
                 kind: ConstraintKind::Cbf { barrier: b },
-                verdict,
+                verdict: cbf_verdict(p, s, stage, i, b),
             });
         }
         if p.use_clf {
-            let verdict = if !p.clf_active[i] {
-                Verdict::Inactive(InactiveReason::InsideGoalLevel {
-                    v: p.clf[i].v,
-                    v_bar: p.v_bar,
-                })
-            } else if let Some((st, reason)) = s.drop_reason[i] {
-                Verdict::Dropped { stage: st, reason }
-            } else if clf_relaxed || stage == Stage::Fallback {
-                Verdict::Relaxed
-            } else {
-                Verdict::Kept
-            };
             record.decisions.push(ConstraintDecision {
                 unit: i,
                 kind: ConstraintKind::Clf,
-                verdict,
+                verdict: clf_verdict(p, s, stage, clf_relaxed, i),
             });
         }
     }
-    (u, outcome)
+}
+
+fn cbf_verdict(p: &PolicyProblem, s: &PolicyScratch, stage: Stage, i: usize, b: usize) -> Verdict {
+    let k = i * p.barriers + b;
+    if !p.cbf_active[k] {
+        Verdict::Inactive(InactiveReason::FarFromBoundary {
+            h_hat: p.cbf[k].h_hat,
+            delta: p.delta,
+        })
+    } else if let Some((st, reason)) = s.drop_reason[i] {
+        Verdict::Dropped { stage: st, reason }
+    } else if stage == Stage::Fallback {
+        Verdict::Relaxed
+    } else {
+        Verdict::Kept
+    }
+}
+
+fn clf_verdict(
+    p: &PolicyProblem,
+    s: &PolicyScratch,
+    stage: Stage,
+    clf_relaxed: bool,
+    i: usize,
+) -> Verdict {
+    if !p.clf_active[i] {
+        Verdict::Inactive(InactiveReason::InsideGoalLevel {
+            v: p.clf[i].v,
+            v_bar: p.v_bar,
+        })
+    } else if let Some((st, reason)) = s.drop_reason[i] {
+        Verdict::Dropped { stage: st, reason }
+    } else if clf_relaxed || stage == Stage::Fallback {
+        Verdict::Relaxed
+    } else {
+        Verdict::Kept
+    }
 }
 
 /// The normal (and its norm) and the offset are finite: the rows
