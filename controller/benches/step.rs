@@ -71,6 +71,7 @@ fn controller(patterns: Vec<Vec<usize>>) -> Controller {
         x0: State::new(1.0, 0.0, 0.0, 0.0),
         p0: StateMatrix::identity() * 1e-3,
         max_abs_reading: 1e6,
+        form: ftcbf_controller::ProblemForm::Paper,
     })
     .expect("config")
 }

@@ -12,6 +12,7 @@ use crate::constraints::{cbf_row, clf_row};
 use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
+use crate::nominal::{PathTracker, TrackerConfig, TrackerError};
 use crate::params::{ThetaSchedule, STEP2_WINDOW};
 use crate::policy::{resolve, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
 use crate::qp::QpSolver;
@@ -30,6 +31,24 @@ pub enum ControllerKind {
     Baseline,
     /// CLF only over the all-channel filter (no barriers).
     Nominal,
+}
+
+/// Which problem the QP solves each step.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProblemForm {
+    /// Problem (5.3), the paper's: min uᵀRu over the CBF rows Ω and the CLF rows Υ (the CLF
+    /// drives the robot; its rows are relaxed with a slack when they conflict).
+    Paper,
+    /// The safety filter: a path tracker ([`crate::nominal`]) proposes u_nom from the estimate
+    /// Step 3 would keep (smallest residue key), and the QP returns the closest safe input,
+    /// min (u − u_nom)ᵀR(u − u_nom) over the same Ω rows and Steps 1–3. With `clf` the Υ rows
+    /// are imposed too (as in the paper); without, only barriers constrain u.
+    SafetyFilter {
+        /// The nominal path-tracking law.
+        tracker: TrackerConfig,
+        /// Keep the CLF rows Υ.
+        clf: bool,
+    },
 }
 
 /// Configuration of a [`Controller`].
@@ -79,6 +98,8 @@ pub struct ControllerConfig {
     pub p0: StateMatrix,
     /// Readings with |y| above this, or non-finite, are rejected.
     pub max_abs_reading: f64,
+    /// Which problem the QP solves.
+    pub form: ProblemForm,
 }
 
 /// Configuration errors.
@@ -100,6 +121,9 @@ pub enum ConfigError {
         /// Expectation.
         expected: &'static str,
     },
+    /// The nominal tracker of the safety-filter form.
+    #[error("{0}")]
+    Tracker(#[from] TrackerError),
     /// A list of the wrong length.
     #[error("controller config key `{key}` has {got} entries, expected {expected}")]
     Length {
@@ -146,6 +170,10 @@ pub struct ControlOutput {
     pub h_values: Vec<f64>,
     /// V(x̂) per filter of the bank.
     pub v_values: Vec<f64>,
+    /// The nominal input u_nom of the safety-filter form (None in the paper's form) [m/s²].
+    pub u_nom: Option<Input>,
+    /// Stalls the nominal tracker detected so far (each starts an escape).
+    pub stalls: usize,
 }
 
 /// The controller. `Send`; one per trial.
@@ -179,6 +207,10 @@ pub struct Controller {
     /// θ_ij(t) and the time since the first step (sum of the valid dt).
     theta_schedule: Option<ThetaSchedule>,
     elapsed: f64,
+    /// The safety-filter form's tracker (None: problem 5.3).
+    tracker: Option<PathTracker>,
+    /// Scratch for the median estimate of the safety-filter form (units + pairs).
+    nominal_buf: Vec<f64>,
 }
 
 fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
@@ -433,7 +465,21 @@ impl Controller {
             },
             h_values: vec![0.0; nf * nb],
             v_values: vec![0.0; nf],
+            u_nom: None,
+            stalls: 0,
         };
+        let (tracker, use_clf) = match cfg.form {
+            ProblemForm::Paper => (None, true),
+            ProblemForm::SafetyFilter { tracker, clf } => {
+                let mut t = tracker;
+                if t.input_limit.is_none() {
+                    t.input_limit = cfg.input_limit;
+                }
+                (Some(PathTracker::new(t, [cfg.x0[0], cfg.x0[1]])?), clf)
+            }
+        };
+        problem.use_clf = use_clf;
+        problem.step2_every_step = tracker.is_some();
         Ok(Self {
             kind: cfg.kind,
             scratch: PolicyScratch::new(units, barriers_used),
@@ -460,6 +506,8 @@ impl Controller {
             last_dt: 0.0,
             theta_schedule: cfg.theta_schedule,
             elapsed: 0.0,
+            tracker,
+            nominal_buf: Vec::with_capacity(units + units * units),
         })
     }
 
@@ -542,6 +590,7 @@ impl Controller {
             .map(|f| f.skipped_updates())
             .sum();
         self.fill_problem();
+        self.propose_nominal();
         let (u, outcome) = resolve(
             &self.problem,
             &mut self.qp,
@@ -561,6 +610,48 @@ impl Controller {
             self.output.v_values[fi] = self.clf.value(f.estimate());
         }
         &self.output
+    }
+
+    /// The safety-filter form: u_nom from the component-wise median of the estimates of the
+    /// bank's units and, for FT-CBF-CLF, its pair filters (one spoofed pattern moves at most
+    /// the units and pairs that use it: a minority once m ≥ 2), as the QP's reference; the CLF
+    /// rows are left out unless asked.
+    fn propose_nominal(&mut self) {
+        let Some(tracker) = self.tracker.as_mut() else {
+            return;
+        };
+        let units = self.problem.units();
+        let m = self.bank.patterns();
+        let mut x = State::zeros();
+        for c in 0..4 {
+            let buf = &mut self.nominal_buf;
+            buf.clear();
+            buf.extend((0..units).map(|i| self.problem.estimates[i][c]));
+            if self.kind == ControllerKind::FtCbfClf {
+                for i in 0..m {
+                    for j in (i + 1)..m {
+                        buf.push(self.problem.pair_estimates[i * m + j][c]);
+                    }
+                }
+            }
+            buf.retain(|v| v.is_finite());
+            buf.sort_by(f64::total_cmp);
+            let n = buf.len();
+            x[c] = match n {
+                0 => f64::NAN,
+                _ if n % 2 == 1 => buf[n / 2],
+                _ => 0.5 * (buf[n / 2 - 1] + buf[n / 2]),
+            };
+        }
+        let u_nom = tracker.propose([x[0], x[1]], [x[2], x[3]], self.last_dt);
+        self.qp.set_reference(u_nom);
+        self.output.u_nom = Some(u_nom);
+        self.output.stalls = tracker.stalls();
+    }
+
+    /// The safety-filter form's tracker, if any.
+    pub fn tracker(&self) -> Option<&PathTracker> {
+        self.tracker.as_ref()
     }
 
     fn fill_problem(&mut self) {

@@ -17,7 +17,8 @@
 //! [`params`] (γ, θ, χ² quantiles, checks of Lemma 1 / Prop. 1 / Thm. 5),
 //! [`conditions`] (condition (4.4) of Theorem 3 decided on the barriers that run) and
 //! [`controller`] (the top-level FT-CBF-CLF, baseline and nominal controllers) and
-//! [`drive`] (the compensator 6.3–6.4 turning u into a body command (v, ω)).
+//! [`drive`] (the compensator 6.3–6.4 turning u into a body command (v, ω)) and [`nominal`]
+//! (the path-tracking nominal law of the safety-filter form).
 
 pub mod barrier;
 pub mod conditions;
@@ -29,6 +30,7 @@ pub mod feasibility;
 pub mod interface;
 pub mod lyapunov;
 pub mod model;
+pub mod nominal;
 pub mod params;
 pub mod policy;
 pub mod qp;
@@ -38,11 +40,13 @@ pub use barrier::{
     Barrier, BarrierEval, EllipsoidInside, EllipsoidOutside, HalfPlane, HigherOrderHalfPlane,
 };
 pub use controller::{
-    ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, RejectedReadings,
+    ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, ProblemForm,
+    RejectedReadings,
 };
 pub use estimator::{EstimatorBank, FilterRole, KalmanFilter};
 pub use interface::{ControlLaw, Decision, Readings};
 pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
+pub use nominal::{PathTracker, TrackerConfig, TrackerError};
 pub use policy::{DecisionRecord, QpOutcome, SafeAction, Stage};
 pub use types::{Input, InputMatrix, State, StateMatrix};

@@ -333,6 +333,10 @@ pub struct PolicyProblem {
     pub clf_active: Vec<bool>,
     /// Whether the CLF is part of the problem at all.
     pub use_clf: bool,
+    /// Run Step 2's isolation tests every step, not only when Step 1 is infeasible (the
+    /// safety-filter form: otherwise a spoofed filter whose rows can all be met by braking
+    /// freezes the robot and is never tested).
+    pub step2_every_step: bool,
     /// Estimates x̂_i per unit.
     pub estimates: Vec<State>,
     /// Pair estimates x̂_ij, index `i * units + j` (symmetric).
@@ -380,6 +384,7 @@ impl PolicyProblem {
             clf: vec![zero_clf; units],
             clf_active: vec![false; units],
             use_clf: true,
+            step2_every_step: false,
             estimates: vec![State::zeros(); units],
             pair_estimates: vec![State::zeros(); units * units],
             theta: vec![f64::INFINITY; units * units],
@@ -522,7 +527,9 @@ pub fn resolve(
         clf_relaxed: false,
         result: attempt(qp, s, RowMode::Hard, record),
     };
-    if !at.feasible() && p.units > 1 {
+    // Step 2 runs every step when `step2_every_step` (a spoofed filter whose rows can all be met
+    // may still hold the robot back); its tests are the same either way.
+    if (!at.feasible() || p.step2_every_step) && p.units > 1 {
         step2(p, qp, s, record, &mut at);
     }
     if !at.feasible() && !s.clf_rows.is_empty() {
@@ -591,7 +598,9 @@ fn step2(
     record: &mut DecisionRecord,
     at: &mut Progress,
 ) {
-    at.stage = Stage::Step2;
+    if !at.feasible() {
+        at.stage = Stage::Step2;
+    }
     let mut dropped_any = false;
     for i in 0..p.units {
         for j in (i + 1)..p.units {
@@ -602,6 +611,7 @@ fn step2(
     }
     step2_keep_last_cbf_unit(p, s, record);
     if dropped_any {
+        at.stage = Stage::Step2;
         collect(p, s);
         at.result = attempt(qp, s, RowMode::Hard, record);
     }

@@ -1,7 +1,9 @@
 //! Problem 5.3 through clarabel, with one reused solver.
 //!
 //! Variables `z = (u₁, u₂, s)`: the input and one shared slack `s ≥ 0` (m/s²).
-//! Cost `uᵀR u + w s²` (clarabel's ½zᵀPz with P = diag(2R, 2w)).
+//! Cost `(u − u_ref)ᵀR(u − u_ref) + w s²` (clarabel's ½zᵀPz + qᵀz with P = diag(2R, 2w) and
+//! q = (−2R·u_ref, 0)); u_ref = 0 is problem 5.3, a nominal input u_nom the safety-filter form
+//! ([`QpSolver::set_reference`]).
 //! Rows (all `a·z ≤ b`, nonnegative cone), fixed layout and a fixed **dense** sparsity
 //! pattern so the solver can be reused with `update_A`/`update_b` (presolve, zero-dropping,
 //! and equilibration are off):
@@ -88,7 +90,7 @@ pub struct QpSolver {
     a_dense: Vec<f64>,
     a_values: Vec<f64>,
     b: Vec<f64>,
-    q: [f64; NV],
+    q: Vec<f64>,
     input_limit: Option<Input>,
     solver: Option<DefaultSolver<f64>>,
     last_x: [f64; NV],
@@ -156,7 +158,7 @@ impl QpSolver {
             a_dense: vec![0.0; rows * NV],
             a_values: vec![0.0; rows * NV],
             b: vec![1.0; rows],
-            q: [0.0; NV],
+            q: vec![0.0; NV],
             input_limit,
             solver: None,
             last_x: [0.0; NV],
@@ -174,6 +176,29 @@ impl QpSolver {
     pub fn input_limit(&self) -> Option<Input> {
         self.input_limit
     }
+    /// Sets the reference input u_ref of the cost: from the next solve on the problem is
+    /// `min (u − u_ref)ᵀR(u − u_ref) + w s²` (the safety-filter form; u_ref = 0 is problem 5.3).
+    /// A non-finite reference is ignored (the previous one stays).
+    pub fn set_reference(&mut self, u_ref: Input) {
+        if !(u_ref[0].is_finite() && u_ref[1].is_finite()) {
+            return;
+        }
+        // ½zᵀPz + qᵀz with P = 2R: q = −2R·u_ref = −P·u_ref.
+        self.q[0] = -(self.p_values[0] * u_ref[0] + self.p_values[1] * u_ref[1]);
+        self.q[1] = -(self.p_values[1] * u_ref[0] + self.p_values[2] * u_ref[1]);
+    }
+
+    /// The reference input of the cost (zero for problem 5.3).
+    pub fn reference(&self) -> Input {
+        // invert q = −P·u_ref on the 2×2 input block
+        let (a, b, d) = (self.p_values[0], self.p_values[1], self.p_values[2]);
+        let det = a * d - b * b;
+        Input::new(
+            -(d * self.q[0] - b * self.q[1]) / det,
+            -(a * self.q[1] - b * self.q[0]) / det,
+        )
+    }
+
     /// Number of solves and of from-scratch builds so far.
     pub fn counters(&self) -> (u64, u64) {
         (self.solves, self.rebuilds)
@@ -197,7 +222,8 @@ impl QpSolver {
         self.b[row] = 1.0;
     }
 
-    /// Solve `min uᵀRu + w s²` s.t. the CBF rows, CLF rows (each group hard or soft), the box.
+    /// Solve `min (u − u_ref)ᵀR(u − u_ref) + w s²` (u_ref from [`QpSolver::set_reference`],
+    /// zero by default) s.t. the CBF rows, CLF rows (each group hard or soft), the box.
     pub fn solve(
         &mut self,
         cbf: &[HalfSpace],
@@ -253,7 +279,10 @@ impl QpSolver {
         }
         self.solves += 1;
         if let Some(s) = self.solver.as_mut() {
-            if s.update_A(&self.a_values).is_ok() && s.update_b(&self.b).is_ok() {
+            if s.update_A(&self.a_values).is_ok()
+                && s.update_b(&self.b).is_ok()
+                && s.update_q(&self.q).is_ok()
+            {
                 if let Ok(r) = self.run() {
                     return r;
                 }

@@ -78,6 +78,7 @@ fn a_step_allocates_only_inside_clarabel() {
             x0: State::new(1.0, 0.0, 0.0, 0.0),
             p0: StateMatrix::identity() * 1e-3,
             max_abs_reading: 1e6,
+            form: ftcbf_controller::ProblemForm::Paper,
         })
         .expect("config");
         // a few rejected readings too: the rejection path must not allocate either

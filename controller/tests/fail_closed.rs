@@ -263,6 +263,7 @@ fn a_nan_barrier_is_imposed_and_fails_closed_in_the_controller() {
             x0: State::new(1.0, 0.0, 0.2, 0.0),
             p0: StateMatrix::identity() * 1e-3,
             max_abs_reading: 1e6,
+            form: ftcbf_controller::ProblemForm::Paper,
         };
         let mut c = Controller::new(cfg).unwrap();
         let out = c.step(&[1.0, 1.0, 0.0, 0.0, 0.2, 0.0], &[true; 6], 0.01);

@@ -374,6 +374,7 @@ fn small_config() -> ControllerConfig {
         x0: State::new(1.0, 0.0, 0.0, 0.0),
         p0: StateMatrix::identity() * 1e-3,
         max_abs_reading: 1e6,
+        form: ftcbf_controller::ProblemForm::Paper,
     }
 }
 

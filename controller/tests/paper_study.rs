@@ -81,6 +81,7 @@ fn config(kind: ControllerKind, p: &StudyParams) -> ControllerConfig {
         x0: State::new(1.0, 0.0, 0.0, 0.0),
         p0: StateMatrix::identity() * 1e-3,
         max_abs_reading: 1e6,
+        form: ftcbf_controller::ProblemForm::Paper,
     }
 }
 

@@ -66,6 +66,13 @@ pub struct DriveConfig {
     pub v_floor: f64,
     /// Initial forward speed of the integrator (6.3) [m/s]. Default 0.
     pub v_initial: f64,
+    /// `Some(v_soft)`: the `Regularised` low-speed law ω = a⊥·v/(v² + v_soft²) instead of the
+    /// floor. Default None (the floor).
+    pub v_soft: Option<f64>,
+    /// Rate limit on v [m/s²]. Default None.
+    pub dv_max: Option<f64>,
+    /// Rate limit on ω [rad/s²]. Default None.
+    pub domega_max: Option<f64>,
     /// Gain k ∈ [0, 1] of the correction v ← v + k·(v_measured − v) before each step; 0 is
     /// the open loop. Default 0.1: at a steady acceleration a the integrator may lead the
     /// measured speed by a·dt/k (10 control steps), which the motors' lag needs.
@@ -77,6 +84,9 @@ impl Default for DriveConfig {
         Self {
             v_floor: 0.05,
             v_initial: 0.0,
+            v_soft: None,
+            dv_max: None,
+            domega_max: None,
             speed_gain: 0.1,
         }
     }
@@ -122,10 +132,13 @@ impl Drive {
         let mut compensator = Compensator::new(CompensatorConfig {
             v_max: limits.v_max,
             omega_max: limits.omega_max,
-            dv_max: None,
-            domega_max: None,
-            low_speed: LowSpeedLaw::Floor {
-                v_floor: cfg.v_floor,
+            dv_max: cfg.dv_max,
+            domega_max: cfg.domega_max,
+            low_speed: match cfg.v_soft {
+                Some(v_soft) => LowSpeedLaw::Regularised { v_soft },
+                None => LowSpeedLaw::Floor {
+                    v_floor: cfg.v_floor,
+                },
             },
             speed_gain: cfg.speed_gain,
         })?;

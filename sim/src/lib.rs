@@ -13,6 +13,7 @@ pub mod drive;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;
+pub mod planner;
 #[cfg(feature = "record")]
 pub mod record;
 pub mod regress;

@@ -240,6 +240,7 @@ mod tests {
             final_goal_distance: 0.0,
             final_clf_value: None,
             final_state: [0.0; 4],
+            smoothness: Default::default(),
         }
     }
 

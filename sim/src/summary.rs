@@ -84,6 +84,70 @@ pub struct AttackWindow {
     pub outside_fault_patterns: bool,
 }
 
+/// How smooth the body command (v, ω) sent to the wheels was, and how the robot moved.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Smoothness {
+    /// Control steps whose commanded ω has the opposite strict sign of the previous step's.
+    pub omega_sign_changes: u64,
+    /// `omega_sign_changes` over the control steps after the first.
+    pub omega_sign_change_fraction: f64,
+    /// Mean |ω_k − ω_(k−1)| per control step [rad/s].
+    pub mean_abs_domega: f64,
+    /// Mean |v_k − v_(k−1)| per control step [m/s].
+    pub mean_abs_dv: f64,
+    /// Length of the true path, sampled at the control rate [m].
+    pub path_length: f64,
+    /// Stalls the safety filter's nominal tracker detected (each began an escape).
+    pub stalls: u64,
+}
+
+/// Accumulates [`Smoothness`] step by step.
+#[derive(Debug, Clone, Default)]
+pub struct SmoothnessMeter {
+    last_cmd: Option<[f64; 2]>,
+    last_pos: Option<[f64; 2]>,
+    sign_changes: u64,
+    sum_domega: f64,
+    sum_dv: f64,
+    pairs: u64,
+    path: f64,
+    stalls: u64,
+}
+
+impl SmoothnessMeter {
+    /// One control step: the body command (v, ω) sent [m/s, rad/s], the true position [m] and
+    /// the tracker's stall count so far.
+    pub fn observe(&mut self, cmd: [f64; 2], pos: [f64; 2], stalls: u64) {
+        if let Some(last) = self.last_cmd {
+            self.pairs += 1;
+            self.sum_dv += (cmd[0] - last[0]).abs();
+            self.sum_domega += (cmd[1] - last[1]).abs();
+            if cmd[1] * last[1] < 0.0 {
+                self.sign_changes += 1;
+            }
+        }
+        if let Some(p) = self.last_pos {
+            self.path += (pos[0] - p[0]).hypot(pos[1] - p[1]);
+        }
+        self.last_cmd = Some(cmd);
+        self.last_pos = Some(pos);
+        self.stalls = stalls;
+    }
+
+    /// The figures so far.
+    pub fn smoothness(&self) -> Smoothness {
+        let n = self.pairs.max(1) as f64;
+        Smoothness {
+            omega_sign_changes: self.sign_changes,
+            omega_sign_change_fraction: self.sign_changes as f64 / n,
+            mean_abs_domega: self.sum_domega / n,
+            mean_abs_dv: self.sum_dv / n,
+            path_length: self.path,
+            stalls: self.stalls,
+        }
+    }
+}
+
 /// Length of the final stretch of a run over which "settled in the goal" is judged [s].
 pub const SETTLE_WINDOW: f64 = 2.0;
 
@@ -147,6 +211,9 @@ pub struct RunSummary {
     pub attacks_together_outside_fault_patterns: bool,
     /// True planar state (p_x, p_y, v_x, v_y) at the end [m, m, m/s, m/s].
     pub final_state: [f64; 4],
+    /// Smoothness of the command and the path (all zero for the linear plant's command).
+    #[serde(default)]
+    pub smoothness: Smoothness,
 }
 
 /// A yes/no outcome of a run that `[expect]` can count over seeds (`safe = true`,
@@ -206,6 +273,16 @@ pub const METRICS: &[Metric] = &[
         key: "time_to_goal",
         unit: " s",
         of: |s| s.time_to_goal,
+    },
+    Metric {
+        key: "omega_sign_change_fraction",
+        unit: "",
+        of: |s| Some(s.smoothness.omega_sign_change_fraction),
+    },
+    Metric {
+        key: "mean_abs_domega",
+        unit: " rad/s",
+        of: |s| Some(s.smoothness.mean_abs_domega),
     },
     Metric {
         key: "fallback_fraction",

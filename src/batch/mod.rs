@@ -169,6 +169,7 @@ pub(crate) mod testutil {
                 attacks_outside_fault_patterns: false,
                 attacks_together_outside_fault_patterns: false,
                 final_state: [1.0, 2.0, 0.0, 0.0],
+                smoothness: Default::default(),
             })
         }
     }

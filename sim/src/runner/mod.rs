@@ -46,7 +46,7 @@ use ftcbf_controller::Input;
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
 use crate::sensors::{Quantity, SensorSuite};
-use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, StepCounts};
+use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
 use monitor::Monitor;
@@ -179,6 +179,8 @@ pub struct Simulation<'w> {
     fail_closed: FailClosedCounts,
     view: StepView,
     link_poses: bool,
+    smooth: SmoothnessMeter,
+    stalls: u64,
 }
 
 impl<'w> Simulation<'w> {
@@ -281,6 +283,8 @@ impl<'w> Simulation<'w> {
             fail_closed: FailClosedCounts::default(),
             view,
             link_poses: false,
+            smooth: SmoothnessMeter::default(),
+            stalls: 0,
         }
     }
 
@@ -370,6 +374,7 @@ impl<'w> Simulation<'w> {
             fc.non_finite_row_steps += u64::from(out.decision.non_finite_rows > 0);
             fc.skipped_updates += out.rejected.skipped_updates as u64;
             fc.step2_retained_steps += u64::from(out.decision.step2_retained.is_some());
+            self.stalls = out.stalls as u64;
             fc.brake_steps += u64::from(matches!(
                 out.qp,
                 QpOutcome::InfeasibleAfterStep3 {
@@ -398,6 +403,8 @@ impl<'w> Simulation<'w> {
     /// Holds `u` through the drive for one control period of plant ticks, checking the truth.
     fn actuate(&mut self, u: Input) {
         self.view.body_cmd = self.plant.apply_input(&u, self.heading, self.control_dt);
+        let p = [self.view.truth.x, self.view.truth.y];
+        self.smooth.observe(self.view.body_cmd, p, self.stalls);
         for _ in 0..self.world.ticks_per_control {
             self.plant.tick();
             self.monitor
@@ -464,6 +471,7 @@ impl<'w> Simulation<'w> {
             attacks_together_outside_fault_patterns: self.attacks_together_outside,
             attack_windows: self.attack_windows.clone(),
             final_state: [end.x, end.y, end.vx, end.vy],
+            smoothness: self.smooth.smoothness(),
         }
     }
 }

@@ -82,7 +82,7 @@ impl Plant {
                 let drive = Drive::new(
                     &robot.wheels.geometry,
                     &robot.limits,
-                    DriveConfig::default(),
+                    drive_config(&world.file.control.drive),
                 )
                 .map_err(|e| e.to_string())?;
                 Ok(Plant::Rapier {
@@ -222,5 +222,18 @@ impl Plant {
         if let Plant::Rapier { physics, .. } = self {
             out.extend(physics.link_poses().map(|(n, p, q)| (n.to_string(), p, q)));
         }
+    }
+}
+
+/// The compensator settings of `[control.drive]`.
+fn drive_config(d: &crate::world::DriveSection) -> DriveConfig {
+    let base = DriveConfig::default();
+    let scale = d.low_speed_scale.unwrap_or(base.v_floor);
+    DriveConfig {
+        v_floor: scale,
+        v_soft: (d.low_speed == crate::world::LowSpeedSpec::Regularised).then_some(scale),
+        dv_max: d.dv_max,
+        domega_max: d.domega_max,
+        ..base
     }
 }

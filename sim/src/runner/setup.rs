@@ -8,14 +8,15 @@ use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::params::{BoundMethod, FtParameters, ThetaSchedule};
-use ftcbf_controller::{Barrier, Input, State, StateMatrix};
+use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
+use crate::planner::{plan, PlannerConfig};
 use crate::safe_sets::{LiftedEllipse, LiftedProp1};
 use crate::sensors::Quantity;
 use crate::world::{
-    BoundsSpec, ControllerKindSpec, Dynamics, Param, ProcessModel, SafeSetSpec, World,
+    BoundsSpec, ControllerKindSpec, Dynamics, FormSpec, Param, ProcessModel, SafeSetSpec, World,
 };
 
 use super::RunError;
@@ -280,6 +281,7 @@ impl ControlSetup {
             barriers.push(Arc::new(ob.barrier(&bcfg)));
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
+        let form = problem_form(world, &bcfg)?;
 
         let params = parameters(world, &model, &patterns);
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
@@ -305,6 +307,7 @@ impl ControlSetup {
             x0: initial_estimate(world),
             p0: initial_covariance(world),
             max_abs_reading: MAX_ABS_READING,
+            form,
         };
         Ok(Self {
             config,
@@ -315,6 +318,69 @@ impl ControlSetup {
             params,
         })
     }
+}
+
+/// `[control] form` with its tracker: the path through `[goal] waypoints`, planned around the
+/// obstacles when `[goal] plan` (see [`crate::planner`]).
+fn problem_form(world: &World, bcfg: &BarrierConfig) -> Result<ProblemForm, RunError> {
+    let file = &world.file;
+    if file.control.form == FormSpec::Paper {
+        return Ok(ProblemForm::Paper);
+    }
+    let n = &file.control.nominal;
+    let limit = file.control.input_limit.map(|l| Input::new(l, l));
+    let mut t = TrackerConfig::turtlebot(file.goal.center, file.goal.radius, limit);
+    let set = |slot: &mut f64, v: Option<f64>| {
+        if let Some(v) = v {
+            *slot = v;
+        }
+    };
+    set(&mut t.cruise_speed, n.cruise_speed);
+    set(&mut t.speed_gain, n.speed_gain);
+    set(&mut t.arrive_accel, n.arrive_accel);
+    set(&mut t.lookahead, n.lookahead);
+    set(&mut t.smoothing, n.smoothing);
+    set(&mut t.stall_progress, n.stall_progress);
+    set(&mut t.stall_time, n.stall_time);
+    set(&mut t.escape_time, n.escape_time);
+    set(&mut t.escape_angle, n.escape_angle);
+    if n.jerk_limit.is_some() {
+        t.jerk_limit = n.jerk_limit;
+    }
+    let start = initial_estimate(world);
+    t.waypoints = planned_path(world, bcfg, [start[0], start[1]]);
+    // the tracker appends the goal itself
+    t.waypoints.pop();
+    // validate now, so a bad key is named with the file
+    ftcbf_controller::PathTracker::new(t.clone(), [start[0], start[1]])
+        .map_err(|e| setup_err(world, "control.nominal", e.to_string()))?;
+    Ok(ProblemForm::SafetyFilter {
+        tracker: t,
+        clf: n.clf,
+    })
+}
+
+/// The points from the start to the goal (the goal last): `[goal] waypoints`, with legs
+/// planned around the obstacles when `[goal] plan`.
+pub fn planned_path(world: &World, bcfg: &BarrierConfig, start: [f64; 2]) -> Vec<[f64; 2]> {
+    let goal = &world.file.goal;
+    if !goal.plan || world.obstacles.is_empty() {
+        let mut pts = goal.waypoints.clone();
+        pts.push(goal.center);
+        return pts;
+    }
+    let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(bcfg)).collect();
+    let clear = |p: [f64; 2]| {
+        barriers
+            .iter()
+            .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let cfg = PlannerConfig {
+        inflate: bcfg.margin + PlannerConfig::default().inflate,
+        ..PlannerConfig::default()
+    };
+    plan(start, &goal.waypoints, goal.center, &clear, &cfg).points
 }
 
 fn setup_err(world: &World, key: &str, message: String) -> RunError {

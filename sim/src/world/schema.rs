@@ -267,6 +267,94 @@ pub struct ControlSection {
     /// Obstacle barriers: gain k of the relative-degree-2 lift H = d + k·ḋ [s] (default 0.5).
     #[serde(default = "default_lift")]
     pub obstacle_lift: f64,
+    /// Which problem the QP solves: `paper` (default: problem 5.3, the CLF drives) or
+    /// `safety_filter` (a path tracker proposes u_nom; the QP returns the closest safe input).
+    #[serde(default)]
+    pub form: FormSpec,
+    /// The nominal tracker of `form = "safety_filter"`.
+    #[serde(default)]
+    pub nominal: NominalSection,
+    /// The compensator (6.3)–(6.4) of a rapier robot.
+    #[serde(default)]
+    pub drive: DriveSection,
+}
+
+/// `[control] form`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FormSpec {
+    /// Problem (5.3).
+    #[default]
+    Paper,
+    /// min ‖u − u_nom‖²_R over the same Ω rows.
+    SafetyFilter,
+}
+
+impl FormSpec {
+    /// The name used in world files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FormSpec::Paper => "paper",
+            FormSpec::SafetyFilter => "safety_filter",
+        }
+    }
+}
+
+/// `[control.nominal]`: the path tracker of the safety-filter form (every key optional; the
+/// defaults suit a TurtleBot3, see `ftcbf_controller::TrackerConfig::turtlebot`).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NominalSection {
+    /// Cruise speed [m/s] (default 0.15).
+    pub cruise_speed: Option<f64>,
+    /// Velocity-tracking gain k_v [1/s] (default 1.5).
+    pub speed_gain: Option<f64>,
+    /// Approach deceleration [m/s²] (default 0.1).
+    pub arrive_accel: Option<f64>,
+    /// Lookahead along the path [m] (default 0.3).
+    pub lookahead: Option<f64>,
+    /// Low-pass time constant of u_nom [s] (default 0.2).
+    pub smoothing: Option<f64>,
+    /// Jerk limit [m/s³] (default 2).
+    pub jerk_limit: Option<f64>,
+    /// Stall: less progress than this [m] (default 0.05) ...
+    pub stall_progress: Option<f64>,
+    /// ... within this time [s] (default 4).
+    pub stall_time: Option<f64>,
+    /// Escape duration [s] (default 2).
+    pub escape_time: Option<f64>,
+    /// Escape turn of the desired direction [rad] (default π/3).
+    pub escape_angle: Option<f64>,
+    /// Keep the CLF rows Υ as constraints (default false).
+    #[serde(default)]
+    pub clf: bool,
+}
+
+/// `[control.drive]`: the compensator's low-speed law and rate limits.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSection {
+    /// `floor` (default: ω = a⊥ / max(|v|, v_floor)) or `regularised`
+    /// (ω = a⊥·v / (v² + v_soft²), continuous at rest).
+    #[serde(default)]
+    pub low_speed: LowSpeedSpec,
+    /// v_floor or v_soft [m/s] (default 0.05).
+    pub low_speed_scale: Option<f64>,
+    /// Rate limit on v [m/s²] (default none).
+    pub dv_max: Option<f64>,
+    /// Rate limit on ω [rad/s²] (default none).
+    pub domega_max: Option<f64>,
+}
+
+/// `[control.drive] low_speed`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LowSpeedSpec {
+    /// ω = a⊥ / (s·max(|v|, v_floor)).
+    #[default]
+    Floor,
+    /// ω = a⊥·v / (v² + v_soft²).
+    Regularised,
 }
 
 /// Where the filters' process noise enters (`[control] process_model`).
@@ -354,6 +442,17 @@ pub struct GoalSection {
     /// `position` (default: ‖p − p_g‖ ≤ d) or `state` (the paper's ‖x − x_g‖ ≤ d over all four states).
     #[serde(default)]
     pub metric: GoalMetric,
+    /// Waypoints [m] the safety filter's tracker passes before the goal (default none).
+    #[serde(default)]
+    pub waypoints: Vec<[f64; 2]>,
+    /// Plan a path from the start to the goal (through the waypoints) around the declared
+    /// obstacles for the safety filter's tracker (default true; ignored by `form = "paper"`).
+    #[serde(default = "default_plan")]
+    pub plan: bool,
+}
+
+fn default_plan() -> bool {
+    true
 }
 
 /// How the goal set is measured.

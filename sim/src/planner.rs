@@ -1,0 +1,308 @@
+//! A path from the start to the goal around the declared obstacles, for the safety filter's
+//! nominal tracker (`[goal] plan`, on by default with `form = "safety_filter"`).
+//!
+//! Each leg (start → waypoint → … → goal) is kept straight when it has line of sight; otherwise
+//! an A* search on an 8-connected grid (cell `resolution`, default 5 cm) finds a path through
+//! cells whose clearance — the signed distance of the robot disc to the nearest obstacle,
+//! half-spaces included — is at least `inflate` (the obstacle barrier margin plus a corridor of
+//! 8 cm by default, so the tracker does not ask the safety filter to cut corners). The grid
+//! path is then shortened by line of sight (string pulling). Clearances are evaluated lazily,
+//! only for the cells the search visits, and the plan is made once per run.
+//!
+//! Closed-form safe sets (half-planes in the state, ellipses) are not obstacles to the planner:
+//! they constrain the state, and the safety filter keeps them.
+
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
+
+/// Planner settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannerConfig {
+    /// Required clearance of the robot disc along the path [m].
+    pub inflate: f64,
+    /// Grid cell [m].
+    pub resolution: f64,
+    /// How far beyond the leg's end points the grid reaches [m].
+    pub border: f64,
+    /// Spacing of the line-of-sight samples [m].
+    pub sample: f64,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        Self {
+            inflate: 0.10,
+            resolution: 0.05,
+            border: 2.0,
+            sample: 0.02,
+        }
+    }
+}
+
+/// A planned path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The points to pass after the start, the goal last [m].
+    pub points: Vec<[f64; 2]>,
+    /// Legs that had no collision-free grid path and were left straight.
+    pub unplanned_legs: usize,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Open {
+    f: f64,
+    cell: (i64, i64),
+}
+
+impl Eq for Open {}
+
+impl Ord for Open {
+    fn cmp(&self, o: &Self) -> Ordering {
+        // min-heap on f, ties broken by the cell (deterministic)
+        o.f.total_cmp(&self.f).then_with(|| o.cell.cmp(&self.cell))
+    }
+}
+
+impl PartialOrd for Open {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// Whether the segment a–b keeps at least min(inflate, clearance at its end points) clearance.
+fn line_of_sight(
+    a: [f64; 2],
+    b: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> f64,
+    c: &PlannerConfig,
+) -> bool {
+    let need = c.inflate.min(clear(a)).min(clear(b)) - 1e-9;
+    let n = (dist(a, b) / c.sample).ceil().max(1.0) as usize;
+    (0..=n).all(|k| {
+        let t = k as f64 / n as f64;
+        clear([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]) >= need
+    })
+}
+
+/// A* from `a` to `b` on the grid; `None` when no free path exists in the grid's bounds.
+fn grid_path(
+    a: [f64; 2],
+    b: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> f64,
+    c: &PlannerConfig,
+) -> Option<Vec<[f64; 2]>> {
+    let r = c.resolution;
+    let origin = [a[0].min(b[0]) - c.border, a[1].min(b[1]) - c.border];
+    let nx = (((a[0] - b[0]).abs() + 2.0 * c.border) / r).ceil() as i64;
+    let ny = (((a[1] - b[1]).abs() + 2.0 * c.border) / r).ceil() as i64;
+    let cell_of = |p: [f64; 2]| {
+        (
+            ((p[0] - origin[0]) / r).round() as i64,
+            ((p[1] - origin[1]) / r).round() as i64,
+        )
+    };
+    let centre = |q: (i64, i64)| [origin[0] + q.0 as f64 * r, origin[1] + q.1 as f64 * r];
+    let (start, goal) = (cell_of(a), cell_of(b));
+    let mut free_cache: HashMap<(i64, i64), bool> = HashMap::new();
+    let mut free = |q: (i64, i64)| -> bool {
+        if q == start || q == goal {
+            return true;
+        }
+        if q.0 < 0 || q.1 < 0 || q.0 > nx || q.1 > ny {
+            return false;
+        }
+        *free_cache
+            .entry(q)
+            .or_insert_with(|| clear(centre(q)) >= c.inflate)
+    };
+    let h = |q: (i64, i64)| {
+        let (dx, dy) = ((q.0 - goal.0).abs() as f64, (q.1 - goal.1).abs() as f64);
+        r * (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy))
+    };
+    let mut g: HashMap<(i64, i64), f64> = HashMap::new();
+    let mut parent: HashMap<(i64, i64), (i64, i64)> = HashMap::new();
+    let mut open = BinaryHeap::new();
+    g.insert(start, 0.0);
+    open.push(Open {
+        f: h(start),
+        cell: start,
+    });
+    while let Some(Open { cell, f }) = open.pop() {
+        let gc = g[&cell];
+        if f > gc + h(cell) + 1e-12 {
+            continue; // stale entry
+        }
+        if cell == goal {
+            let mut cells = vec![cell];
+            let mut q = cell;
+            while let Some(&p) = parent.get(&q) {
+                cells.push(p);
+                q = p;
+            }
+            cells.reverse();
+            let mut pts: Vec<[f64; 2]> = cells.into_iter().map(centre).collect();
+            pts[0] = a;
+            let last = pts.len() - 1;
+            pts[last] = b;
+            return Some(pts);
+        }
+        for (dx, dy) in [
+            (1, 0),
+            (-1, 0),
+            (0, 1),
+            (0, -1),
+            (1, 1),
+            (1, -1),
+            (-1, 1),
+            (-1, -1),
+        ] {
+            let q = (cell.0 + dx, cell.1 + dy);
+            if !free(q) {
+                continue;
+            }
+            // no corner cutting between two blocked cells
+            if dx != 0 && dy != 0 && !(free((cell.0 + dx, cell.1)) && free((cell.0, cell.1 + dy))) {
+                continue;
+            }
+            let step = if dx != 0 && dy != 0 {
+                r * std::f64::consts::SQRT_2
+            } else {
+                r
+            };
+            let gq = gc + step;
+            if g.get(&q).is_none_or(|&old| gq < old) {
+                g.insert(q, gq);
+                parent.insert(q, cell);
+                open.push(Open {
+                    f: gq + h(q),
+                    cell: q,
+                });
+            }
+        }
+    }
+    None
+}
+
+/// Shortens a grid path by line of sight.
+fn string_pull(
+    pts: &[[f64; 2]],
+    clear: &dyn Fn([f64; 2]) -> f64,
+    c: &PlannerConfig,
+) -> Vec<[f64; 2]> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i + 1 < pts.len() {
+        let mut j = pts.len() - 1;
+        while j > i + 1 && !line_of_sight(pts[i], pts[j], clear, c) {
+            j -= 1;
+        }
+        out.push(pts[j]);
+        i = j;
+    }
+    out
+}
+
+/// Plans start → waypoints → goal around the obstacles whose robot-disc clearance [m] is
+/// `clear(p)`.
+pub fn plan(
+    start: [f64; 2],
+    waypoints: &[[f64; 2]],
+    goal: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> f64,
+    cfg: &PlannerConfig,
+) -> Plan {
+    let mut stops = waypoints.to_vec();
+    stops.push(goal);
+    let mut points = Vec::new();
+    let mut from = start;
+    let mut unplanned_legs = 0;
+    for &to in &stops {
+        if line_of_sight(from, to, clear, cfg) {
+            points.push(to);
+        } else {
+            match grid_path(from, to, clear, cfg) {
+                Some(p) => points.extend(string_pull(&p, clear, cfg)),
+                None => {
+                    unplanned_legs += 1;
+                    points.push(to);
+                }
+            }
+        }
+        from = to;
+    }
+    Plan {
+        points,
+        unplanned_legs,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A wall x ∈ [0.9, 1.1] with a doorway y ∈ [0.8, 1.4], the robot a point.
+    fn doorway(p: [f64; 2]) -> f64 {
+        let dx = (p[0] - 1.0).abs() - 0.1;
+        let in_door = p[1] > 0.8 && p[1] < 1.4;
+        if in_door {
+            // distance to the door posts
+            let post = |y: f64| (dx.max(0.0)).hypot(p[1] - y);
+            post(0.8).min(post(1.4))
+        } else {
+            dx
+        }
+    }
+
+    #[test]
+    fn a_clear_leg_stays_straight() {
+        let p = plan(
+            [0.0, 0.0],
+            &[],
+            [2.0, 0.0],
+            &|_| 10.0,
+            &PlannerConfig::default(),
+        );
+        assert_eq!(p.points, vec![[2.0, 0.0]]);
+        assert_eq!(p.unplanned_legs, 0);
+    }
+
+    #[test]
+    fn goes_through_the_doorway_with_the_clearance_asked() {
+        let cfg = PlannerConfig::default();
+        let p = plan([0.0, 0.0], &[], [2.0, 0.0], &doorway, &cfg);
+        assert_eq!(p.unplanned_legs, 0);
+        assert_eq!(*p.points.last().expect("points"), [2.0, 0.0]);
+        assert!(p.points.len() >= 2, "{:?}", p.points);
+        let mut from = [0.0, 0.0];
+        for &to in &p.points {
+            let n = 100;
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                let q = [
+                    from[0] + t * (to[0] - from[0]),
+                    from[1] + t * (to[1] - from[1]),
+                ];
+                assert!(doorway(q) >= cfg.inflate - 0.02, "{q:?} on {:?}", p.points);
+            }
+            from = to;
+        }
+    }
+
+    #[test]
+    fn a_closed_wall_leaves_the_leg_unplanned() {
+        let wall = |p: [f64; 2]| (p[0] - 1.0).abs() - 0.1;
+        let p = plan(
+            [0.0, 0.0],
+            &[],
+            [2.0, 0.0],
+            &wall,
+            &PlannerConfig::default(),
+        );
+        assert_eq!(p.unplanned_legs, 1);
+        assert_eq!(p.points, vec![[2.0, 0.0]]);
+    }
+}
