@@ -162,29 +162,7 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
     let summary = if a.no_record {
         run(&world, &opts).context("run failed")?
     } else {
-        let out = a
-            .out
-            .clone()
-            .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}.rrd", world.name)));
-        let mut rec =
-            Recorder::create(&out, &recording_id(&world, kind, seed)).context("recording")?;
-        let duration = a.duration.unwrap_or(world.file.duration);
-        let bar = steps_bar((duration / world.control_dt()).round() as u64, &world.name);
-        let summary = {
-            let mut obs = WithProgress {
-                inner: &mut rec,
-                bar: bar.clone(),
-            };
-            run_observed(&world, &opts, Some(&mut obs)).context("run failed")?
-        };
-        bar.finish_and_clear();
-        rec.finish().context("recording")?;
-        eprintln!(
-            "recording: {} (open it with: rerun {})",
-            out.display(),
-            out.display()
-        );
-        summary
+        run_recorded(a, &world, &opts, kind, seed)?
     };
     let expected = ftcbf_sim::regress::expectation_for(&world, kind);
     let seeds = regress::world_seeds(&world);
@@ -198,28 +176,15 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         println!("{text}");
     } else {
         print_summary(&summary);
-        match (&expected, judged) {
-            (None, _) => println!("expectations: none for {}", summary.controller),
-            (Some(_), None) => println!(
-                "expectations: not judged (seed {seed} is not one of the world's {} regression seeds)",
-                seeds.len()
-            ),
-            (Some(_), Some(_)) => {
-                if failures.is_empty() {
-                    println!("expectations: met");
-                }
-                for f in &failures {
-                    println!("expectation FAILED: {f}");
-                }
-                if !left.is_empty() {
-                    println!(
-                        "expectations over all {} seeds left to `ftcbf regress`: {}",
-                        seeds.len(),
-                        left.join(", ")
-                    );
-                }
-            }
-        }
+        let judgement = match (&expected, judged) {
+            (None, _) => Judgement::NoExpectations,
+            (Some(_), None) => Judgement::NotJudged,
+            (Some(_), Some(_)) => Judgement::Judged {
+                failures: &failures,
+                left: &left,
+            },
+        };
+        print_expectations(&summary, seed, &seeds, judgement);
     }
     if failures.is_empty() {
         Ok(())
@@ -233,6 +198,77 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
                 failures.join("; ")
             ),
         })
+    }
+}
+
+/// Run `world` while recording it to `--out` (default `runs/<world>.rrd`), with a progress bar
+/// over the control steps.
+fn run_recorded(
+    a: &RunArgs,
+    world: &World,
+    opts: &RunOptions,
+    kind: ControllerKindSpec,
+    seed: u64,
+) -> Result<RunSummary, Failure> {
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}.rrd", world.name)));
+    let mut rec = Recorder::create(&out, &recording_id(world, kind, seed)).context("recording")?;
+    let duration = a.duration.unwrap_or(world.file.duration);
+    let bar = steps_bar((duration / world.control_dt()).round() as u64, &world.name);
+    let summary = {
+        let mut obs = WithProgress {
+            inner: &mut rec,
+            bar: bar.clone(),
+        };
+        run_observed(world, opts, Some(&mut obs)).context("run failed")?
+    };
+    bar.finish_and_clear();
+    rec.finish().context("recording")?;
+    eprintln!(
+        "recording: {} (open it with: rerun {})",
+        out.display(),
+        out.display()
+    );
+    Ok(summary)
+}
+
+/// How a run stands against its world's expectations.
+enum Judgement<'a> {
+    /// The world has no expectations for this controller.
+    NoExpectations,
+    /// It has some, but the seed is not one of the regression seeds.
+    NotJudged,
+    /// Judged: the failed expectations, and those left to `ftcbf regress`.
+    Judged {
+        failures: &'a [String],
+        left: &'a [String],
+    },
+}
+
+fn print_expectations(s: &RunSummary, seed: u64, seeds: &[u64], judgement: Judgement<'_>) {
+    match judgement {
+        Judgement::NoExpectations => println!("expectations: none for {}", s.controller),
+        Judgement::NotJudged => println!(
+            "expectations: not judged (seed {seed} is not one of the world's {} regression seeds)",
+            seeds.len()
+        ),
+        Judgement::Judged { failures, left } => {
+            if failures.is_empty() {
+                println!("expectations: met");
+            }
+            for f in failures {
+                println!("expectation FAILED: {f}");
+            }
+            if !left.is_empty() {
+                println!(
+                    "expectations over all {} seeds left to `ftcbf regress`: {}",
+                    seeds.len(),
+                    left.join(", ")
+                );
+            }
+        }
     }
 }
 

@@ -235,143 +235,265 @@ fn nonneg(key: &'static str, v: f64) -> Result<(), ConfigError> {
     }
 }
 
+/// Validate a configuration (in this order: fault patterns, parameters, increment metrics,
+/// θ schedule, the remaining numbers and matrices).
+fn validate(cfg: &ControllerConfig) -> Result<(), ConfigError> {
+    let q = cfg.model.channels();
+    // Baseline and nominal use only the all-channel filter: fault patterns are optional for
+    // them (a world with one receiver has none); FT-CBF-CLF needs m ≥ 1.
+    if cfg.kind == ControllerKind::FtCbfClf || !cfg.fault_patterns.is_empty() {
+        validate_fault_patterns(&cfg.fault_patterns, q)?;
+    }
+    let m = cfg.fault_patterns.len();
+    let pairs = m * m.saturating_sub(1) / 2;
+    validate_gamma_theta(cfg, m, pairs)?;
+    validate_increment_metric(cfg)?;
+    validate_theta_schedule(cfg, pairs)?;
+    validate_numbers(cfg)
+}
+
+/// γ_i (one per pattern), γ_baseline, θ_ij and η_ij (one or one per pair; η_ij also none).
+fn validate_gamma_theta(cfg: &ControllerConfig, m: usize, pairs: usize) -> Result<(), ConfigError> {
+    if cfg.gamma.len() != m {
+        return Err(ConfigError::Length {
+            key: "gamma",
+            expected: format!("{m} (one per fault pattern)"),
+            got: cfg.gamma.len(),
+        });
+    }
+    for &g in &cfg.gamma {
+        nonneg("gamma", g)?;
+    }
+    nonneg("gamma_baseline", cfg.gamma_baseline)?;
+    if !(cfg.theta.len() == 1 || cfg.theta.len() == pairs) {
+        return Err(ConfigError::Length {
+            key: "theta",
+            expected: format!("1 or C(m,2) = {pairs}"),
+            got: cfg.theta.len(),
+        });
+    }
+    for &t in &cfg.theta {
+        positive("theta", t)?;
+    }
+    if !(cfg.theta_increment.is_empty()
+        || cfg.theta_increment.len() == 1
+        || cfg.theta_increment.len() == pairs)
+    {
+        return Err(ConfigError::Length {
+            key: "theta_increment",
+            expected: format!("0, 1 or C(m,2) = {pairs}"),
+            got: cfg.theta_increment.len(),
+        });
+    }
+    for &t in &cfg.theta_increment {
+        positive("theta_increment", t)?;
+    }
+    Ok(())
+}
+
+/// The increment metrics: none or one per η_ij, each finite, symmetric and PSD.
+fn validate_increment_metric(cfg: &ControllerConfig) -> Result<(), ConfigError> {
+    if !(cfg.increment_metric.is_empty() || cfg.increment_metric.len() == cfg.theta_increment.len())
+    {
+        return Err(ConfigError::Length {
+            key: "increment_metric",
+            expected: format!(
+                "0 or as many as theta_increment ({})",
+                cfg.theta_increment.len()
+            ),
+            got: cfg.increment_metric.len(),
+        });
+    }
+    for w in &cfg.increment_metric {
+        let symmetric = (w - w.transpose()).norm() <= 1e-9 * w.norm();
+        let least = if w.iter().all(|x| x.is_finite()) {
+            w.symmetric_eigenvalues().min()
+        } else {
+            f64::NAN
+        };
+        if !symmetric || least.is_nan() || least < -1e-9 * w.norm() {
+            return Err(ConfigError::BadValue {
+                key: "increment_metric",
+                value: least,
+                expected: "finite, symmetric and positive semidefinite 4×4 matrices (value: the least eigenvalue)",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// θ_ij(t): one non-empty row per pair, each value positive and at most the pair's θ_ij.
+fn validate_theta_schedule(cfg: &ControllerConfig, pairs: usize) -> Result<(), ConfigError> {
+    let Some(sched) = &cfg.theta_schedule else {
+        return Ok(());
+    };
+    positive("theta_schedule.dt", sched.dt)?;
+    if sched.theta.len() != pairs || sched.theta.iter().any(Vec::is_empty) {
+        return Err(ConfigError::Length {
+            key: "theta_schedule",
+            expected: format!("C(m,2) = {pairs} non-empty rows"),
+            got: sched.theta.len(),
+        });
+    }
+    for (idx, row) in sched.theta.iter().enumerate() {
+        let cap = if cfg.theta.len() == 1 {
+            cfg.theta[0]
+        } else {
+            cfg.theta.get(idx).copied().unwrap_or(f64::NAN)
+        };
+        for &t in row {
+            positive("theta_schedule", t)?;
+            if t > cap * (1.0 + 1e-12) {
+                return Err(ConfigError::BadValue {
+                    key: "theta_schedule",
+                    value: t,
+                    expected: "at most the pair's theta (condition 1 is stated with theta)",
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// δ, κ, the reading bound, the input box and cost, x0 and P0.
+fn validate_numbers(cfg: &ControllerConfig) -> Result<(), ConfigError> {
+    if cfg.delta.is_nan() || cfg.delta <= 0.0 {
+        return Err(ConfigError::BadValue {
+            key: "delta",
+            value: cfg.delta,
+            expected: "> 0 (may be +inf)",
+        });
+    }
+    positive("cbf_gain", cfg.cbf_gain)?;
+    positive("max_abs_reading", cfg.max_abs_reading)?;
+    if let Some(l) = cfg.input_limit {
+        positive("input_limit[0]", l[0])?;
+        positive("input_limit[1]", l[1])?;
+    }
+    let r = cfg.input_cost;
+    if r.iter().any(|v| !v.is_finite()) || r[(0, 0)] <= 0.0 || r.determinant() <= 0.0 {
+        return Err(ConfigError::BadValue {
+            key: "input_cost",
+            value: r.determinant(),
+            expected: "a symmetric positive definite 2×2 matrix",
+        });
+    }
+    if cfg.x0.iter().any(|v| !v.is_finite()) {
+        return Err(ConfigError::BadValue {
+            key: "x0",
+            value: f64::NAN,
+            expected: "finite entries",
+        });
+    }
+    let p0min = ((cfg.p0 + cfg.p0.transpose()) * 0.5)
+        .symmetric_eigenvalues()
+        .min();
+    if cfg.p0.iter().any(|v| !v.is_finite()) || p0min < 0.0 {
+        return Err(ConfigError::BadValue {
+            key: "p0",
+            value: p0min,
+            expected: "a symmetric PSD matrix (min eigenvalue ≥ 0)",
+        });
+    }
+    Ok(())
+}
+
+/// The policy's problem with its fixed parts filled in: δ, V̄, and θ_ij, η_ij and the
+/// increment metric per ordered pair of units.
+fn initial_problem(
+    cfg: &ControllerConfig,
+    units: usize,
+    barriers_used: usize,
+    m: usize,
+) -> PolicyProblem {
+    let mut problem = PolicyProblem::new(units, barriers_used);
+    problem.use_clf = true;
+    problem.delta = cfg.delta;
+    problem.v_bar = cfg.clf.v_bar;
+    for i in 0..units {
+        for j in 0..units {
+            if i == j {
+                continue;
+            }
+            let (a, b) = (i.min(j), i.max(j));
+            let idx = a * (2 * m - a - 1) / 2 + (b - a - 1);
+            problem.theta[i * units + j] = if cfg.theta.len() == 1 {
+                cfg.theta[0]
+            } else {
+                cfg.theta[idx]
+            };
+            problem.theta_increment[i * units + j] = match cfg.theta_increment.len() {
+                0 => f64::INFINITY,
+                1 => cfg.theta_increment[0],
+                _ => cfg.theta_increment[idx],
+            };
+            problem.increment_metric[i * units + j] = match cfg.increment_metric.len() {
+                0 => StateMatrix::identity(),
+                1 => cfg.increment_metric[0],
+                _ => cfg.increment_metric[idx],
+            };
+        }
+    }
+    problem
+}
+
+/// The problem form's tracker (None for problem 5.3) and whether the CLF rows are imposed. The
+/// tracker inherits the controller's input box when it has none of its own.
+fn form_parts(
+    form: ProblemForm,
+    input_limit: Option<Input>,
+    x0: &State,
+) -> Result<(Option<PathTracker>, bool), ConfigError> {
+    match form {
+        ProblemForm::Paper => Ok((None, true)),
+        ProblemForm::SafetyFilter { mut tracker, clf } => {
+            if tracker.input_limit.is_none() {
+                tracker.input_limit = input_limit;
+            }
+            Ok((Some(PathTracker::new(tracker, [x0[0], x0[1]])?), clf))
+        }
+    }
+}
+
+/// The output before the first step, with every buffer at its final size.
+fn initial_output(
+    units: usize,
+    barriers_used: usize,
+    channels: usize,
+    patterns: usize,
+    filters: usize,
+    barriers: usize,
+) -> ControlOutput {
+    ControlOutput {
+        u: Input::zeros(),
+        qp: QpOutcome::Feasible {
+            stage: crate::policy::Stage::Step1,
+            clf_relaxed: false,
+            clf_slack: 0.0,
+            iterations: 0,
+        },
+        decision: DecisionRecord::with_capacity(units * (barriers_used + 1)),
+        rejected: RejectedReadings {
+            count: 0,
+            channels: vec![false; channels],
+            patterns: vec![false; patterns],
+            length_mismatch: false,
+            invalid_dt: false,
+            skipped_updates: 0,
+        },
+        h_values: vec![0.0; filters * barriers],
+        v_values: vec![0.0; filters],
+        u_nom: None,
+        stalls: 0,
+    }
+}
+
 impl Controller {
     /// Validate the configuration and build the controller.
     pub fn new(cfg: ControllerConfig) -> Result<Self, ConfigError> {
+        validate(&cfg)?;
         let q = cfg.model.channels();
-        // Baseline and nominal use only the all-channel filter: fault patterns are optional for
-        // them (a world with one receiver has none); FT-CBF-CLF needs m ≥ 1.
-        if cfg.kind == ControllerKind::FtCbfClf || !cfg.fault_patterns.is_empty() {
-            validate_fault_patterns(&cfg.fault_patterns, q)?;
-        }
         let m = cfg.fault_patterns.len();
-        if cfg.gamma.len() != m {
-            return Err(ConfigError::Length {
-                key: "gamma",
-                expected: format!("{m} (one per fault pattern)"),
-                got: cfg.gamma.len(),
-            });
-        }
-        for &g in &cfg.gamma {
-            nonneg("gamma", g)?;
-        }
-        nonneg("gamma_baseline", cfg.gamma_baseline)?;
-        let pairs = m * m.saturating_sub(1) / 2;
-        if !(cfg.theta.len() == 1 || cfg.theta.len() == pairs) {
-            return Err(ConfigError::Length {
-                key: "theta",
-                expected: format!("1 or C(m,2) = {pairs}"),
-                got: cfg.theta.len(),
-            });
-        }
-        for &t in &cfg.theta {
-            positive("theta", t)?;
-        }
-        if !(cfg.theta_increment.is_empty()
-            || cfg.theta_increment.len() == 1
-            || cfg.theta_increment.len() == pairs)
-        {
-            return Err(ConfigError::Length {
-                key: "theta_increment",
-                expected: format!("0, 1 or C(m,2) = {pairs}"),
-                got: cfg.theta_increment.len(),
-            });
-        }
-        for &t in &cfg.theta_increment {
-            positive("theta_increment", t)?;
-        }
-        if !(cfg.increment_metric.is_empty()
-            || cfg.increment_metric.len() == cfg.theta_increment.len())
-        {
-            return Err(ConfigError::Length {
-                key: "increment_metric",
-                expected: format!(
-                    "0 or as many as theta_increment ({})",
-                    cfg.theta_increment.len()
-                ),
-                got: cfg.increment_metric.len(),
-            });
-        }
-        for w in &cfg.increment_metric {
-            let symmetric = (w - w.transpose()).norm() <= 1e-9 * w.norm();
-            let least = if w.iter().all(|x| x.is_finite()) {
-                w.symmetric_eigenvalues().min()
-            } else {
-                f64::NAN
-            };
-            if !symmetric || least.is_nan() || least < -1e-9 * w.norm() {
-                return Err(ConfigError::BadValue {
-                    key: "increment_metric",
-                    value: least,
-                    expected: "finite, symmetric and positive semidefinite 4×4 matrices (value: the least eigenvalue)",
-                });
-            }
-        }
-        if let Some(sched) = &cfg.theta_schedule {
-            positive("theta_schedule.dt", sched.dt)?;
-            if sched.theta.len() != pairs || sched.theta.iter().any(Vec::is_empty) {
-                return Err(ConfigError::Length {
-                    key: "theta_schedule",
-                    expected: format!("C(m,2) = {pairs} non-empty rows"),
-                    got: sched.theta.len(),
-                });
-            }
-            for (idx, row) in sched.theta.iter().enumerate() {
-                let cap = if cfg.theta.len() == 1 {
-                    cfg.theta[0]
-                } else {
-                    cfg.theta.get(idx).copied().unwrap_or(f64::NAN)
-                };
-                for &t in row {
-                    positive("theta_schedule", t)?;
-                    if t > cap * (1.0 + 1e-12) {
-                        return Err(ConfigError::BadValue {
-                            key: "theta_schedule",
-                            value: t,
-                            expected: "at most the pair's theta (condition 1 is stated with theta)",
-                        });
-                    }
-                }
-            }
-        }
-        if cfg.delta.is_nan() || cfg.delta <= 0.0 {
-            return Err(ConfigError::BadValue {
-                key: "delta",
-                value: cfg.delta,
-                expected: "> 0 (may be +inf)",
-            });
-        }
-        positive("cbf_gain", cfg.cbf_gain)?;
-        positive("max_abs_reading", cfg.max_abs_reading)?;
-        if let Some(l) = cfg.input_limit {
-            positive("input_limit[0]", l[0])?;
-            positive("input_limit[1]", l[1])?;
-        }
-        let r = cfg.input_cost;
-        if r.iter().any(|v| !v.is_finite()) || r[(0, 0)] <= 0.0 || r.determinant() <= 0.0 {
-            return Err(ConfigError::BadValue {
-                key: "input_cost",
-                value: r.determinant(),
-                expected: "a symmetric positive definite 2×2 matrix",
-            });
-        }
-        if cfg.x0.iter().any(|v| !v.is_finite()) {
-            return Err(ConfigError::BadValue {
-                key: "x0",
-                value: f64::NAN,
-                expected: "finite entries",
-            });
-        }
-        let p0min = ((cfg.p0 + cfg.p0.transpose()) * 0.5)
-            .symmetric_eigenvalues()
-            .min();
-        if cfg.p0.iter().any(|v| !v.is_finite()) || p0min < 0.0 {
-            return Err(ConfigError::BadValue {
-                key: "p0",
-                value: p0min,
-                expected: "a symmetric PSD matrix (min eigenvalue ≥ 0)",
-            });
-        }
         let clf = QuadraticClf::new(
             &cfg.model.f,
             &cfg.model.g,
@@ -401,34 +523,7 @@ impl Controller {
             .map(|b| b.h_bar(cfg.gamma_baseline))
             .collect();
 
-        let mut problem = PolicyProblem::new(units, barriers_used);
-        problem.use_clf = true;
-        problem.delta = cfg.delta;
-        problem.v_bar = cfg.clf.v_bar;
-        for i in 0..units {
-            for j in 0..units {
-                if i == j {
-                    continue;
-                }
-                let (a, b) = (i.min(j), i.max(j));
-                let idx = a * (2 * m - a - 1) / 2 + (b - a - 1);
-                problem.theta[i * units + j] = if cfg.theta.len() == 1 {
-                    cfg.theta[0]
-                } else {
-                    cfg.theta[idx]
-                };
-                problem.theta_increment[i * units + j] = match cfg.theta_increment.len() {
-                    0 => f64::INFINITY,
-                    1 => cfg.theta_increment[0],
-                    _ => cfg.theta_increment[idx],
-                };
-                problem.increment_metric[i * units + j] = match cfg.increment_metric.len() {
-                    0 => StateMatrix::identity(),
-                    1 => cfg.increment_metric[0],
-                    _ => cfg.increment_metric[idx],
-                };
-            }
-        }
+        let mut problem = initial_problem(&cfg, units, barriers_used, m);
         let bank = EstimatorBank::new(cfg.model.clone(), &cfg.fault_patterns, cfg.x0, cfg.p0);
         let qp = QpSolver::new(
             units * barriers_used,
@@ -443,39 +538,8 @@ impl Controller {
                 pattern_of_channel[c] = Some(p);
             }
         }
-        let nf = bank.filters().len();
-        let output = ControlOutput {
-            u: Input::zeros(),
-            qp: QpOutcome::Feasible {
-                stage: crate::policy::Stage::Step1,
-                clf_relaxed: false,
-                clf_slack: 0.0,
-                iterations: 0,
-            },
-            decision: DecisionRecord::with_capacity(units * (barriers_used + 1)),
-            rejected: RejectedReadings {
-                count: 0,
-                channels: vec![false; q],
-                patterns: vec![false; m],
-                length_mismatch: false,
-                invalid_dt: false,
-                skipped_updates: 0,
-            },
-            h_values: vec![0.0; nf * nb],
-            v_values: vec![0.0; nf],
-            u_nom: None,
-            stalls: 0,
-        };
-        let (tracker, use_clf) = match cfg.form {
-            ProblemForm::Paper => (None, true),
-            ProblemForm::SafetyFilter { tracker, clf } => {
-                let mut t = tracker;
-                if t.input_limit.is_none() {
-                    t.input_limit = cfg.input_limit;
-                }
-                (Some(PathTracker::new(t, [cfg.x0[0], cfg.x0[1]])?), clf)
-            }
-        };
+        let output = initial_output(units, barriers_used, q, m, bank.filters().len(), nb);
+        let (tracker, use_clf) = form_parts(cfg.form, cfg.input_limit, &cfg.x0)?;
         problem.use_clf = use_clf;
         problem.step2_every_step = tracker.is_some();
         Ok(Self {

@@ -238,29 +238,113 @@ fn attacked_pattern(world: &World) -> Result<Option<usize>, String> {
     ))
 }
 
+/// The names the report uses: sensors, controller channels (by the sensor they read) and
+/// fault patterns.
+struct Names<'a> {
+    sensors: Vec<&'a str>,
+    channels: Vec<String>,
+    patterns: Vec<&'a str>,
+}
+
+impl<'a> Names<'a> {
+    fn new(world: &'a World, setup: &ControlSetup) -> Self {
+        let f = &world.file;
+        let sensors: Vec<&str> = f.sensors.iter().map(|s| s.name.as_str()).collect();
+        let channels: Vec<String> = setup
+            .sensor_of_channel
+            .iter()
+            .map(|&s| sensors[s].to_string())
+            .collect();
+        let patterns: Vec<&str> = f.fault_patterns.iter().map(|p| p.name.as_str()).collect();
+        Self {
+            sensors,
+            channels,
+            patterns,
+        }
+    }
+}
+
+/// What the checks found so far: the hypotheses in order, why Theorem 3 does not apply, what
+/// it rests on, and whether some bound is finite-horizon.
+#[derive(Default)]
+struct Findings {
+    hypotheses: Vec<Hypothesis>,
+    reasons: Vec<String>,
+    assumptions: Vec<String>,
+    finite_horizon: bool,
+}
+
 /// Check `world` (see the module docs).
 pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     let f = &world.file;
     let setup = ControlSetup::new(world, f.control.controller)?;
-    let model = &setup.config.model;
-    let sensor_names: Vec<&str> = f.sensors.iter().map(|s| s.name.as_str()).collect();
-    let channel_names: Vec<String> = setup
-        .sensor_of_channel
-        .iter()
-        .map(|&s| sensor_names[s].to_string())
-        .collect();
-    let pattern_names: Vec<&str> = f.fault_patterns.iter().map(|p| p.name.as_str()).collect();
-    let patterns = &setup.config.fault_patterns;
-    let m = patterns.len();
-    let p = &setup.params;
-    let horizon = f.duration;
-    let eps = f.control.epsilon;
+    let names = Names::new(world, &setup);
+    let context = context(world, &setup, &names);
 
-    // ---- context ----
+    let mut found = Findings::default();
+    check_disjoint_patterns(&setup, &names, &mut found); // 1
+    let filters = check_filters(world, &setup, &names, &mut found); // 2-4
+    check_finite_parameters(world, &setup, &mut found); // 4
+    check_condition1(world, &setup, &mut found); // 5
+    if matches!(f.dynamics, Dynamics::Rapier) {
+        found.assumptions.push(
+            "the linear model (6.2) with the compensator describes the rapier robot".to_string(),
+        );
+    }
+    check_attacks(world, &names, &mut found); // 6
+    let goal = goal_holding(world, &setup, &filters); // 7
+    found.hypotheses.extend(goal.iter().map(goal_hypothesis));
+
+    let applies = found.reasons.is_empty();
+    Ok(CheckReport {
+        world: world.name.clone(),
+        context,
+        filters,
+        hypotheses: found.hypotheses,
+        goal,
+        verdict: Verdict {
+            applies,
+            epsilon: f.control.epsilon,
+            reasons: found.reasons,
+            assumptions: found.assumptions,
+            horizon: (applies && found.finite_horizon).then_some(f.duration),
+        },
+    })
+}
+
+/// The description lines: plant, control, channels and patterns, filters, parameters.
+fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
+    let f = &world.file;
     let mut context = Vec::new();
     if let Some(d) = &f.description {
         context.push(d.clone());
     }
+    context_plant(world, &mut context);
+    context.push(format!(
+        "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
+        controller_name(f.control.controller),
+        f.control.rate_hz,
+        world.ticks_per_control,
+        f.duration,
+        f.seed
+    ));
+    context.push(format!("channels: {}", names.sensors.join(", ")));
+    for (pi, idx) in world.patterns.iter().enumerate() {
+        let ch: Vec<&str> = idx.iter().map(|&i| names.sensors[i]).collect();
+        context.push(format!(
+            "fault pattern {} = {{{}}}",
+            names.patterns[pi],
+            ch.join(", ")
+        ));
+    }
+    context.push(context_filters(world));
+    context_parameters(world, setup, &mut context);
+    context
+}
+
+/// The plant line (and the robot's warnings).
+fn context_plant(world: &World, context: &mut Vec<String>) {
+    let f = &world.file;
     match f.dynamics {
         Dynamics::Rapier => {
             if let Some(r) = &world.robot {
@@ -284,25 +368,13 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             f.linear.as_ref().map_or(0.0, |l| l.dt)
         )),
     }
-    context.push(format!(
-        "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
-        controller_name(f.control.controller),
-        f.control.rate_hz,
-        world.ticks_per_control,
-        f.duration,
-        f.seed
-    ));
-    context.push(format!("channels: {}", sensor_names.join(", ")));
-    for (pi, idx) in world.patterns.iter().enumerate() {
-        let ch: Vec<&str> = idx.iter().map(|&i| sensor_names[i]).collect();
-        context.push(format!(
-            "fault pattern {} = {{{}}}",
-            pattern_names[pi],
-            ch.join(", ")
-        ));
-    }
+}
+
+/// The filters' process noise and initial covariance.
+fn context_filters(world: &World) -> String {
+    let f = &world.file;
     let p0 = initial_covariance(world);
-    context.push(format!(
+    format!(
         "filters: process noise q = {:e} ({}: Q = {}), P0 = diag({:e}, {:e}, {:e}, {:e}) from initial_std = [{}, {}]",
         process_noise_intensity(world),
         process_model(world).as_str(),
@@ -316,7 +388,13 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         p0[(3, 3)],
         f.control.initial_std[0],
         f.control.initial_std[1]
-    ));
+    )
+}
+
+/// How the parameters were obtained, the ones in force, and h̄_γ per barrier.
+fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<String>) {
+    let f = &world.file;
+    let p = &setup.params;
     match &p.computed {
         Some(c) => {
             context.push(format!(
@@ -346,13 +424,12 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             b.h_bar(p.gamma_baseline)
         ));
     }
+}
 
-    let mut hypotheses = Vec::new();
-    let mut reasons = Vec::new();
-    let mut assumptions = Vec::new();
-    let mut finite_horizon = false;
-
-    // ---- 1. disjoint patterns ----
+/// 1. Disjoint fault patterns (§3.1); names the last overlap found.
+fn check_disjoint_patterns(setup: &ControlSetup, names: &Names, found: &mut Findings) {
+    let patterns = &setup.config.fault_patterns;
+    let m = patterns.len();
     let mut overlap = None;
     for i in 0..m {
         for j in (i + 1)..m {
@@ -362,7 +439,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         }
     }
     match overlap {
-        None => hypotheses.push(Hypothesis {
+        None => found.hypotheses.push(Hypothesis {
             name: "disjoint fault patterns (§3.1)".into(),
             status: Status::Holds,
             detail: format!("{m} patterns, no shared channel"),
@@ -370,70 +447,48 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         Some((i, j, c)) => {
             let d = format!(
                 "{} and {} share {}",
-                pattern_names[i], pattern_names[j], channel_names[c]
+                names.patterns[i], names.patterns[j], names.channels[c]
             );
-            reasons.push(format!("fault patterns overlap ({d})"));
-            hypotheses.push(Hypothesis {
+            found.reasons.push(format!("fault patterns overlap ({d})"));
+            found.hypotheses.push(Hypothesis {
                 name: "disjoint fault patterns (§3.1)".into(),
                 status: Status::Fails,
                 detail: d,
             });
         }
     }
+}
 
-    // ---- 2-4. filters ----
-    let q = model.channels();
-    let mask = |drop: &[usize]| {
-        let mut u = vec![true; q];
-        for &pi in drop {
-            for &c in &patterns[pi] {
-                u[c] = false;
-            }
+/// The channels a filter that drops the fault patterns `drop` uses.
+fn channel_mask(q: usize, patterns: &[Vec<usize>], drop: &[usize]) -> Vec<bool> {
+    let mut u = vec![true; q];
+    for &pi in drop {
+        for &c in &patterns[pi] {
+            u[c] = false;
         }
-        u
-    };
-    let mut filters = Vec::new();
+    }
+    u
+}
+
+/// 2-4. Every filter of the bank (single drops, then pair drops): invertible R̄,
+/// detectability and what bounds its covariance.
+fn check_filters(
+    world: &World,
+    setup: &ControlSetup,
+    names: &Names,
+    found: &mut Findings,
+) -> Vec<FilterCheck> {
+    let m = setup.config.fault_patterns.len();
     let mut drops: Vec<Vec<usize>> = (0..m).map(|i| vec![i]).collect();
     for i in 0..m {
         for j in (i + 1)..m {
             drops.push(vec![i, j]);
         }
     }
+    let mut filters = Vec::new();
     let mut pair_index = 0;
     for d in &drops {
-        let uses = mask(d);
-        let label = match d.as_slice() {
-            [i] => format!("x̂_{} (drops {})", i + 1, pattern_names[*i]),
-            [i, j] => format!(
-                "x̂_{}{} (drops {} ∪ {})",
-                i + 1,
-                j + 1,
-                pattern_names[*i],
-                pattern_names[*j]
-            ),
-            _ => unreachable!("one or two patterns per filter"),
-        };
-        let channels: Vec<String> = (0..q)
-            .filter(|&k| uses[k])
-            .map(|k| channel_names[k].clone())
-            .collect();
-        let r_bar_min = (0..q)
-            .filter(|&k| uses[k])
-            .map(|k| model.r[k])
-            .fold(f64::INFINITY, f64::min);
-        let det = detectability(model, &uses);
-        let velocity_lost = det
-            .unobservable_basis
-            .iter()
-            .any(|b| b[2].abs() > 1e-9 || b[3].abs() > 1e-9);
-        let bound = if det.detectable {
-            CovarianceBound::SteadyState
-        } else if velocity_lost {
-            CovarianceBound::OpenLoop { seconds: horizon }
-        } else {
-            CovarianceBound::FiniteHorizon { seconds: horizon }
-        };
-        let gamma = p.computed.as_ref().map(|c| {
+        let gamma = setup.params.computed.as_ref().map(|c| {
             if d.len() == 1 {
                 c.gamma[d[0]]
             } else {
@@ -443,86 +498,153 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         if d.len() == 2 {
             pair_index += 1;
         }
-        // R̄ invertible.
-        let floored = (0..q).any(|k| uses[k] && model.r[k] <= MIN_VARIANCE);
-        hypotheses.push(Hypothesis {
-            name: format!("invertible R̄ for {label}"),
-            status: Status::Holds,
-            detail: if channels.is_empty() {
-                "no channel left: open-loop estimator (§4.1), R̄ is empty".to_string()
-            } else {
-                format!(
-                    "diagonal, smallest variance {:.3e}{}",
-                    r_bar_min,
-                    if floored {
-                        format!(" (a noise-free channel floored at {MIN_VARIANCE:e})")
-                    } else {
-                        String::new()
-                    }
-                )
-            },
-        });
-        // Detectability and bound.
-        let unobs = if det.unobservable.is_empty() {
-            "none".to_string()
+        filters.push(check_filter(world, setup, names, d, gamma, found));
+    }
+    filters
+}
+
+/// "x̂_1 (drops gnss1)", "x̂_12 (drops gnss1 ∪ gnss2)".
+fn filter_label(d: &[usize], pattern_names: &[&str]) -> String {
+    match d {
+        [i] => format!("x̂_{} (drops {})", i + 1, pattern_names[*i]),
+        [i, j] => format!(
+            "x̂_{}{} (drops {} ∪ {})",
+            i + 1,
+            j + 1,
+            pattern_names[*i],
+            pattern_names[*j]
+        ),
+        _ => unreachable!("one or two patterns per filter"),
+    }
+}
+
+/// The filter that drops the fault patterns `d`, with γ `gamma` in force: its R̄ and
+/// detectability hypotheses.
+fn check_filter(
+    world: &World,
+    setup: &ControlSetup,
+    names: &Names,
+    d: &[usize],
+    gamma: Option<f64>,
+    found: &mut Findings,
+) -> FilterCheck {
+    let model = &setup.config.model;
+    let q = model.channels();
+    let uses = channel_mask(q, &setup.config.fault_patterns, d);
+    let label = filter_label(d, &names.patterns);
+    let channels: Vec<String> = (0..q)
+        .filter(|&k| uses[k])
+        .map(|k| names.channels[k].clone())
+        .collect();
+    let r_bar_min = (0..q)
+        .filter(|&k| uses[k])
+        .map(|k| model.r[k])
+        .fold(f64::INFINITY, f64::min);
+    let det = detectability(model, &uses);
+    let velocity_lost = det
+        .unobservable_basis
+        .iter()
+        .any(|b| b[2].abs() > 1e-9 || b[3].abs() > 1e-9);
+    let horizon = world.file.duration;
+    let bound = if det.detectable {
+        CovarianceBound::SteadyState
+    } else if velocity_lost {
+        CovarianceBound::OpenLoop { seconds: horizon }
+    } else {
+        CovarianceBound::FiniteHorizon { seconds: horizon }
+    };
+    // R̄ invertible.
+    let floored = (0..q).any(|k| uses[k] && model.r[k] <= MIN_VARIANCE);
+    found.hypotheses.push(Hypothesis {
+        name: format!("invertible R̄ for {label}"),
+        status: Status::Holds,
+        detail: if channels.is_empty() {
+            "no channel left: open-loop estimator (§4.1), R̄ is empty".to_string()
         } else {
-            det.unobservable.join(", ")
-        };
-        let gtxt = gamma.map_or(String::new(), |g| format!(", γ = {g:.6}"));
-        let (status, detail) = match bound {
-            CovarianceBound::SteadyState => (
+            format!(
+                "diagonal, smallest variance {:.3e}{}",
+                r_bar_min,
+                if floored {
+                    format!(" (a noise-free channel floored at {MIN_VARIANCE:e})")
+                } else {
+                    String::new()
+                }
+            )
+        },
+    });
+    check_detectability(&label, &channels, &det, bound, gamma, found);
+    FilterCheck {
+        label,
+        channels,
+        r_bar_min,
+        detectability: det,
+        bound,
+        gamma,
+    }
+}
+
+/// Detectability of one filter and what bounds its covariance.
+fn check_detectability(
+    label: &str,
+    channels: &[String],
+    det: &Detectability,
+    bound: CovarianceBound,
+    gamma: Option<f64>,
+    found: &mut Findings,
+) {
+    let unobs = if det.unobservable.is_empty() {
+        "none".to_string()
+    } else {
+        det.unobservable.join(", ")
+    };
+    let gtxt = gamma.map_or(String::new(), |g| format!(", γ = {g:.6}"));
+    let (status, detail) = match bound {
+        CovarianceBound::SteadyState => (
+            Status::Holds,
+            format!(
+                "uses {{{}}}; PBH rank 4 at every eigenvalue of F with Re λ ≥ 0; steady-state covariance{gtxt}",
+                channels.join(", ")
+            ),
+        ),
+        CovarianceBound::FiniteHorizon { seconds } => {
+            found.finite_horizon = true;
+            (
                 Status::Holds,
                 format!(
-                    "uses {{{}}}; PBH rank 4 at every eigenvalue of F with Re λ ≥ 0; steady-state covariance{gtxt}",
+                    "uses {{{}}}; NOT detectable (PBH fails at λ = 0; unobservable: {unobs}) — §3.1's assumption fails, but the velocity is measured, so the position error is dead-reckoned: finite-horizon bound over {seconds} s from initial_std{gtxt}",
                     channels.join(", ")
                 ),
-            ),
-            CovarianceBound::FiniteHorizon { seconds } => {
-                finite_horizon = true;
-                (
-                    Status::Holds,
-                    format!(
-                        "uses {{{}}}; NOT detectable (PBH fails at λ = 0; unobservable: {unobs}) — §3.1's assumption fails, but the velocity is measured, so the position error is dead-reckoned: finite-horizon bound over {seconds} s from initial_std{gtxt}",
-                        channels.join(", ")
-                    ),
-                )
-            }
-            CovarianceBound::OpenLoop { seconds } => {
-                let why = if channels.is_empty() {
-                    "keeps no channel at all".to_string()
-                } else {
-                    format!("keeps only {{{}}}", channels.join(", "))
-                };
-                reasons.push(format!(
-                    "{label} {why}: no position and no velocity fix (unobservable: {unobs}); its error over {seconds} s is bounded only by the assumed process noise, nothing measured bounds it, so (4.5) cannot be certified"
-                ));
-                (
-                    Status::Fails,
-                    format!(
-                        "{why}; NOT detectable (unobservable: {unobs}); open loop{gtxt}"
-                    ),
-                )
-            }
-        };
-        hypotheses.push(Hypothesis {
-            name: format!("detectable (F, c̄) for {label}"),
-            status,
-            detail,
-        });
-        filters.push(FilterCheck {
-            label,
-            channels,
-            r_bar_min,
-            detectability: det,
-            bound,
-            gamma,
-        });
-    }
+            )
+        }
+        CovarianceBound::OpenLoop { seconds } => {
+            let why = if channels.is_empty() {
+                "keeps no channel at all".to_string()
+            } else {
+                format!("keeps only {{{}}}", channels.join(", "))
+            };
+            found.reasons.push(format!(
+                "{label} {why}: no position and no velocity fix (unobservable: {unobs}); its error over {seconds} s is bounded only by the assumed process noise, nothing measured bounds it, so (4.5) cannot be certified"
+            ));
+            (
+                Status::Fails,
+                format!("{why}; NOT detectable (unobservable: {unobs}); open loop{gtxt}"),
+            )
+        }
+    };
+    found.hypotheses.push(Hypothesis {
+        name: format!("detectable (F, c̄) for {label}"),
+        status,
+        detail,
+    });
+}
 
-    // ---- γ, θ finite ----
+/// Finite γ_i and θ_ij (and whether they were derived from ε).
+fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Findings) {
+    let p = &setup.params;
+    let horizon = world.file.duration;
     let finite =
         p.gamma.iter().chain(&p.theta).all(|v| v.is_finite()) && p.gamma_baseline.is_finite();
-    hypotheses.push(Hypothesis {
+    found.hypotheses.push(Hypothesis {
         name: "finite γ_i and θ_ij".into(),
         status: if finite { Status::Holds } else { Status::Fails },
         detail: format!(
@@ -540,18 +662,21 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         ),
     });
     if !finite {
-        reasons.push("γ or θ is not finite".to_string());
+        found.reasons.push("γ or θ is not finite".to_string());
     }
     if p.computed.is_none() {
-        assumptions.push(
+        found.assumptions.push(
             "γ and θ are given in the world file: (4.5) holds only if they bound the errors"
                 .to_string(),
         );
     }
+}
 
-    // ---- 5. condition 1 ----
+/// 5. Condition 1 of Theorem 3 for every safe set (decided) and obstacle (assumed).
+fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
+    let p = &setup.params;
     let theta_bar = p.theta.iter().copied().fold(0.0, f64::max);
-    for (bi, s) in f.safe_sets.iter().enumerate() {
+    for (bi, s) in world.file.safe_sets.iter().enumerate() {
         let barrier = &setup.config.barriers[bi];
         let h_bar = p
             .gamma
@@ -560,22 +685,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             .fold(0.0, f64::max);
         match s {
             SafeSetSpec::HalfPlane { name, a, .. } => {
-                let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
-                if !v.holds {
-                    reasons.push(format!(
-                        "{name}: aᵀG = 0, (4.4) cannot hold (relative degree {:?}; add a velocity term to a)",
-                        v.relative_degree
-                    ));
-                }
-                hypotheses.push(Hypothesis {
-                    name: format!("condition 1 (4.4) for {name} (half-plane)"),
-                    status: if v.holds {
-                        Status::Holds
-                    } else {
-                        Status::Fails
-                    },
-                    detail: v.to_string(),
-                });
+                check_half_plane(setup, name, a, found);
             }
             SafeSetSpec::EllipseInside {
                 name,
@@ -591,42 +701,19 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
                 angle,
                 ..
             } => {
-                let phi = ellipse_phi_state(*semi_axes, *angle);
-                // Prop. 1 on the position part: the lift makes ∂H/∂v = k∇h(p), a full-rank
-                // action on the position gradient, so its law-of-cosines argument applies.
-                // rank G = 2 < n, so Prop. 1 is applied to the position gradient only.
-                let mut v = check_prop1(&phi, &model.g, theta_bar, h_bar.min(1.0));
-                v.holds = theta_bar <= v.bound;
-                if !v.holds {
-                    reasons.push(format!(
-                        "{name}: θ̄ = {theta_bar:.4} exceeds Prop. 1's bound {:.4}: two estimates within θ̄ may need opposite inputs",
-                        v.bound
-                    ));
-                }
-                hypotheses.push(Hypothesis {
-                    name: format!("condition 1 (4.4) for {name} (lifted ellipse, Prop. 1 on the position part)"),
-                    status: if v.holds { Status::Holds } else { Status::Fails },
-                    detail: format!(
-                        "θ̄ = {theta_bar:.6} vs √(2(1 − h̄)/λ̄(Φ)) = {:.6} (h̄ = {:.6}, λ̄ = {:.6})",
-                        v.bound, v.h_bar, v.lambda_max
-                    ),
-                });
-                if matches!(s, SafeSetSpec::EllipseInside { .. }) {
-                    let centre = State::new(center[0], center[1], 0.0, 0.0);
-                    let start = setup.config.x0;
-                    let w = Input::new(centre[0] - start[0], centre[1] - start[1]);
-                    let t5 = check_theorem5(&phi, &centre, &model.g, &w, &[start]);
-                    hypotheses.push(Hypothesis {
-                        name: format!("Thm. 5 for {name} at the start"),
-                        status: Status::Info,
-                        detail: t5.to_string(),
-                    });
-                }
+                let ellipse = Ellipse {
+                    name,
+                    center,
+                    semi_axes: *semi_axes,
+                    angle: *angle,
+                    inside: matches!(s, SafeSetSpec::EllipseInside { .. }),
+                };
+                check_ellipse(setup, &ellipse, theta_bar, h_bar, found);
             }
         }
     }
     for ob in &world.obstacles {
-        hypotheses.push(Hypothesis {
+        found.hypotheses.push(Hypothesis {
             name: format!("condition 1 (4.4) for obstacle {} ({})", ob.name, ob.spec.shape.kind()),
             status: Status::Assumed,
             detail: format!(
@@ -635,39 +722,123 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         });
     }
     if !world.obstacles.is_empty() {
-        assumptions.push(format!(
+        found.assumptions.push(format!(
             "condition 1 across filters near obstacles (estimates within θ̄ = {theta_bar:.4} m agree on a direction)"
         ));
     }
-    if matches!(f.dynamics, Dynamics::Rapier) {
-        assumptions.push(
-            "the linear model (6.2) with the compensator describes the rapier robot".to_string(),
-        );
-    }
+}
 
-    // ---- 6. attacks inside one pattern ----
+/// Condition 1 for a half-plane: Lemma 1.
+fn check_half_plane(setup: &ControlSetup, name: &str, a: &[f64; 4], found: &mut Findings) {
+    let model = &setup.config.model;
+    let v = check_lemma1(&State::new(a[0], a[1], a[2], a[3]), &model.f, &model.g);
+    if !v.holds {
+        found.reasons.push(format!(
+            "{name}: aᵀG = 0, (4.4) cannot hold (relative degree {:?}; add a velocity term to a)",
+            v.relative_degree
+        ));
+    }
+    found.hypotheses.push(Hypothesis {
+        name: format!("condition 1 (4.4) for {name} (half-plane)"),
+        status: if v.holds {
+            Status::Holds
+        } else {
+            Status::Fails
+        },
+        detail: v.to_string(),
+    });
+}
+
+/// An elliptic safe set as written.
+struct Ellipse<'a> {
+    name: &'a str,
+    center: &'a [f64; 2],
+    semi_axes: [f64; 2],
+    angle: f64,
+    /// The safe set is the inside (else the outside).
+    inside: bool,
+}
+
+/// Condition 1 for a lifted ellipse: Prop. 1 on the position part; Thm. 5 at the start for
+/// an inside ellipse (reported).
+fn check_ellipse(
+    setup: &ControlSetup,
+    e: &Ellipse,
+    theta_bar: f64,
+    h_bar: f64,
+    found: &mut Findings,
+) {
+    let model = &setup.config.model;
+    let name = e.name;
+    let phi = ellipse_phi_state(e.semi_axes, e.angle);
+    // Prop. 1 on the position part: the lift makes ∂H/∂v = k∇h(p), a full-rank
+    // action on the position gradient, so its law-of-cosines argument applies.
+    // rank G = 2 < n, so Prop. 1 is applied to the position gradient only.
+    let mut v = check_prop1(&phi, &model.g, theta_bar, h_bar.min(1.0));
+    v.holds = theta_bar <= v.bound;
+    if !v.holds {
+        found.reasons.push(format!(
+            "{name}: θ̄ = {theta_bar:.4} exceeds Prop. 1's bound {:.4}: two estimates within θ̄ may need opposite inputs",
+            v.bound
+        ));
+    }
+    found.hypotheses.push(Hypothesis {
+        name: format!(
+            "condition 1 (4.4) for {name} (lifted ellipse, Prop. 1 on the position part)"
+        ),
+        status: if v.holds {
+            Status::Holds
+        } else {
+            Status::Fails
+        },
+        detail: format!(
+            "θ̄ = {theta_bar:.6} vs √(2(1 − h̄)/λ̄(Φ)) = {:.6} (h̄ = {:.6}, λ̄ = {:.6})",
+            v.bound, v.h_bar, v.lambda_max
+        ),
+    });
+    if e.inside {
+        let centre = State::new(e.center[0], e.center[1], 0.0, 0.0);
+        let start = setup.config.x0;
+        let w = Input::new(centre[0] - start[0], centre[1] - start[1]);
+        let t5 = check_theorem5(&phi, &centre, &model.g, &w, &[start]);
+        found.hypotheses.push(Hypothesis {
+            name: format!("Thm. 5 for {name} at the start"),
+            status: Status::Info,
+            detail: t5.to_string(),
+        });
+    }
+}
+
+/// 6. The declared attacks stay inside one fault pattern.
+fn check_attacks(world: &World, names: &Names, found: &mut Findings) {
     match attacked_pattern(world) {
-        Ok(Some(pi)) => hypotheses.push(Hypothesis {
+        Ok(Some(pi)) => found.hypotheses.push(Hypothesis {
             name: "attacks inside one fault pattern".into(),
             status: Status::Holds,
-            detail: format!("every attacked channel is in {}", pattern_names[pi]),
+            detail: format!("every attacked channel is in {}", names.patterns[pi]),
         }),
-        Ok(None) => hypotheses.push(Hypothesis {
+        Ok(None) => found.hypotheses.push(Hypothesis {
             name: "attacks inside one fault pattern".into(),
             status: Status::Holds,
             detail: "no attack declared".to_string(),
         }),
         Err(e) => {
-            reasons.push(e.clone());
-            hypotheses.push(Hypothesis {
+            found.reasons.push(e.clone());
+            found.hypotheses.push(Hypothesis {
                 name: "attacks inside one fault pattern".into(),
                 status: Status::Fails,
                 detail: e,
             });
         }
     }
+}
 
-    // ---- 7. goal holding ----
+/// 7. Goal holding, per half-plane and single-drop filter.
+fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) -> Vec<GoalHold> {
+    let f = &world.file;
+    let model = &setup.config.model;
+    let p = &setup.params;
+    let m = setup.config.fault_patterns.len();
     let mut goal = Vec::new();
     let kappa = f.control.cbf_gain;
     let dt = world.control_dt();
@@ -681,7 +852,8 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             };
             let max_h = av.dot(&gc) - b + f.goal.radius * reach;
             for (i, fc) in filters.iter().enumerate().take(m) {
-                let kc = steady_state_gain_product(model, &mask(&[i]), dt);
+                let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
+                let kc = steady_state_gain_product(model, &mask, dt);
                 let needed = setup.config.barriers[bi].h_bar(p.gamma[i])
                     + p.gamma[i] * (kc.transpose() * av).norm() / kappa;
                 goal.push(GoalHold {
@@ -693,39 +865,26 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             }
         }
     }
-    for g in &goal {
-        hypotheses.push(Hypothesis {
-            name: format!("goal can be held at rest ({}, {})", g.barrier, g.filter),
-            status: Status::Info,
-            detail: format!(
-                "{}: at rest the CBF row needs h ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ = {:.6}; the goal set reaches h ≤ {:.6}{}",
-                if g.holds() { "yes" } else { "NO" },
-                g.needed_h,
-                g.max_h_in_goal,
-                if g.holds() {
-                    ""
-                } else {
-                    " — the robot can pass through the goal but cannot settle in it with these margins"
-                }
-            ),
-        });
-    }
+    goal
+}
 
-    let applies = reasons.is_empty();
-    Ok(CheckReport {
-        world: world.name.clone(),
-        context,
-        filters,
-        hypotheses,
-        goal,
-        verdict: Verdict {
-            applies,
-            epsilon: eps,
-            reasons,
-            assumptions,
-            horizon: (applies && finite_horizon).then_some(horizon),
-        },
-    })
+/// The (reported) hypothesis of one goal-holding check.
+fn goal_hypothesis(g: &GoalHold) -> Hypothesis {
+    Hypothesis {
+        name: format!("goal can be held at rest ({}, {})", g.barrier, g.filter),
+        status: Status::Info,
+        detail: format!(
+            "{}: at rest the CBF row needs h ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ = {:.6}; the goal set reaches h ≤ {:.6}{}",
+            if g.holds() { "yes" } else { "NO" },
+            g.needed_h,
+            g.max_h_in_goal,
+            if g.holds() {
+                ""
+            } else {
+                " — the robot can pass through the goal but cannot settle in it with these margins"
+            }
+        ),
+    }
 }
 
 impl fmt::Display for CheckReport {

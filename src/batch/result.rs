@@ -450,41 +450,10 @@ fn summarize<'a>(
     let collisions = count(&|r| r.collided);
     let goals = count(&|r| r.goal_reached);
     let settled = count(&|r| r.goal_settled);
-    let mut final_d: Vec<f64> = recs.iter().map(|r| r.final_goal_distance).collect();
-    final_d.sort_by(f64::total_cmp);
-    let final_goal_distance_p50 = if final_d.is_empty() {
-        0.0
-    } else if final_d.len() % 2 == 1 {
-        final_d[final_d.len() / 2]
-    } else {
-        0.5 * (final_d[final_d.len() / 2 - 1] + final_d[final_d.len() / 2])
-    };
+    let final_goal_distance_p50 = median(recs.iter().map(|r| r.final_goal_distance).collect());
     let safe_ci = stats::clopper_pearson(safe, n, plan.confidence)
         .ok_or_else(|| anyhow!("controller `{controller}`: no trials to summarise"))?;
     let claimed_safety = plan.claimed_safety();
-    let mut steps = StepCounts::default();
-    for r in &recs {
-        steps.step1 += r.steps.step1;
-        steps.clf_relaxed += r.steps.clf_relaxed;
-        steps.step2 += r.steps.step2;
-        steps.step3 += r.steps.step3;
-        steps.infeasible += r.steps.infeasible;
-    }
-    let mut worst: Vec<&TrialRecord> = recs.clone();
-    // Unsafe first; then smallest barrier value (None last), smallest clearance (None last).
-    let opt = |a: Option<f64>, b: Option<f64>| match (a, b) {
-        (Some(x), Some(y)) => x.total_cmp(&y),
-        (Some(_), None) => std::cmp::Ordering::Less,
-        (None, Some(_)) => std::cmp::Ordering::Greater,
-        (None, None) => std::cmp::Ordering::Equal,
-    };
-    worst.sort_by(|a, b| {
-        a.safe
-            .cmp(&b.safe)
-            .then(opt(a.min_barrier, b.min_barrier))
-            .then(opt(a.min_clearance, b.min_clearance))
-            .then(a.trial.cmp(&b.trial))
-    });
     Ok(ControllerSummary {
         controller: controller.to_string(),
         trials: n,
@@ -510,24 +479,73 @@ fn summarize<'a>(
         ),
         min_clearance: LowerQuantiles::of(recs.iter().filter_map(|r| r.min_clearance).collect()),
         min_barrier: LowerQuantiles::of(recs.iter().filter_map(|r| r.min_barrier).collect()),
-        steps,
+        steps: total_steps(&recs),
         control_steps: recs.iter().map(|r| r.control_steps).sum(),
         infeasible_trials: count(&|r| r.steps.infeasible > 0),
         rejected_readings: recs.iter().map(|r| r.rejected_readings).sum(),
         rejected_trials: count(&|r| r.rejected_readings > 0),
-        worst: worst
-            .into_iter()
-            .take(WORST_LISTED)
-            .map(|r| WorstTrial {
-                trial: r.trial,
-                seed: r.seed,
-                safe: r.safe,
-                min_barrier: r.min_barrier,
-                min_barrier_name: r.min_barrier_name.clone(),
-                min_clearance: r.min_clearance,
-            })
-            .collect(),
+        worst: worst_trials(&recs),
     })
+}
+
+/// The median (the mean of the two middle values for an even count; 0 for none).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        0.0
+    } else if v.len() % 2 == 1 {
+        v[v.len() / 2]
+    } else {
+        0.5 * (v[v.len() / 2 - 1] + v[v.len() / 2])
+    }
+}
+
+/// The policy's stage counts summed over the trials.
+fn total_steps(recs: &[&TrialRecord]) -> StepCounts {
+    let mut steps = StepCounts::default();
+    for r in recs {
+        steps.step1 += r.steps.step1;
+        steps.clf_relaxed += r.steps.clf_relaxed;
+        steps.step2 += r.steps.step2;
+        steps.step3 += r.steps.step3;
+        steps.infeasible += r.steps.infeasible;
+    }
+    steps
+}
+
+/// Smallest first, `None` last.
+fn smallest_first(a: Option<f64>, b: Option<f64>) -> std::cmp::Ordering {
+    match (a, b) {
+        (Some(x), Some(y)) => x.total_cmp(&y),
+        (Some(_), None) => std::cmp::Ordering::Less,
+        (None, Some(_)) => std::cmp::Ordering::Greater,
+        (None, None) => std::cmp::Ordering::Equal,
+    }
+}
+
+/// The [`WORST_LISTED`] worst trials: unsafe first; then smallest barrier value (None last),
+/// smallest clearance (None last), then trial.
+fn worst_trials(recs: &[&TrialRecord]) -> Vec<WorstTrial> {
+    let mut worst: Vec<&TrialRecord> = recs.to_vec();
+    worst.sort_by(|a, b| {
+        a.safe
+            .cmp(&b.safe)
+            .then(smallest_first(a.min_barrier, b.min_barrier))
+            .then(smallest_first(a.min_clearance, b.min_clearance))
+            .then(a.trial.cmp(&b.trial))
+    });
+    worst
+        .into_iter()
+        .take(WORST_LISTED)
+        .map(|r| WorstTrial {
+            trial: r.trial,
+            seed: r.seed,
+            safe: r.safe,
+            min_barrier: r.min_barrier,
+            min_barrier_name: r.min_barrier_name.clone(),
+            min_clearance: r.min_clearance,
+        })
+        .collect()
 }
 
 #[cfg(test)]
