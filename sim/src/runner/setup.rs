@@ -335,6 +335,10 @@ fn problem_form(world: &World, bcfg: &BarrierConfig) -> Result<ProblemForm, RunE
             *slot = v;
         }
     };
+    // default cruise: 90 % of the robot's speed limit (the tracker's own default for a point)
+    if let Some(robot) = &world.robot {
+        t.cruise_speed = 0.9 * robot.limits.v_max;
+    }
     set(&mut t.cruise_speed, n.cruise_speed);
     set(&mut t.speed_gain, n.speed_gain);
     set(&mut t.arrive_accel, n.arrive_accel);

@@ -305,7 +305,7 @@ impl FormSpec {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NominalSection {
-    /// Cruise speed [m/s] (default 0.15).
+    /// Cruise speed [m/s] (default 90 % of the robot's v_max; 0.15 for the linear plant).
     pub cruise_speed: Option<f64>,
     /// Velocity-tracking gain k_v [1/s] (default 1.5).
     pub speed_gain: Option<f64>,
