@@ -311,6 +311,15 @@ fn print_summary(s: &RunSummary) {
         "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
         st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
     );
+    let sm = &s.smoothness;
+    println!(
+        "  command:   ω changes sign in {:.1} % of steps · mean |Δω| {:.4} rad/s · mean |Δv| {:.4} m/s per step · path {:.2} m · stalls {}",
+        100.0 * sm.omega_sign_change_fraction,
+        sm.mean_abs_domega,
+        sm.mean_abs_dv,
+        sm.path_length,
+        sm.stalls
+    );
     if s.rejected_readings > 0 {
         println!(
             "  rejected readings (non-finite or absurd): {}",

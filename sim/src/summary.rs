@@ -290,3 +290,26 @@ pub const METRICS: &[Metric] = &[
         of: |s| (s.control_steps > 0).then(|| s.steps.infeasible as f64 / s.control_steps as f64),
     },
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smoothness_counts_strict_sign_changes_and_mean_steps() {
+        let mut m = SmoothnessMeter::default();
+        // ω: 0.1, −0.1 (change), 0 (no strict sign), 0.2 (no change: 0 has none), −0.2 (change)
+        let omegas = [0.1, -0.1, 0.0, 0.2, -0.2];
+        for (k, w) in omegas.iter().enumerate() {
+            m.observe([0.1 * k as f64, *w], [k as f64, 0.0], 1);
+        }
+        let s = m.smoothness();
+        assert_eq!(s.omega_sign_changes, 2);
+        assert!((s.omega_sign_change_fraction - 0.5).abs() < 1e-15);
+        // |Δω| = 0.2, 0.1, 0.2, 0.4 → mean 0.225; |Δv| = 0.1 each
+        assert!((s.mean_abs_domega - 0.225).abs() < 1e-12);
+        assert!((s.mean_abs_dv - 0.1).abs() < 1e-12);
+        assert!((s.path_length - 4.0).abs() < 1e-12);
+        assert_eq!(s.stalls, 1);
+    }
+}

@@ -14,7 +14,9 @@
 //! obstacle barriers), `min_barrier_name`, `min_clearance` [m], `goal_reached`, `time_to_goal`
 //! [s], `step1, clf_relaxed, step2, step3, infeasible` (control steps decided by each policy
 //! step), `control_steps`, `rejected_readings`, `duration` [s], `outside_fault_patterns`,
-//! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` [m].
+//! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` [m],
+//! `omega_sign_change_fraction` (control steps whose commanded ω changed sign),
+//! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker).
 //! Fields containing `,`, `"` or a line break are quoted (RFC 4180).
 
 use std::fmt::Write as _;
@@ -113,7 +115,8 @@ pub const CSV_HEADER: &str =
     "sweep_key,sweep_value,trial,seed,controller,safe,collided,first_collision_t,\
 first_collision_obstacle,first_violation_t,first_violation_set,first_violation_value,min_barrier,\
 min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2,step3,infeasible,\
-control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance";
+control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance,\
+omega_sign_change_fraction,mean_abs_domega,stalls";
 
 fn csv_text(out: &mut String, s: &str) {
     if s.contains([',', '"', '\n', '\r']) {
@@ -168,7 +171,7 @@ pub fn to_csv(results: &[BatchResult]) -> String {
             csv_text(&mut out, r.min_barrier_name.as_deref().unwrap_or(""));
             let _ = writeln!(
                 out,
-                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 opt_f(r.min_clearance),
                 r.goal_reached,
                 opt_f(r.time_to_goal),
@@ -182,7 +185,10 @@ pub fn to_csv(results: &[BatchResult]) -> String {
                 float_text(r.duration),
                 r.outside_fault_patterns,
                 r.goal_settled,
-                float_text(r.final_goal_distance)
+                float_text(r.final_goal_distance),
+                float_text(r.omega_sign_change_fraction),
+                float_text(r.mean_abs_domega),
+                r.stalls
             );
         }
     }
@@ -356,6 +362,9 @@ mod tests {
             outside_fault_patterns: b(25),
             goal_settled: b(26),
             final_goal_distance: f[27].parse().expect("final_goal_distance"),
+            omega_sign_change_fraction: f[28].parse().expect("omega_sign_change_fraction"),
+            mean_abs_domega: f[29].parse().expect("mean_abs_domega"),
+            stalls: u(30),
         }
     }
 

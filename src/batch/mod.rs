@@ -169,7 +169,14 @@ pub(crate) mod testutil {
                 attacks_outside_fault_patterns: false,
                 attacks_together_outside_fault_patterns: false,
                 final_state: [1.0, 2.0, 0.0, 0.0],
-                smoothness: Default::default(),
+                smoothness: ftcbf_sim::summary::Smoothness {
+                    omega_sign_changes: seed % 40,
+                    omega_sign_change_fraction: 0.05 * unit(seed, 13),
+                    mean_abs_domega: 0.1 * unit(seed, 14),
+                    mean_abs_dv: 0.01 * unit(seed, 15),
+                    path_length: 3.0,
+                    stalls: seed % 2,
+                },
             })
         }
     }

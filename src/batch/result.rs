@@ -65,6 +65,15 @@ pub struct TrialRecord {
     pub duration: f64,
     /// At least one attack lay outside the declared fault patterns (no guarantee applies).
     pub outside_fault_patterns: bool,
+    /// Fraction of control steps whose commanded ω changed strict sign.
+    #[serde(default, with = "io::float_or_text")]
+    pub omega_sign_change_fraction: f64,
+    /// Mean |Δω| per control step [rad/s].
+    #[serde(default, with = "io::float_or_text")]
+    pub mean_abs_domega: f64,
+    /// Stalls the safety filter's tracker detected.
+    #[serde(default)]
+    pub stalls: u64,
 }
 
 impl TrialRecord {
@@ -101,6 +110,9 @@ impl TrialRecord {
             rejected_readings: s.rejected_readings,
             duration: s.duration,
             outside_fault_patterns: s.attacks_outside_fault_patterns,
+            omega_sign_change_fraction: s.smoothness.omega_sign_change_fraction,
+            mean_abs_domega: s.smoothness.mean_abs_domega,
+            stalls: s.smoothness.stalls,
         }
     }
 }
@@ -283,6 +295,39 @@ pub struct ControllerSummary {
     /// The worst trials: unsafe first, then by smallest barrier value, smallest clearance,
     /// trial index. At most [`WORST_LISTED`].
     pub worst: Vec<WorstTrial>,
+    /// Smoothness of the commanded (v, ω) over the trials (issue #11).
+    #[serde(default)]
+    pub smoothness: SmoothnessSummary,
+}
+
+/// Control smoothness over a batch: per-trial figures, averaged and at their worst.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SmoothnessSummary {
+    /// Mean over trials of the fraction of control steps where ω changed sign.
+    pub omega_sign_change_fraction_mean: f64,
+    /// The largest such fraction of a trial.
+    pub omega_sign_change_fraction_max: f64,
+    /// Mean over trials of the mean |Δω| per step [rad/s].
+    pub mean_abs_domega_mean: f64,
+    /// The largest per-trial mean |Δω| [rad/s].
+    pub mean_abs_domega_max: f64,
+    /// Trials in which the tracker detected at least one stall.
+    pub stalled_trials: u64,
+}
+
+impl SmoothnessSummary {
+    fn of(recs: &[&TrialRecord]) -> Self {
+        let n = recs.len().max(1) as f64;
+        let mean = |f: &dyn Fn(&TrialRecord) -> f64| recs.iter().map(|r| f(r)).sum::<f64>() / n;
+        let max = |f: &dyn Fn(&TrialRecord) -> f64| recs.iter().map(|r| f(r)).fold(0.0, f64::max);
+        Self {
+            omega_sign_change_fraction_mean: mean(&|r| r.omega_sign_change_fraction),
+            omega_sign_change_fraction_max: max(&|r| r.omega_sign_change_fraction),
+            mean_abs_domega_mean: mean(&|r| r.mean_abs_domega),
+            mean_abs_domega_max: max(&|r| r.mean_abs_domega),
+            stalled_trials: recs.iter().filter(|r| r.stalls > 0).count() as u64,
+        }
+    }
 }
 
 /// Paired comparison of two controllers on the same seeds.
@@ -485,6 +530,7 @@ fn summarize<'a>(
         rejected_readings: recs.iter().map(|r| r.rejected_readings).sum(),
         rejected_trials: count(&|r| r.rejected_readings > 0),
         worst: worst_trials(&recs),
+        smoothness: SmoothnessSummary::of(&recs),
     })
 }
 
@@ -553,6 +599,34 @@ mod tests {
     use super::super::testutil::*;
     use super::super::*;
     use super::*;
+
+    #[test]
+    fn smoothness_is_averaged_and_maximised_over_trials() {
+        let runner = Synthetic {
+            p_safe: 0.9,
+            fail_seed: None,
+        };
+        let recs: Vec<TrialRecord> = (0..4u64)
+            .map(|k| {
+                let s = runner
+                    .run_trial("ft-cbf-clf", 100 + k)
+                    .expect("synthetic run");
+                TrialRecord::from_summary(k, &s)
+            })
+            .collect();
+        let refs: Vec<&TrialRecord> = recs.iter().collect();
+        let m = SmoothnessSummary::of(&refs);
+        let f: Vec<f64> = recs.iter().map(|r| r.omega_sign_change_fraction).collect();
+        let mean = f.iter().sum::<f64>() / 4.0;
+        assert!((m.omega_sign_change_fraction_mean - mean).abs() < 1e-15);
+        assert_eq!(
+            m.omega_sign_change_fraction_max,
+            f.iter().copied().fold(0.0, f64::max)
+        );
+        assert!(m.mean_abs_domega_max >= m.mean_abs_domega_mean && m.mean_abs_domega_mean > 0.0);
+        // seeds 101 and 103 stall (seed % 2)
+        assert_eq!(m.stalled_trials, 2);
+    }
 
     #[test]
     fn verdicts_from_constructed_counts() {

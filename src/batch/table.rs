@@ -100,6 +100,7 @@ pub fn summary_text(res: &BatchResult) -> String {
     plan_header(res, &mut out);
     safety_table(res, &mut out);
     steps_table(res, &mut out);
+    smoothness_table(res, &mut out);
     worst_table(res, &mut out);
     paired_and_warnings(res, &mut out);
     out
@@ -217,6 +218,42 @@ fn steps_table(res: &BatchResult, out: &mut String) {
                 s.infeasible_trials.to_string(),
                 format!("{} ({})", s.rejected_readings, s.rejected_trials),
                 lower(s.min_barrier, 4),
+            ]
+        })
+        .collect();
+    out.push_str(&render(&headers, &align, &rows));
+}
+
+/// Smoothness of the commanded (v, ω): per-trial fractions and means, averaged and at worst.
+fn smoothness_table(res: &BatchResult, out: &mut String) {
+    use Align::{Left, Right};
+    out.push_str(
+        "\nControl smoothness (commanded ω per control step; mean over trials / worst trial)\n",
+    );
+    let headers = [
+        "controller",
+        "ω sign changes [% of steps]",
+        "mean |Δω| [rad/s per step]",
+        "trials with a stall",
+    ];
+    let align = [Left, Right, Right, Right];
+    let rows: Vec<Vec<String>> = res
+        .summaries
+        .iter()
+        .map(|s| {
+            let m = &s.smoothness;
+            vec![
+                s.controller.clone(),
+                format!(
+                    "{:.2} / {:.2}",
+                    100.0 * m.omega_sign_change_fraction_mean,
+                    100.0 * m.omega_sign_change_fraction_max
+                ),
+                format!(
+                    "{:.4} / {:.4}",
+                    m.mean_abs_domega_mean, m.mean_abs_domega_max
+                ),
+                m.stalled_trials.to_string(),
             ]
         })
         .collect();
