@@ -438,8 +438,7 @@ impl<'w> Simulation<'w> {
         let m = &self.monitor;
         let end = self.plant.truth();
         let collided = m.first_collision.is_some();
-        let (goal_settled, final_goal_distance, final_clf_value) =
-            m.goal_outcome(self.world, &end);
+        let (goal_settled, final_goal_distance, final_clf_value) = m.goal_outcome(self.world, &end);
         RunSummary {
             world: self.world.name.clone(),
             seed: self.seed,
