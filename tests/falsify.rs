@@ -203,3 +203,38 @@ fn bad_input_is_named() {
     ]);
     assert_ne!(o.status.code(), Some(0), "{}", text(&o));
 }
+
+/// The counterexamples `falsify` found inside worlds where `check` says Theorem 3 applies
+/// (tests/worlds_falsify, README "Worst attacks found"): each stays inside one declared fault
+/// pattern, `check` still says Theorem 3 applies, and `regress` confirms the recorded behaviour
+/// (FT-CBF-CLF unsafe in most regression seeds).
+#[test]
+fn falsify_counterexamples_stay_counterexamples() {
+    let dir = "tests/worlds_falsify";
+    let mut worlds: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("tests/worlds_falsify")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    worlds.sort();
+    assert!(!worlds.is_empty());
+    for w in &worlds {
+        let o = ftcbf(&["check", s(w)]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        assert!(
+            text(&o).contains("verdict: Theorem 3 applies"),
+            "{}: {}",
+            w.display(),
+            text(&o)
+        );
+        let body = std::fs::read_to_string(w).expect("world");
+        assert!(
+            body.starts_with("# A counterexample `ftcbf falsify` found"),
+            "{}",
+            w.display()
+        );
+    }
+    let o = ftcbf(&["regress", dir]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(text(&o).contains("0 failed"), "{}", text(&o));
+}

@@ -19,9 +19,10 @@ use crate::falsify::search::MIN_BUDGET;
 /// rate, direction, onset, duration and, for the stealthy attacker, its detector threshold. The
 /// objective is the run's robustness ρ: the minimum over time of h(x_true) of every safe set and
 /// of the signed obstacle clearance (negative = unsafe; a collision ranks below any run without
-/// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, and
-/// re-runs its best 4 candidates on held-out seeds; random search with the same budget and
-/// seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
+/// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, starting
+/// from random search's first candidates and carrying its best candidates from one generation to
+/// the next, and re-runs its best 4 candidates on held-out seeds; random search with the same
+/// budget and seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
 /// controller) that `ftcbf run` replays to the same ρ, with its recording next to it.
 /// The same command gives the same output files (the recording's blueprint ids aside), for any
 /// --jobs.

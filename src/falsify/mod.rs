@@ -11,14 +11,19 @@
 //!   without one.
 //! - **Optimiser** ([`search`]): a cross-entropy method over the mixed space: categorical
 //!   distributions over the fault pattern and the injector kind, and for each kind an
-//!   independent Gaussian per continuous coordinate (clipped to [0, 1]), moved towards the best
-//!   quarter of each generation. Written here rather than taken from a crate: the maintained CMA-ES
-//!   crate (`cmaes` 0.2.2) handles continuous variables only, pulls a second nalgebra (0.33) and
-//!   rand 0.8, and the categorical part of the problem is where most of the search happens.
+//!   independent Gaussian per continuous coordinate (clipped to [0, 1]), moved (smoothed) towards
+//!   the best quarter of each generation. Its first generation, twice the later ones, is random
+//!   search's first candidates on the same seeds (run once, counted in both budgets); each later
+//!   generation re-runs the previous one's best candidates on its fresh seeds (elitism), and the
+//!   last third of the generations also samples close to the previous best (local refinement of
+//!   its continuous parameters). Written here rather than taken from a crate: the maintained
+//!   CMA-ES crate (`cmaes` 0.2.2) handles continuous variables only, pulls a second nalgebra
+//!   (0.33) and rand 0.8, and the categorical part of the problem is where most of the search
+//!   happens.
 //! - **Noise**: every candidate runs on 2 seeds (common within a generation, fresh for every
-//!   generation), ranked by seed-averaged robustness (collisions first); the best 4 distinct
-//!   candidates are re-run on held-out seeds, and both the seed-averaged and the worst
-//!   robustness are reported.
+//!   generation, the same for both methods), ranked by seed-averaged robustness (collisions
+//!   first); the best 4 distinct candidates (a re-run candidate ranked by all its runs) are re-run
+//!   on held-out seeds, and both the seed-averaged and the worst robustness are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
 //!   run count and the same seeds.
 //! - **Determinism**: candidates are drawn from seeded ChaCha streams; runs go to the batch
@@ -122,8 +127,11 @@ pub fn falsify(template: &WorldTemplate, settings: &Settings) -> anyhow::Result<
         &[Method::Cem]
     };
     let pool = worker_pool(settings.jobs)?;
+    // The first generation is the same candidates on the same seeds for both methods: run once,
+    // counted in both budgets.
+    let shared = (methods.len() - 1) * plan.first * plan.seeds_per_candidate;
     let bar = progress_bar(
-        (plan.runs * methods.len()) as u64,
+        (plan.runs * methods.len() - shared) as u64,
         &world.name,
         settings.progress,
     );
@@ -136,10 +144,12 @@ pub fn falsify(template: &WorldTemplate, settings: &Settings) -> anyhow::Result<
         pool: &pool,
         bar: &bar,
     };
-    let results = methods
-        .iter()
-        .map(|&m| search.run(m))
-        .collect::<anyhow::Result<Vec<_>>>();
+    let results = search.first_generation().and_then(|first| {
+        methods
+            .iter()
+            .map(|&m| search.run(m, Some(&first)))
+            .collect::<anyhow::Result<Vec<_>>>()
+    });
     bar.finish_and_clear();
     let patterns: Vec<String> = space
         .patterns
@@ -181,12 +191,16 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations of {} (elites {}), then the best {} on {} held-out seeds = {} runs",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} local from generation {}), then the best {} on {} held-out seeds = {} runs",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,
+            p.first,
             p.population,
             p.elites,
+            p.carry,
+            p.local,
+            p.local_from + 1,
             p.finalists,
             p.final_seeds,
             p.runs
