@@ -96,15 +96,31 @@ fn riccati_step(
         if !u || k >= model.channels() {
             continue;
         }
-        let c: RowVector4<f64> = model.c[k];
-        let pc = p * c.transpose();
-        let s = (c * pc)[0] + model.r[k];
-        let kg = pc / s;
-        let ikc = StateMatrix::identity() - kg * c;
-        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
-        p = (p + p.transpose()) * 0.5;
+        let (kg, ikc) = scalar_gain(model, k, &p);
+        p = joseph(model, k, &p, &kg, &ikc);
     }
     (prior, p)
+}
+
+/// The gain K = P cᵀ/(c P cᵀ + r) of a scalar update with channel `k`, and I − K c.
+fn scalar_gain(model: &LinearModel, k: usize, p: &StateMatrix) -> (State, StateMatrix) {
+    let c: RowVector4<f64> = model.c[k];
+    let pc = p * c.transpose();
+    let s = (c * pc)[0] + model.r[k];
+    let kg = pc / s;
+    (kg, StateMatrix::identity() - kg * c)
+}
+
+/// The Joseph-form posterior (I − Kc) P (I − Kc)ᵀ + K r Kᵀ, symmetrised.
+fn joseph(
+    model: &LinearModel,
+    k: usize,
+    p: &StateMatrix,
+    kg: &State,
+    ikc: &StateMatrix,
+) -> StateMatrix {
+    let p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
+    (p + p.transpose()) * 0.5
 }
 
 /// Iterate predict (Φ, Q_d at `dt`) + update with the channels where `uses[k]` until the
@@ -433,11 +449,7 @@ fn update_map(
         if !u || k >= q {
             continue;
         }
-        let c: RowVector4<f64> = model.c[k];
-        let pc = p * c.transpose();
-        let s = (c * pc)[0] + model.r[k];
-        let kg = pc / s;
-        let ikc = StateMatrix::identity() - kg * c;
+        let (kg, ikc) = scalar_gain(model, k, &p);
         a = ikc * a;
         b = nalgebra::DMatrix::from_fn(4, q, |r, cc| {
             (0..4).map(|m| ikc[(r, m)] * b[(m, cc)]).sum::<f64>()
@@ -445,8 +457,7 @@ fn update_map(
         for r in 0..4 {
             b[(r, k)] += kg[r];
         }
-        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[k];
-        p = (p + p.transpose()) * 0.5;
+        p = joseph(model, k, &p, &kg, &ikc);
     }
     (a, b, p)
 }
