@@ -12,6 +12,9 @@
 //!   test–solver disagreements are printed before measuring. The time includes the
 //!   simulation of truth and readings (a few hundred ns).
 //!
+//! `closed_loop_safety_filter`: the same closed loop in the safety-filter form (a path tracker
+//! proposes u_nom; min ‖u − u_nom‖² over the CBF rows, no CLF rows).
+//!
 //! Plus `feasibility_m3_infeasible`: the geometric test alone on an infeasible m = 3 set
 //! (6 rows + box, every vertex enumerated: its worst case).
 
@@ -24,8 +27,8 @@ use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::constraints::HalfSpace;
 use ftcbf_controller::feasibility::check_half_spaces;
 use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
-    QuadraticClf, State, StateMatrix,
+    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, ProblemForm,
+    QpOutcome, QuadraticClf, State, StateMatrix, TrackerConfig,
 };
 use nalgebra::Matrix2;
 use rand::SeedableRng;
@@ -35,6 +38,23 @@ use rand_distr::{Distribution, StandardNormal};
 const DT: f64 = 0.01;
 
 fn controller(patterns: Vec<Vec<usize>>) -> Controller {
+    controller_in(patterns, ProblemForm::Paper)
+}
+
+/// The same controller in the safety-filter form: a path tracker to the goal (the origin)
+/// proposes u_nom, no CLF rows.
+fn safety_filter(patterns: Vec<Vec<usize>>) -> Controller {
+    let tracker = TrackerConfig::turtlebot([0.0, 0.0], 0.05, None);
+    controller_in(
+        patterns,
+        ProblemForm::SafetyFilter {
+            tracker,
+            clf: false,
+        },
+    )
+}
+
+fn controller_in(patterns: Vec<Vec<usize>>, form: ProblemForm) -> Controller {
     let m = patterns.len();
     let model = LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model");
     // V̄ as in tests/paper_study.rs: the largest level set inside the ball of radius d/2.
@@ -71,7 +91,7 @@ fn controller(patterns: Vec<Vec<usize>>) -> Controller {
         x0: State::new(1.0, 0.0, 0.0, 0.0),
         p0: StateMatrix::identity() * 1e-3,
         max_abs_reading: 1e6,
-        form: ftcbf_controller::ProblemForm::Paper,
+        form,
     })
     .expect("config")
 }
@@ -80,6 +100,7 @@ fn controller(patterns: Vec<Vec<usize>>) -> Controller {
 struct ClosedLoop {
     model: LinearModel,
     patterns: Vec<Vec<usize>>,
+    make: fn(Vec<Vec<usize>>) -> Controller,
     ctrl: Controller,
     x: State,
     k: usize,
@@ -87,11 +108,12 @@ struct ClosedLoop {
 }
 
 impl ClosedLoop {
-    fn new(patterns: Vec<Vec<usize>>) -> Self {
+    fn new(patterns: Vec<Vec<usize>>, make: fn(Vec<Vec<usize>>) -> Controller) -> Self {
         Self {
             model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
-            ctrl: controller(patterns.clone()),
+            ctrl: make(patterns.clone()),
             patterns,
+            make,
             x: State::new(1.0, 0.0, 0.0, 0.0),
             k: 0,
             rng: ChaCha8Rng::seed_from_u64(5),
@@ -109,7 +131,7 @@ impl ClosedLoop {
     fn step(&mut self) -> (Input, QpOutcome, [u32; 3]) {
         self.k += 1;
         if self.k.is_multiple_of(3000) {
-            self.ctrl = controller(self.patterns.clone());
+            self.ctrl = (self.make)(self.patterns.clone());
             self.x = State::new(1.0, 0.0, 0.0, 0.0);
         }
         let y = self.readings();
@@ -138,7 +160,7 @@ fn bench_step(c: &mut Criterion) {
             b.iter(|| black_box(ctrl.step(black_box(&y), &[true; 6], DT).u))
         });
 
-        let mut cl = ClosedLoop::new(patterns);
+        let mut cl = ClosedLoop::new(patterns.clone(), controller);
         let mut mix = [0usize; 5];
         let mut counts = [0u64; 3];
         for _ in 0..3000 {
@@ -160,6 +182,14 @@ fn bench_step(c: &mut Criterion) {
         );
         c.bench_function(&format!("step_m{m}_closed_loop"), |b| {
             b.iter(|| black_box(cl.step().0))
+        });
+        // The safety-filter form (issue #11: ≤ 40 µs for m = 2): tracker + QP with a reference.
+        let mut sf = ClosedLoop::new(patterns, safety_filter);
+        for _ in 0..300 {
+            sf.step();
+        }
+        c.bench_function(&format!("step_m{m}_closed_loop_safety_filter"), |b| {
+            b.iter(|| black_box(sf.step().0))
         });
     }
 }
