@@ -520,16 +520,18 @@ pub fn resolve(
 ) -> (Input, QpOutcome) {
     start(p, s, record);
 
+    // With `step2_every_step`, Step 2's isolation runs first, every step (a spoofed filter whose
+    // rows can all be met may still hold the robot back); its tests do not depend on Step 1, so
+    // one solve then serves both steps.
+    let isolated = p.step2_every_step && p.units > 1 && step2_isolate(p, s, record);
     // Step 1
     collect(p, s);
     let mut at = Progress {
-        stage: Stage::Step1,
+        stage: if isolated { Stage::Step2 } else { Stage::Step1 },
         clf_relaxed: false,
         result: attempt(qp, s, RowMode::Hard, record),
     };
-    // Step 2 runs every step when `step2_every_step` (a spoofed filter whose rows can all be met
-    // may still hold the robot back); its tests are the same either way.
-    if (!at.feasible() || p.step2_every_step) && p.units > 1 {
+    if !at.feasible() && !p.step2_every_step && p.units > 1 {
         step2(p, qp, s, record, &mut at);
     }
     if !at.feasible() && !s.clf_rows.is_empty() {
@@ -598,9 +600,16 @@ fn step2(
     record: &mut DecisionRecord,
     at: &mut Progress,
 ) {
-    if !at.feasible() {
-        at.stage = Stage::Step2;
+    at.stage = Stage::Step2;
+    if step2_isolate(p, s, record) {
+        collect(p, s);
+        at.result = attempt(qp, s, RowMode::Hard, record);
     }
+}
+
+/// Step 2's tests on every pair (dropping the units they single out) and the last-unit rule;
+/// true when a unit was dropped.
+fn step2_isolate(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) -> bool {
     let mut dropped_any = false;
     for i in 0..p.units {
         for j in (i + 1)..p.units {
@@ -610,11 +619,7 @@ fn step2(
         }
     }
     step2_keep_last_cbf_unit(p, s, record);
-    if dropped_any {
-        at.stage = Stage::Step2;
-        collect(p, s);
-        at.result = attempt(qp, s, RowMode::Hard, record);
-    }
+    dropped_any
 }
 
 /// ‖z‖_W = √(zᵀ W z) (a negative rounding of the quadratic form counts as 0).

@@ -188,17 +188,6 @@ impl QpSolver {
         self.q[1] = -(self.p_values[1] * u_ref[0] + self.p_values[2] * u_ref[1]);
     }
 
-    /// The reference input of the cost (zero for problem 5.3).
-    pub fn reference(&self) -> Input {
-        // invert q = −P·u_ref on the 2×2 input block
-        let (a, b, d) = (self.p_values[0], self.p_values[1], self.p_values[2]);
-        let det = a * d - b * b;
-        Input::new(
-            -(d * self.q[0] - b * self.q[1]) / det,
-            -(a * self.q[1] - b * self.q[0]) / det,
-        )
-    }
-
     /// Number of solves and of from-scratch builds so far.
     pub fn counters(&self) -> (u64, u64) {
         (self.solves, self.rebuilds)
