@@ -115,9 +115,13 @@ pub struct SmoothnessMeter {
 }
 
 impl SmoothnessMeter {
-    /// One control step: the body command (v, ω) sent [m/s, rad/s], the true position [m] and
-    /// the tracker's stall count so far.
-    pub fn observe(&mut self, cmd: [f64; 2], pos: [f64; 2], stalls: u64) {
+    /// The tracker's stall count so far (the controller keeps it).
+    pub fn set_stalls(&mut self, stalls: u64) {
+        self.stalls = stalls;
+    }
+
+    /// One control step: the body command (v, ω) sent [m/s, rad/s] and the true position [m].
+    pub fn observe(&mut self, cmd: [f64; 2], pos: [f64; 2]) {
         if let Some(last) = self.last_cmd {
             self.pairs += 1;
             self.sum_dv += (cmd[0] - last[0]).abs();
@@ -131,7 +135,6 @@ impl SmoothnessMeter {
         }
         self.last_cmd = Some(cmd);
         self.last_pos = Some(pos);
-        self.stalls = stalls;
     }
 
     /// The figures so far.
@@ -301,8 +304,9 @@ mod tests {
         // ω: 0.1, −0.1 (change), 0 (no strict sign), 0.2 (no change: 0 has none), −0.2 (change)
         let omegas = [0.1, -0.1, 0.0, 0.2, -0.2];
         for (k, w) in omegas.iter().enumerate() {
-            m.observe([0.1 * k as f64, *w], [k as f64, 0.0], 1);
+            m.observe([0.1 * k as f64, *w], [k as f64, 0.0]);
         }
+        m.set_stalls(1);
         let s = m.smoothness();
         assert_eq!(s.omega_sign_changes, 2);
         assert!((s.omega_sign_change_fraction - 0.5).abs() < 1e-15);

@@ -180,7 +180,6 @@ pub struct Simulation<'w> {
     view: StepView,
     link_poses: bool,
     smooth: SmoothnessMeter,
-    stalls: u64,
 }
 
 impl<'w> Simulation<'w> {
@@ -284,7 +283,6 @@ impl<'w> Simulation<'w> {
             view,
             link_poses: false,
             smooth: SmoothnessMeter::default(),
-            stalls: 0,
         }
     }
 
@@ -374,7 +372,7 @@ impl<'w> Simulation<'w> {
             fc.non_finite_row_steps += u64::from(out.decision.non_finite_rows > 0);
             fc.skipped_updates += out.rejected.skipped_updates as u64;
             fc.step2_retained_steps += u64::from(out.decision.step2_retained.is_some());
-            self.stalls = out.stalls as u64;
+            self.smooth.set_stalls(out.stalls as u64);
             fc.brake_steps += u64::from(matches!(
                 out.qp,
                 QpOutcome::InfeasibleAfterStep3 {
@@ -404,7 +402,7 @@ impl<'w> Simulation<'w> {
     fn actuate(&mut self, u: Input) {
         self.view.body_cmd = self.plant.apply_input(&u, self.heading, self.control_dt);
         let p = [self.view.truth.x, self.view.truth.y];
-        self.smooth.observe(self.view.body_cmd, p, self.stalls);
+        self.smooth.observe(self.view.body_cmd, p);
         for _ in 0..self.world.ticks_per_control {
             self.plant.tick();
             self.monitor
