@@ -204,10 +204,10 @@ fn bad_input_is_named() {
     assert_ne!(o.status.code(), Some(0), "{}", text(&o));
 }
 
-/// The counterexamples `falsify` found inside worlds where `check` says Theorem 3 applies
+/// The counterexamples `falsify` found inside worlds where `check` said Theorem 3 applies
 /// (tests/worlds_falsify, README "Worst attacks found"): each stays inside one declared fault
-/// pattern, `check` still says Theorem 3 applies, and `regress` confirms the recorded behaviour
-/// (FT-CBF-CLF unsafe in most regression seeds).
+/// pattern, `check` now names the hypothesis that fails (the explanation its header gives), and
+/// `regress` confirms the recorded behaviour (FT-CBF-CLF unsafe in most regression seeds).
 #[test]
 fn falsify_counterexamples_stay_counterexamples() {
     let dir = "tests/worlds_falsify";
@@ -222,7 +222,9 @@ fn falsify_counterexamples_stay_counterexamples() {
         let o = ftcbf(&["check", s(w)]);
         assert_eq!(o.status.code(), Some(0), "{}", text(&o));
         assert!(
-            text(&o).contains("verdict: Theorem 3 applies"),
+            text(&o).contains("verdict: Theorem 3 does NOT apply")
+                && text(&o).contains("[FAILS  ] condition 1 under the input limit")
+                && text(&o).contains("[HOLDS  ] attacks inside one fault pattern"),
             "{}: {}",
             w.display(),
             text(&o)

@@ -73,8 +73,9 @@ fn attacks_on_two_patterns_void_the_guarantee() {
 #[test]
 fn paper_linear_says_why_the_goal_cannot_be_held() {
     let r = check_world(&world("paper_linear.toml")).expect("check");
-    assert!(r.verdict.applies, "{r}");
-    assert_eq!(r.verdict.horizon, None);
+    // Its 2 m/s² box is 1.79× too small for the robust row at rest on the floor (see
+    // `paper_worlds_boxes_are_too_small_for_their_robust_rows`).
+    assert!(!r.verdict.applies, "{r}");
     // #10: at rest the CBF needs h ≥ h̄ + γ‖aKc̄‖/κ ≈ 0.106 (the number, for x̂_2) while
     // the goal ball reaches ≈ 0.101. x̂_1 keeps other channels, so its Kc̄ differs (0.1255).
     assert_eq!(r.goal.len(), 2);
@@ -96,6 +97,71 @@ fn paper_linear_says_why_the_goal_cannot_be_held() {
         .hypotheses
         .iter()
         .any(|h| h.status == Status::Info && h.detail.contains("cannot settle")));
+}
+
+/// Condition 1 under the input limit (#10): the paper's worlds keep the paper's boxes, which the
+/// robust CBF rows outgrow at rest on the floor line, so `check` says Theorem 3 does not apply
+/// and names the box it would need; the numbers are γ_i‖(K_i c̄_i)ᵀa‖ / (|a_v|·l).
+#[test]
+fn paper_worlds_boxes_are_too_small_for_their_robust_rows() {
+    for (name, ratio, needed) in [
+        (
+            "paper_linear.toml",
+            1.790,
+            "raise control.input_limit to ≥ (3.581, 3.581) m/s²",
+        ),
+        (
+            "paper_turtlebot.toml",
+            6.509,
+            "raise control.input_limit to ≥ (3.254, 3.254) m/s²",
+        ),
+    ] {
+        let r = check_world(&world(name)).expect("check");
+        assert!(!r.verdict.applies, "{r}");
+        let h = r
+            .hypotheses
+            .iter()
+            .find(|h| h.name == "condition 1 under the input limit for floor")
+            .expect("input-limit hypothesis");
+        assert_eq!(h.status, Status::Fails, "{name}: {}", h.detail);
+        assert!(
+            h.detail
+                .contains(&format!("needs {ratio:.3} × the box's authority")),
+            "{name}: {}",
+            h.detail
+        );
+        assert!(r.verdict.line().contains(needed), "{}", r.verdict.line());
+    }
+}
+
+/// The stealthy two-axis attack `falsify` found (#14) refutes the receivers world with a
+/// 0.5 m/s² box, where the honest filter's row needs 0.79 m/s² at rest: `check` now says so.
+/// With the catalogue's 1 m/s² box the hypothesis holds, and the same attack is safe in every
+/// regression seed (`tests/worlds_guarantees/paper_turtlebot_receivers_stealthy.toml`).
+#[test]
+fn the_stealthy_counterexample_is_outside_the_theorem_and_the_fixed_world_is_inside() {
+    let bad = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_falsify/paper_turtlebot_receivers_stealthy.toml");
+    let r = check_world(&World::load(&bad, &[]).expect("world")).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    assert!(
+        r.verdict
+            .line()
+            .contains("needs 1.588 × the box's authority"),
+        "{}",
+        r.verdict.line()
+    );
+    let good = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_guarantees/paper_turtlebot_receivers_stealthy.toml");
+    let r = check_world(&World::load(&good, &[]).expect("world")).expect("check");
+    assert!(r.verdict.applies, "{r}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name == "condition 1 under the input limit for floor")
+        .expect("input-limit hypothesis");
+    assert_eq!(h.status, Status::Holds, "{}", h.detail);
+    assert!(h.detail.contains("needs 0.794 ×"), "{}", h.detail);
 }
 
 #[test]
@@ -178,4 +244,27 @@ fn corridor_step2_test_flags_the_spoofed_filter_and_spares_the_honest_one() {
         (honest_flags as f64) <= eps * steps as f64,
         "honest filter flagged in {honest_flags} of {steps} steps"
     );
+}
+
+/// The guarantee worlds that carry an [expect] table hold it (`ftcbf regress`), the stealthy
+/// two-axis attack against the 1 m/s² receivers world among them.
+#[test]
+fn guarantee_worlds_meet_their_expectations() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_guarantees");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+        .arg("regress")
+        .arg(&dir)
+        .output()
+        .expect("ftcbf regress");
+    let t = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(o.status.code(), Some(0), "{t}");
+    assert!(
+        t.contains("paper_turtlebot_receivers_stealthy ft-cbf-clf"),
+        "{t}"
+    );
+    assert!(t.contains(", 0 failed"), "{t}");
 }

@@ -22,9 +22,17 @@
 //!    half-planes, Prop. 1 on the position part of lifted ellipses (θ̄ ≤ √(2(1 − h̄)/λ̄(Φ))),
 //!    Thm. 5 at the start for an inside ellipse; for obstacles the lift gives Λ ≠ 0 per filter
 //!    and agreement across filters is stated as an assumption.
-//! 6. **Attacks inside one fault pattern**: the union of the declared attacks' channels lies in
+//! 6. **Condition 1 under the input limit**: the proof of case (i) scales a witness input
+//!    without bound. With a box |u_k| ≤ l_k, the honest filter's row must be satisfiable by the
+//!    box at rest on its own boundary ĥ_i = 0, where it reads Λu ≥ γ_i‖(K_i c̄_i)ᵀ∂h‖. When the
+//!    box cannot give that, the honest row goes infeasible near the boundary, the policy reaches
+//!    Step 3, and Step 3's residue ranking cannot tell an honest filter from one fed by a
+//!    stealthy attacker (whose residue sits at its nominal level): the guarantee is void.
+//!    Exact for half-planes and half-space obstacles; for curved boundaries the worst of 360
+//!    normals with the curvature term left out (stated as an assumption).
+//! 7. **Attacks inside one fault pattern**: the union of the declared attacks' channels lies in
 //!    one F(r_i) (the theorem covers one fault at a time).
-//! 7. **Holding the goal** (not part of the safety guarantee; reported): at rest the CBF row of
+//! 8. **Holding the goal** (not part of the safety guarantee; reported): at rest the CBF row of
 //!    a half-plane needs h(x̂) ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ; if no point of the goal set reaches that,
 //!    the robot cannot settle there with the guarantee's margins.
 
@@ -34,7 +42,7 @@ use ftcbf_controller::params::{
     check_lemma1, check_prop1, check_theorem5, detectability, steady_state_gain_product,
     Detectability,
 };
-use ftcbf_controller::{Input, State};
+use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::runner::setup::{
     controller_name, initial_covariance, process_model, process_noise_intensity, ControlSetup,
@@ -286,13 +294,14 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     let filters = check_filters(world, &setup, &names, &mut found); // 2-4
     check_finite_parameters(world, &setup, &mut found); // 4
     check_condition1(world, &setup, &mut found); // 5
+    check_input_authority(world, &setup, &filters, &mut found); // 6
     if matches!(f.dynamics, Dynamics::Rapier) {
         found.assumptions.push(
             "the linear model (6.2) with the compensator describes the rapier robot".to_string(),
         );
     }
-    check_attacks(world, &names, &mut found); // 6
-    let goal = goal_holding(world, &setup, &filters); // 7
+    check_attacks(world, &names, &mut found); // 7
+    let goal = goal_holding(world, &setup, &filters); // 8
     found.hypotheses.extend(goal.iter().map(goal_hypothesis));
 
     let applies = found.reasons.is_empty();
@@ -809,7 +818,7 @@ fn check_ellipse(
     }
 }
 
-/// 6. The declared attacks stay inside one fault pattern.
+/// 7. The declared attacks stay inside one fault pattern.
 fn check_attacks(world: &World, names: &Names, found: &mut Findings) {
     match attacked_pattern(world) {
         Ok(Some(pi)) => found.hypotheses.push(Hypothesis {
@@ -833,16 +842,13 @@ fn check_attacks(world: &World, names: &Names, found: &mut Findings) {
     }
 }
 
-/// 7. Goal holding, per half-plane and single-drop filter.
+/// 8. Goal holding, per half-plane and single-drop filter.
 fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) -> Vec<GoalHold> {
     let f = &world.file;
-    let model = &setup.config.model;
-    let p = &setup.params;
-    let m = setup.config.fault_patterns.len();
-    let mut goal = Vec::new();
     let kappa = f.control.cbf_gain;
-    let dt = world.control_dt();
+    let gains = single_filter_gains(world, setup, filters);
     let gc = State::new(f.goal.center[0], f.goal.center[1], 0.0, 0.0);
+    let mut goal = Vec::new();
     for (bi, s) in f.safe_sets.iter().enumerate() {
         if let SafeSetSpec::HalfPlane { name, a, b } = s {
             let av = State::new(a[0], a[1], a[2], a[3]);
@@ -851,14 +857,12 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                 GoalMetric::Position => (a[0] * a[0] + a[1] * a[1]).sqrt(),
             };
             let max_h = av.dot(&gc) - b + f.goal.radius * reach;
-            for (i, fc) in filters.iter().enumerate().take(m) {
-                let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
-                let kc = steady_state_gain_product(model, &mask, dt);
-                let needed = setup.config.barriers[bi].h_bar(p.gamma[i])
-                    + p.gamma[i] * (kc.transpose() * av).norm() / kappa;
+            for (label, gamma, kc) in &gains {
+                let needed = setup.config.barriers[bi].h_bar(*gamma)
+                    + gamma * (kc.transpose() * av).norm() / kappa;
                 goal.push(GoalHold {
                     barrier: name.clone(),
-                    filter: fc.label.clone(),
+                    filter: label.clone(),
                     needed_h: needed,
                     max_h_in_goal: max_h,
                 });
@@ -903,5 +907,164 @@ impl fmt::Display for CheckReport {
             }
         }
         write!(f, "verdict: {}", self.verdict.line())
+    }
+}
+
+/// Per fault-pattern filter x̂_i: its label, γ_i in force and steady-state gain product K c̄.
+fn single_filter_gains(
+    world: &World,
+    setup: &ControlSetup,
+    filters: &[FilterCheck],
+) -> Vec<(String, f64, StateMatrix)> {
+    let model = &setup.config.model;
+    let m = setup.config.fault_patterns.len();
+    let dt = world.control_dt();
+    filters
+        .iter()
+        .take(m)
+        .enumerate()
+        .map(|(i, fc)| {
+            let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
+            (
+                fc.label.clone(),
+                setup.params.gamma[i],
+                steady_state_gain_product(model, &mask, dt),
+            )
+        })
+        .collect()
+}
+
+/// The input a CBF row with gradient `grad` needs, at rest on its own boundary ĥ = 0, relative
+/// to what the box gives: `γ‖(Kc̄)ᵀ∂h‖ / Σ_k |Λ_k| l_k` with `Λ = Gᵀ∂h` (≤ 1: the row can be
+/// met; +∞: the input does not act on h at rest).
+fn rest_demand(setup: &ControlSetup, grad: &State, gamma: f64, kc: &StateMatrix, l: &Input) -> f64 {
+    let lambda: Input = setup.config.model.g.transpose() * grad;
+    let authority = lambda[0].abs() * l[0] + lambda[1].abs() * l[1];
+    let needed = gamma * (kc.transpose() * grad).norm();
+    if authority > 1e-12 {
+        needed / authority
+    } else if needed <= 0.0 {
+        0.0
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The gradients at rest a barrier's boundary can present: one for a half-plane (or half-space
+/// obstacle), else 360 sampled outward normals n with the lift's velocity part (n, k·n) for
+/// obstacles and the barrier's own gradient on a ring around an ellipse's centre. The second
+/// value says whether the sampling is exact (flat boundary: the curvature term ½tr(∇²h N) is
+/// zero) or leaves that term out.
+fn rest_gradients(world: &World, setup: &ControlSetup, bi: usize) -> (Vec<State>, bool) {
+    let barrier = &setup.config.barriers[bi];
+    let n_safe = world.file.safe_sets.len();
+    let ring = |cx: f64, cy: f64, r: f64| -> Vec<State> {
+        (0..360)
+            .map(|d| {
+                let a = (d as f64).to_radians();
+                barrier
+                    .eval(&State::new(cx + r * a.cos(), cy + r * a.sin(), 0.0, 0.0))
+                    .gradient
+            })
+            .collect()
+    };
+    if bi < n_safe {
+        match &world.file.safe_sets[bi] {
+            SafeSetSpec::HalfPlane { .. } => (vec![barrier.eval(&State::zeros()).gradient], true),
+            SafeSetSpec::EllipseInside {
+                center, semi_axes, ..
+            }
+            | SafeSetSpec::EllipseOutside {
+                center, semi_axes, ..
+            } => (
+                ring(center[0], center[1], semi_axes[0].min(semi_axes[1])),
+                false,
+            ),
+        }
+    } else {
+        let ob = &world.obstacles[bi - n_safe];
+        if ob.is_half_space() {
+            (vec![barrier.eval(&State::zeros()).gradient], true)
+        } else {
+            let k = world.file.control.obstacle_lift;
+            let grads = (0..360)
+                .map(|d| {
+                    let a = (d as f64).to_radians();
+                    State::new(a.cos(), a.sin(), k * a.cos(), k * a.sin())
+                })
+                .collect();
+            (grads, false)
+        }
+    }
+}
+
+/// Item 6, condition 1 under the input limit. The proof of Theorem 3 (case i) scales a witness
+/// input without bound; with a box |u_k| ≤ l_k the Ω_i row of the honest filter must be
+/// satisfiable by the box itself. At rest on ĥ_i = 0 the row reads Λu ≥ γ_i‖(K_i c̄_i)ᵀ∂h‖
+/// (the Itô term ½tr(∇²h N) vanishes on flat boundaries); when the box cannot give that, the
+/// honest row becomes infeasible near the boundary, Step 3 must drop units by residue, and a
+/// stealthy attacker (residue at its nominal level) wins that ranking about half the time.
+fn check_input_authority(
+    world: &World,
+    setup: &ControlSetup,
+    filters: &[FilterCheck],
+    found: &mut Findings,
+) {
+    let Some(limit) = setup.config.input_limit else {
+        found.hypotheses.push(Hypothesis {
+            name: "condition 1 under the input limit".into(),
+            status: Status::Holds,
+            detail: "no input limit: the proof's scaling of the witness input applies".into(),
+        });
+        return;
+    };
+    let gains = single_filter_gains(world, setup, filters);
+    for bi in 0..setup.config.barriers.len() {
+        let name = setup.config.barriers[bi].name().to_string();
+        let (grads, exact) = rest_gradients(world, setup, bi);
+        let mut worst = (0.0_f64, String::new());
+        for (label, gamma, kc) in &gains {
+            for g in &grads {
+                let r = rest_demand(setup, g, *gamma, kc, &limit);
+                if r > worst.0 || worst.1.is_empty() {
+                    worst = (r, label.clone());
+                }
+            }
+        }
+        let (ratio, filter) = worst;
+        let holds = ratio <= 1.0;
+        let needed = format!(
+            "at rest on ĥ = 0 the row of {filter} needs {:.3} × the box's authority (|u| ≤ ({}, {}) m/s²){}",
+            ratio,
+            limit[0],
+            limit[1],
+            if exact {
+                ""
+            } else {
+                "; worst of 360 boundary normals, curvature term left out"
+            }
+        );
+        if !holds {
+            found.reasons.push(format!(
+                "{name}: the input limit cannot meet the robust CBF row at rest on its boundary ({needed}); raise control.input_limit to ≥ ({:.3}, {:.3}) m/s², or lower γ‖Kc̄‖ (less process noise, more precise sensors)",
+                limit[0] * ratio,
+                limit[1] * ratio
+            ));
+        }
+        found.hypotheses.push(Hypothesis {
+            name: format!("condition 1 under the input limit for {name}"),
+            status: match (holds, exact) {
+                (false, _) => Status::Fails,
+                (true, true) => Status::Holds,
+                (true, false) => Status::Assumed,
+            },
+            detail: needed,
+        });
+        if holds && !exact {
+            found.assumptions.push(format!(
+                "{name}: the curvature term ½tr(∇²h N) does not turn the input-limit margin ({:.3}) negative",
+                1.0 - ratio
+            ));
+        }
     }
 }
