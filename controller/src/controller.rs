@@ -14,7 +14,7 @@ use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
 use crate::nominal::{PathTracker, TrackerConfig, TrackerError};
 use crate::params::{ThetaSchedule, STEP2_WINDOW};
-use crate::policy::{resolve, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
+use crate::policy::{decide, prepare, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
 use crate::qp::QpSolver;
 use crate::types::{Input, State, StateMatrix};
 
@@ -651,12 +651,14 @@ impl Controller {
             .map(|f| f.skipped_updates())
             .sum();
         self.fill_problem();
+        let isolated = prepare(&self.problem, &mut self.scratch, &mut self.output.decision);
         self.propose_nominal();
-        let (u, outcome) = resolve(
+        let (u, outcome) = decide(
             &self.problem,
             &mut self.qp,
             &mut self.scratch,
             &mut self.output.decision,
+            isolated,
         );
         self.u = u;
         self.bank.set_last_input(u);
@@ -673,18 +675,25 @@ impl Controller {
         &self.output
     }
 
-    /// The safety-filter form: u_nom from the estimate of the unit Step 3 would keep (smallest
-    /// residue key: the windowed χ² score of its innovations, then the lowest index), as the
-    /// QP's reference. (A component-wise median over units and pair filters was tried first: with
-    /// three receivers and one biased, half of the six estimates carry the bias, and the robot
-    /// parked 0.1 m off the goal in `three_gnss`.)
+    /// The safety-filter form: u_nom from the estimate of a unit Step 2's isolation kept (this
+    /// step's [`prepare`] ran it), the one Step 3 would keep among them (smallest residue key:
+    /// the windowed χ² score of its innovations, then the lowest index), as the QP's reference.
+    /// Without the Step-2 filter a spoofed unit with a small residue steered u_nom even while
+    /// Step 2 dropped its rows every step, and the robot dithered at the goal between the
+    /// spoofed reference and the honest barrier row. (A component-wise median over units and
+    /// pair filters was tried first: with three receivers and one biased, half of the six
+    /// estimates carry the bias, and the robot parked 0.1 m off the goal in `three_gnss`.)
     fn propose_nominal(&mut self) {
         let Some(tracker) = self.tracker.as_mut() else {
             return;
         };
         let units = self.problem.units();
+        let key = |i: usize| (!self.scratch.kept(i), self.problem.residue_key[i]);
         let best = (0..units)
-            .min_by(|&a, &b| self.problem.residue_key[a].total_cmp(&self.problem.residue_key[b]))
+            .min_by(|&a, &b| {
+                let (ka, kb) = (key(a), key(b));
+                ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+            })
             .unwrap_or(0);
         let x = self.problem.estimates[best];
         let u_nom = tracker.propose([x[0], x[1]], [x[2], x[3]], self.last_dt);

@@ -17,6 +17,10 @@
 //!     At rest it commands no turn: a lateral acceleration first builds forward speed.
 //!
 //!   Then |ω| ≤ ω_max, and |Δω| ≤ dω_max·dt when a rate limit is set.
+//! - The drive's resolution: a robot executes yaw rates in steps of its resolution (a
+//!   TurtleBot3's wheel motors take integer velocity units, see `[control.drive]
+//!   wheel_speed_resolution`), so a command |ω| below half a step is sent as ω = 0 — what the
+//!   robot would execute anyway. The integrator and the rate limiter keep the unrounded value.
 //! - Closed loop on the measured speed: [`Compensator::observe_speed`] pulls the integrator
 //!   towards a measured/estimated forward speed with gain k ∈ [0, 1] (k = 1 replaces it), and
 //!   [`Compensator::saturated`] sets it to the speed actually commanded after wheel saturation,
@@ -89,6 +93,8 @@ pub struct CompensatorConfig {
     pub domega_max: Option<f64>,
     /// The law near v = 0.
     pub low_speed: LowSpeedLaw,
+    /// The drive's yaw-rate resolution [rad/s] (0: none): |ω| below half of it is sent as 0.
+    pub omega_resolution: f64,
     /// Gain of the speed correction in [`Compensator::observe_speed`], in [0, 1].
     pub speed_gain: f64,
 }
@@ -143,6 +149,13 @@ impl Compensator {
         }
         let (key, scale) = cfg.low_speed.scale();
         positive(key, scale)?;
+        if !(cfg.omega_resolution.is_finite() && cfg.omega_resolution >= 0.0) {
+            return Err(CompensatorError::InvalidValue {
+                key: "omega_resolution",
+                expected: "a finite number ≥ 0",
+                value: cfg.omega_resolution,
+            });
+        }
         if !(0.0..=1.0).contains(&cfg.speed_gain) {
             return Err(CompensatorError::InvalidValue {
                 key: "speed_gain",
@@ -209,12 +222,15 @@ impl Compensator {
         self.omega = 0.0;
     }
 
-    /// The current command (state of (6.3) and the last ω).
+    /// The current command: the state of (6.3) and the last ω, rounded to 0 below half the
+    /// drive's resolution.
     pub fn current(&self) -> BodyCommand {
-        BodyCommand {
-            v: self.v,
-            omega: self.omega,
-        }
+        let omega = if self.omega.abs() < 0.5 * self.cfg.omega_resolution {
+            0.0
+        } else {
+            self.omega
+        };
+        BodyCommand { v: self.v, omega }
     }
 
     /// The configuration.
@@ -235,6 +251,7 @@ mod tests {
             domega_max: None,
             low_speed: law,
             speed_gain: 1.0,
+            omega_resolution: 0.0,
         }
     }
 
@@ -329,6 +346,35 @@ mod tests {
             Compensator::new(c),
             Err(CompensatorError::InvalidValue {
                 key: "speed_gain",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn yaw_rates_below_half_the_resolution_are_sent_as_zero() {
+        let mut c = Compensator::new(CompensatorConfig {
+            omega_resolution: 0.01,
+            ..cfg(LowSpeedLaw::Floor { v_floor: 0.05 })
+        })
+        .expect("valid");
+        c.reset(0.2);
+        // a⊥ = 0.0008 m/s² at v = 0.2 m/s: ω = 0.004 < 0.005 → 0
+        let cmd = c.command(Input::new(0.0, 0.0008), 0.0, 0.02);
+        assert_eq!(cmd.omega, 0.0);
+        // the unrounded value is kept for the rate limiter and the next step
+        assert!((c.omega - 0.004).abs() < 1e-12);
+        // a⊥ = 0.0012: ω = 0.006 ≥ 0.005 is sent as is
+        let cmd = c.command(Input::new(0.0, 0.0012), 0.0, 0.02);
+        assert!((cmd.omega - 0.006).abs() < 1e-9, "{cmd:?}");
+        let bad = Compensator::new(CompensatorConfig {
+            omega_resolution: -1.0,
+            ..cfg(LowSpeedLaw::Floor { v_floor: 0.05 })
+        });
+        assert!(matches!(
+            bad,
+            Err(CompensatorError::InvalidValue {
+                key: "omega_resolution",
                 ..
             })
         ));

@@ -419,6 +419,12 @@ pub struct PolicyScratch {
 }
 
 impl PolicyScratch {
+    /// Whether unit `i` is still kept (not dropped) in the decision under way; false for an
+    /// index out of range.
+    pub fn kept(&self, i: usize) -> bool {
+        self.alive.get(i).copied().unwrap_or(false)
+    }
+
     /// Buffers for `units` units and `barriers` barriers.
     pub fn new(units: usize, barriers: usize) -> Self {
         Self {
@@ -518,12 +524,29 @@ pub fn resolve(
     s: &mut PolicyScratch,
     record: &mut DecisionRecord,
 ) -> (Input, QpOutcome) {
-    start(p, s, record);
+    let isolated = prepare(p, s, record);
+    decide(p, qp, s, record, isolated)
+}
 
-    // With `step2_every_step`, Step 2's isolation runs first, every step (a spoofed filter whose
-    // rows can all be met may still hold the robot back); its tests do not depend on Step 1, so
-    // one solve then serves both steps.
-    let isolated = p.step2_every_step && p.units > 1 && step2_isolate(p, s, record);
+/// The first half of [`resolve`]: reset the record and the scratch and, with
+/// `step2_every_step`, run Step 2's isolation (its tests do not depend on Step 1, so one solve
+/// then serves both steps). Returns whether isolation dropped a unit. Between this and
+/// [`decide`] a caller may read [`PolicyScratch::kept`] (e.g. to take the safety filter's
+/// reference from a unit Step 2 kept) and set the QP's reference.
+pub fn prepare(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) -> bool {
+    start(p, s, record);
+    p.step2_every_step && p.units > 1 && step2_isolate(p, s, record)
+}
+
+/// The second half of [`resolve`]: Step 1 (or the Step-2 solve after [`prepare`]'s isolation),
+/// the CLF relaxation, Step 3 and the fallback.
+pub fn decide(
+    p: &PolicyProblem,
+    qp: &mut QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+    isolated: bool,
+) -> (Input, QpOutcome) {
     // Step 1
     collect(p, s);
     let mut at = Progress {

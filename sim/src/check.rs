@@ -45,8 +45,8 @@ use ftcbf_controller::params::{
 use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::runner::setup::{
-    controller_name, initial_covariance, process_model, process_noise_intensity, ControlSetup,
-    MIN_VARIANCE,
+    channel_mask, controller_name, initial_covariance, process_model, process_noise_intensity,
+    rest_hold, ControlSetup, MIN_VARIANCE,
 };
 use crate::runner::RunError;
 use crate::safe_sets::ellipse_phi_state;
@@ -469,16 +469,6 @@ fn check_disjoint_patterns(setup: &ControlSetup, names: &Names, found: &mut Find
 }
 
 /// The channels a filter that drops the fault patterns `drop` uses.
-fn channel_mask(q: usize, patterns: &[Vec<usize>], drop: &[usize]) -> Vec<bool> {
-    let mut u = vec![true; q];
-    for &pi in drop {
-        for &c in &patterns[pi] {
-            u[c] = false;
-        }
-    }
-    u
-}
-
 /// 2-4. Every filter of the bank (single drops, then pair drops): invertible R̄,
 /// detectability and what bounds its covariance.
 fn check_filters(
@@ -845,8 +835,7 @@ fn check_attacks(world: &World, names: &Names, found: &mut Findings) {
 /// 8. Goal holding, per half-plane and single-drop filter.
 fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) -> Vec<GoalHold> {
     let f = &world.file;
-    let kappa = f.control.cbf_gain;
-    let gains = single_filter_gains(world, setup, filters);
+    let m = setup.config.fault_patterns.len();
     let gc = State::new(f.goal.center[0], f.goal.center[1], 0.0, 0.0);
     let mut goal = Vec::new();
     for (bi, s) in f.safe_sets.iter().enumerate() {
@@ -857,13 +846,20 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                 GoalMetric::Position => (a[0] * a[0] + a[1] * a[1]).sqrt(),
             };
             let max_h = av.dot(&gc) - b + f.goal.radius * reach;
-            for (label, gamma, kc) in &gains {
-                let needed = setup.config.barriers[bi].h_bar(*gamma)
-                    + gamma * (kc.transpose() * av).norm() / kappa;
+            for (i, fc) in filters.iter().enumerate().take(m) {
+                let r = rest_hold(
+                    world,
+                    &setup.config.model,
+                    &setup.config.fault_patterns,
+                    setup.params.gamma[i],
+                    i,
+                    &*setup.config.barriers[bi],
+                    &av,
+                );
                 goal.push(GoalHold {
                     barrier: name.clone(),
-                    filter: label.clone(),
-                    needed_h: needed,
+                    filter: fc.label.clone(),
+                    needed_h: r.needed_h,
                     max_h_in_goal: max_h,
                 });
             }

@@ -77,6 +77,9 @@ pub struct DriveConfig {
     /// the open loop. Default 0.1: at a steady acceleration a the integrator may lead the
     /// measured speed by a·dt/k (10 control steps), which the motors' lag needs.
     pub speed_gain: f64,
+    /// Resolution of a wheel's speed command [rad/s] (0: none). A yaw rate below half the
+    /// drive's step r·Δ/L is sent as 0 (see `ftcbf_controller::drive`). Default 0.
+    pub wheel_speed_resolution: f64,
 }
 
 impl Default for DriveConfig {
@@ -88,6 +91,7 @@ impl Default for DriveConfig {
             dv_max: None,
             domega_max: None,
             speed_gain: 0.1,
+            wheel_speed_resolution: 0.0,
         }
     }
 }
@@ -129,6 +133,13 @@ impl Drive {
                 value: cfg.v_initial,
             });
         }
+        if !(cfg.wheel_speed_resolution.is_finite() && cfg.wheel_speed_resolution >= 0.0) {
+            return Err(DriveError::InvalidValue {
+                key: "wheel_speed_resolution",
+                expected: "a finite number ≥ 0 [rad/s]",
+                value: cfg.wheel_speed_resolution,
+            });
+        }
         let mut compensator = Compensator::new(CompensatorConfig {
             v_max: limits.v_max,
             omega_max: limits.omega_max,
@@ -141,6 +152,7 @@ impl Drive {
                 },
             },
             speed_gain: cfg.speed_gain,
+            omega_resolution: geometry.radius * cfg.wheel_speed_resolution / geometry.separation,
         })?;
         compensator.reset(cfg.v_initial);
         Ok(Self {

@@ -234,6 +234,7 @@ fn drive_config(d: &crate::world::DriveSection) -> DriveConfig {
         v_soft: (d.low_speed == crate::world::LowSpeedSpec::Regularised).then_some(scale),
         dv_max: d.dv_max,
         domega_max: d.domega_max,
+        wheel_speed_resolution: d.wheel_speed_resolution.unwrap_or(0.0),
         ..base
     }
 }

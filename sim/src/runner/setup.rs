@@ -7,7 +7,9 @@ use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
-use ftcbf_controller::params::{BoundMethod, FtParameters, ThetaSchedule};
+use ftcbf_controller::params::{
+    steady_state_gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule,
+};
 use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
 
@@ -281,9 +283,9 @@ impl ControlSetup {
             barriers.push(Arc::new(ob.barrier(&bcfg)));
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
-        let form = problem_form(world, &bcfg)?;
-
         let params = parameters(world, &model, &patterns);
+        let form = problem_form(world, &bcfg, &model, &patterns, &params.gamma)?;
+
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
         let clf = clf_config(world, &model, goal)?;
         let config = ControllerConfig {
@@ -322,7 +324,13 @@ impl ControlSetup {
 
 /// `[control] form` with its tracker: the path through `[goal] waypoints`, planned around the
 /// obstacles when `[goal] plan` (see [`crate::planner`]).
-fn problem_form(world: &World, bcfg: &BarrierConfig) -> Result<ProblemForm, RunError> {
+fn problem_form(
+    world: &World,
+    bcfg: &BarrierConfig,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    gamma: &[f64],
+) -> Result<ProblemForm, RunError> {
     let file = &world.file;
     if file.control.form == FormSpec::Paper {
         return Ok(ProblemForm::Paper);
@@ -355,6 +363,11 @@ fn problem_form(world: &World, bcfg: &BarrierConfig) -> Result<ProblemForm, RunE
     t.waypoints = planned_path(world, bcfg, [start[0], start[1]]);
     // the tracker appends the goal itself
     t.waypoints.pop();
+    let rest = rest_targets(world, model, patterns, gamma);
+    for w in &mut t.waypoints {
+        *w = viable_point(&rest, *w, None);
+    }
+    t.goal = viable_point(&rest, t.goal, Some(0.8 * file.goal.radius));
     // validate now, so a bad key is named with the file
     ftcbf_controller::PathTracker::new(t.clone(), [start[0], start[1]])
         .map_err(|e| setup_err(world, "control.nominal", e.to_string()))?;
@@ -385,6 +398,106 @@ pub fn planned_path(world: &World, bcfg: &BarrierConfig, start: [f64; 2]) -> Vec
         ..PlannerConfig::default()
     };
     plan(start, &goal.waypoints, goal.center, &clear, &cfg).points
+}
+
+/// Which channels a filter that drops the fault patterns `drop` keeps.
+pub fn channel_mask(q: usize, patterns: &[Vec<usize>], drop: &[usize]) -> Vec<bool> {
+    let mut u = vec![true; q];
+    for &pi in drop {
+        for &c in &patterns[pi] {
+            u[c] = false;
+        }
+    }
+    u
+}
+
+/// Holding still against a half-plane: for the filter x̂_i that drops fault pattern i, the
+/// smallest h(x̂_i) at which its CBF row holds with u = 0 at rest, h̄_γi + γ_i‖(K_i c̄_i)ᵀa‖/κ
+/// (steady-state gain), and the standard deviation of h(x̂_i) − h(x), √(aᵀP_i a) (steady-state
+/// posterior covariance). `ftcbf check` reports the first against the goal set; the safety
+/// filter's tracker aims where both fit (see [`viable_point`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestHold {
+    /// h̄_γ + γ‖(Kc̄)ᵀa‖/κ.
+    pub needed_h: f64,
+    /// √(aᵀ P a).
+    pub sigma_h: f64,
+}
+
+/// [`RestHold`] of half-plane `a` (barrier `barrier`) for the filter dropping pattern `i`.
+pub fn rest_hold(
+    world: &World,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    gamma: f64,
+    i: usize,
+    barrier: &dyn Barrier,
+    a: &State,
+) -> RestHold {
+    let dt = world.control_dt();
+    let mask = channel_mask(model.channels(), patterns, &[i]);
+    let kc = steady_state_gain_product(model, &mask, dt);
+    let p = steady_state_riccati(model, &mask, dt).posterior;
+    RestHold {
+        needed_h: barrier.h_bar(gamma)
+            + gamma * (kc.transpose() * a).norm() / world.file.control.cbf_gain,
+        sigma_h: (a.transpose() * p * a)[0].max(0.0).sqrt(),
+    }
+}
+
+/// Per half-plane safe set: its position normal (a_x, a_y), offset b, and the h the tracker
+/// aims for at rest, max over the fault-pattern filters of needed_h + 3σ_h: there the honest
+/// filter's row holds with u = 0 and its noise rarely makes it bind.
+fn rest_targets(
+    world: &World,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    gamma: &[f64],
+) -> Vec<([f64; 2], f64, f64)> {
+    let barriers = safe_set_barriers(world);
+    let mut out = Vec::new();
+    for (bi, s) in world.file.safe_sets.iter().enumerate() {
+        if let SafeSetSpec::HalfPlane { a, b, .. } = s {
+            let av = State::new(a[0], a[1], a[2], a[3]);
+            let target = (0..patterns.len().min(gamma.len()))
+                .map(|i| {
+                    let r = rest_hold(world, model, patterns, gamma[i], i, &*barriers[bi], &av);
+                    r.needed_h + 3.0 * r.sigma_h
+                })
+                .filter(|h| h.is_finite())
+                .fold(f64::NEG_INFINITY, f64::max);
+            if target.is_finite() && (a[0] != 0.0 || a[1] != 0.0) {
+                out.push(([a[0], a[1]], *b, target));
+            }
+        }
+    }
+    out
+}
+
+/// `p` moved along each half-plane's position normal until h at rest reaches its target (see
+/// [`rest_targets`]); with `cap`, by at most that distance in all (a goal stays inside its
+/// ball). Without the move a goal a few centimetres inside a half-plane's robust band (the
+/// paper's goal, 5 cm above the floor line) has the tracker push into the barrier row, which
+/// then binds on the estimate's noise and the turn command chatters.
+fn viable_point(rest: &[([f64; 2], f64, f64)], p: [f64; 2], cap: Option<f64>) -> [f64; 2] {
+    let mut q = p;
+    for &(n, b, target) in rest {
+        let h = n[0] * q[0] + n[1] * q[1] - b;
+        if h < target {
+            let k = (target - h) / (n[0] * n[0] + n[1] * n[1]);
+            q = [q[0] + k * n[0], q[1] + k * n[1]];
+        }
+    }
+    if let Some(cap) = cap {
+        let d = (q[0] - p[0]).hypot(q[1] - p[1]);
+        if d > cap && d > 0.0 {
+            q = [
+                p[0] + (q[0] - p[0]) * cap / d,
+                p[1] + (q[1] - p[1]) * cap / d,
+            ];
+        }
+    }
+    q
 }
 
 fn setup_err(world: &World, key: &str, message: String) -> RunError {

@@ -344,6 +344,9 @@ pub struct DriveSection {
     pub dv_max: Option<f64>,
     /// Rate limit on ω [rad/s²] (default none).
     pub domega_max: Option<f64>,
+    /// Resolution of a wheel's speed command [rad/s] (default none): yaw rates below half the
+    /// drive's step r·Δ/L are sent as 0.
+    pub wheel_speed_resolution: Option<f64>,
 }
 
 /// `[control.drive] low_speed`.
