@@ -207,9 +207,10 @@ fn bad_input_is_named() {
 /// The counterexamples `falsify` found inside worlds where `check` said Theorem 3 applies
 /// (tests/worlds_falsify, README "Worst attacks found"): each stays inside one declared fault
 /// pattern, `check` now names the hypothesis that fails (the explanation its header gives), and
-/// `regress` confirms the recorded behaviour (FT-CBF-CLF unsafe in most regression seeds).
+/// `regress` confirms the behaviour its [expect] records (since Step 3 keeps saturated
+/// estimators, FT-CBF-CLF is safe there).
 #[test]
-fn falsify_counterexamples_stay_counterexamples() {
+fn falsify_counterexamples_are_explained_and_regressed() {
     let dir = "tests/worlds_falsify";
     let mut worlds: Vec<PathBuf> = std::fs::read_dir(dir)
         .expect("tests/worlds_falsify")

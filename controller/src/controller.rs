@@ -542,6 +542,9 @@ impl Controller {
         let (tracker, use_clf) = form_parts(cfg.form, cfg.input_limit, &cfg.x0)?;
         problem.use_clf = use_clf;
         problem.step2_every_step = tracker.is_some();
+        // A departure from the paper's Step 3 (README, "The controller, as implemented"): it
+        // turned the stealthy counterexample of `falsify` from 58/200 safe into 200/200.
+        problem.step3_keeps_saturated = true;
         Ok(Self {
             kind: cfg.kind,
             scratch: PolicyScratch::new(units, barriers_used),

@@ -211,6 +211,9 @@ pub struct DecisionRecord {
     /// Set when Step 2's pair tests would have dropped every unit that has CBF rows: the unit
     /// kept instead (the one Step 3 would keep) and the test it failed.
     pub step2_retained: Option<Step2Retained>,
+    /// Set when Step 3 stopped because this unit's own CBF rows cannot be met in the input box
+    /// (`PolicyProblem::step3_keeps_saturated`): the fallback then weighed every kept unit.
+    pub step3_saturated: Option<usize>,
 }
 
 /// A unit Step 2 did not drop although its pair test said so, because it was the last unit
@@ -235,6 +238,7 @@ impl DecisionRecord {
             feasibility_disagreements: 0,
             non_finite_rows: 0,
             step2_retained: None,
+            step3_saturated: None,
         }
     }
     /// Decisions about Ω rows of `unit`.
@@ -337,6 +341,13 @@ pub struct PolicyProblem {
     /// safety-filter form: otherwise a spoofed filter whose rows can all be met by braking
     /// freezes the robot and is never tested).
     pub step2_every_step: bool,
+    /// Step 3 never drops a unit while some kept unit's own CBF rows cannot be met in the input
+    /// box (a "saturated" unit): it stops, and the fallback minimises the largest violation over
+    /// every unit still kept. Dropping resolves disagreement between estimators, not a box too
+    /// small for one of them, and the residue ranking cannot tell an honest filter from one fed
+    /// by a stealthy attacker. [`crate::Controller`] always sets it; [`PolicyProblem::new`]
+    /// leaves it off, which is the paper's Step 3 as written.
+    pub step3_keeps_saturated: bool,
     /// Estimates x̂_i per unit.
     pub estimates: Vec<State>,
     /// Pair estimates x̂_ij, index `i * units + j` (symmetric).
@@ -385,6 +396,7 @@ impl PolicyProblem {
             clf_active: vec![false; units],
             use_clf: true,
             step2_every_step: false,
+            step3_keeps_saturated: false,
             estimates: vec![State::zeros(); units],
             pair_estimates: vec![State::zeros(); units * units],
             theta: vec![f64::INFINITY; units * units],
@@ -597,6 +609,7 @@ fn start(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) 
     record.feasibility_disagreements = 0;
     record.non_finite_rows = 0;
     record.step2_retained = None;
+    record.step3_saturated = None;
     s.alive.clear();
     s.alive.resize(p.units, true);
     s.drop_reason.clear();
@@ -746,6 +759,12 @@ fn step3(
         if candidates <= 1 {
             break;
         }
+        if p.step3_keeps_saturated {
+            if let Some(sat) = saturated_unit(p, qp.input_limit(), s) {
+                record.step3_saturated = Some(sat);
+                break;
+            }
+        }
         at.stage = Stage::Step3;
         s.alive[w] = false;
         s.drop_reason[w] = Some((
@@ -764,6 +783,28 @@ fn step3(
             break;
         }
     }
+}
+
+/// The first unit still alive whose own CBF rows are infeasible in the input box, if any.
+fn saturated_unit(p: &PolicyProblem, limit: Option<Input>, s: &mut PolicyScratch) -> Option<usize> {
+    let mut rows = std::mem::take(&mut s.cbf_rows);
+    let mut found = None;
+    for i in (0..p.units).filter(|&i| s.alive[i] && unit_has_cbf(p, i)) {
+        rows.clear();
+        for b in 0..p.barriers {
+            let k = i * p.barriers + b;
+            if p.cbf_active[k] {
+                rows.push(p.cbf[k].half_space());
+            }
+        }
+        if !check_half_spaces(&rows, &[], limit, &mut s.lines).is_feasible() {
+            found = Some(i);
+            break;
+        }
+    }
+    s.cbf_rows = rows;
+    collect(p, s);
+    found
 }
 
 /// The units still alive that have CBF rows (how many), and the one with the largest residue

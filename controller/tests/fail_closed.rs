@@ -291,3 +291,46 @@ fn a_nan_barrier_is_imposed_and_fails_closed_in_the_controller() {
         assert!(out.u[0] < -0.3 && out.u[0] > -0.5, "{kind:?}: {}", out.u);
     }
 }
+
+/// Step 3 and a box too small for one estimator (issue #10): unit 0's row u_y ≥ 1.5 cannot be
+/// met with |u| ≤ 1, unit 1's u_y ≤ 0.2 can. Unit 0 has the larger residue. The paper's Step 3
+/// drops it and applies unit 1's input (u_y ≤ 0.2); with `step3_keeps_saturated` (what the
+/// controller runs) nothing is dropped by residue, the record names the saturated unit, and the
+/// fallback weighs both rows: u_y is pushed up toward unit 0's demand.
+#[test]
+fn step3_does_not_drop_an_estimator_the_box_cannot_satisfy() {
+    let limit = Some(Input::new(1.0, 1.0));
+    let mut p = two_units([cbf(0.0, 1.0, 1.5), cbf(0.0, -1.0, -0.2)]);
+    p.residue_key = vec![3.0, 0.1];
+    let (u, o, rec) = run(&p, limit);
+    assert!(
+        matches!(
+            o,
+            QpOutcome::Feasible {
+                stage: Stage::Step3,
+                ..
+            }
+        ),
+        "{o:?}"
+    );
+    assert!(u[1] <= 0.2 + 1e-6, "{u}");
+    assert_eq!(rec.step3_saturated, None);
+
+    p.step3_keeps_saturated = true;
+    let (u, o, rec) = run(&p, limit);
+    assert!(
+        matches!(
+            o,
+            QpOutcome::InfeasibleAfterStep3 {
+                action: SafeAction::MinimiseMaxViolation,
+                ..
+            }
+        ),
+        "{o:?}"
+    );
+    assert_eq!(rec.step3_saturated, Some(0));
+    assert_eq!(cbf_verdict(&rec, 0), Verdict::Relaxed);
+    assert_eq!(cbf_verdict(&rec, 1), Verdict::Relaxed);
+    // min over |u| ≤ 1 of max(1.5 − u_y, u_y − 0.2) (unit-norm rows): u_y = 0.85
+    assert!((u[1] - 0.85).abs() < 1e-3, "{u}");
+}

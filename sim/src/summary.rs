@@ -61,6 +61,10 @@ pub struct FailClosedCounts {
     pub step2_retained_steps: u64,
     /// Steps where the fallback braked (solver failure or a non-finite row).
     pub brake_steps: u64,
+    /// Steps where Step 3 stopped instead of dropping an estimator whose own barrier rows the
+    /// input box cannot meet (the fallback then weighed every estimator still kept).
+    #[serde(default)]
+    pub step3_saturated_steps: u64,
 }
 
 impl FailClosedCounts {

@@ -372,6 +372,7 @@ impl<'w> Simulation<'w> {
             fc.non_finite_row_steps += u64::from(out.decision.non_finite_rows > 0);
             fc.skipped_updates += out.rejected.skipped_updates as u64;
             fc.step2_retained_steps += u64::from(out.decision.step2_retained.is_some());
+            fc.step3_saturated_steps += u64::from(out.decision.step3_saturated.is_some());
             self.smooth.set_stalls(out.stalls as u64);
             fc.brake_steps += u64::from(matches!(
                 out.qp,

@@ -155,6 +155,13 @@ fn decision_note(note: &mut String, out: &ControlOutput, filters: &[String]) {
             label(r.unit)
         );
     }
+    if let Some(u) = out.decision.step3_saturated {
+        let _ = write!(
+            note,
+            "Step3 stopped: {}'s own barrier rows cannot be met within the input limit, so no estimator is dropped by residue (the fallback weighs them all); ",
+            label(u)
+        );
+    }
     if out.decision.non_finite_rows > 0 {
         let _ = write!(
             note,
