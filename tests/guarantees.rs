@@ -269,33 +269,31 @@ fn guarantee_worlds_meet_their_expectations() {
     assert!(t.contains(", 0 failed"), "{t}");
 }
 
+/// The goal the safety filter's tracker aims for in the world `name`.
+fn tracker_goal(name: &str) -> [f64; 2] {
+    use ftcbf_sim::ftcbf_controller::ProblemForm;
+    use ftcbf_sim::runner::setup::ControlSetup;
+    use ftcbf_sim::world::ControllerKindSpec;
+    let s = ControlSetup::new(&world(name), ControllerKindSpec::FtCbfClf).expect("setup");
+    match &s.config.form {
+        ProblemForm::SafetyFilter { tracker, .. } => tracker.goal,
+        ProblemForm::Paper => panic!("{name} runs the safety-filter form"),
+    }
+}
+
 /// The safety filter's tracker aims where the honest filter's floor row holds at rest with a
 /// 3σ margin (#11): in the receivers world the row needs h ≥ 0.0692 (`check`), σ of h(x̂) is
 /// 0.0037, so the tracker's goal moves from (0, 0) up to h = 0.0803, y = 0.0303 — inside the
 /// 5 cm goal ball. The world's goal itself is unchanged (that is what `goal reached` judges).
 #[test]
 fn the_tracker_aims_where_the_floor_row_can_be_held() {
-    use ftcbf_sim::ftcbf_controller::ProblemForm;
-    use ftcbf_sim::runner::setup::ControlSetup;
-    use ftcbf_sim::world::ControllerKindSpec;
     let w = world("paper_turtlebot_receivers.toml");
-    let s = ControlSetup::new(&w, ControllerKindSpec::FtCbfClf).expect("setup");
-    let ProblemForm::SafetyFilter { tracker, .. } = &s.config.form else {
-        panic!("the receivers world runs the safety-filter form");
-    };
-    assert!(tracker.goal[0].abs() < 1e-12, "{:?}", tracker.goal);
-    assert!(
-        (tracker.goal[1] - 0.0303).abs() < 5e-4,
-        "{:?}",
-        tracker.goal
-    );
-    assert!(tracker.goal[1] < 0.8 * w.file.goal.radius);
+    let goal = tracker_goal("paper_turtlebot_receivers.toml");
+    assert!(goal[0].abs() < 1e-12, "{goal:?}");
+    assert!((goal[1] - 0.0303).abs() < 5e-4, "{goal:?}");
+    assert!(goal[1] < 0.8 * w.file.goal.radius);
     assert_eq!(w.file.goal.center, [0.0, 0.0]);
     // A world without half-plane safe sets keeps its goal as written.
     let c = world("corridor_spoof.toml");
-    let s = ControlSetup::new(&c, ControllerKindSpec::FtCbfClf).expect("setup");
-    let ProblemForm::SafetyFilter { tracker, .. } = &s.config.form else {
-        panic!("safety-filter form");
-    };
-    assert_eq!(tracker.goal, c.file.goal.center);
+    assert_eq!(tracker_goal("corridor_spoof.toml"), c.file.goal.center);
 }
