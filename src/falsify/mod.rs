@@ -16,13 +16,17 @@
 //!   search's first candidates on the same seeds (run once, counted in both budgets); each later
 //!   generation re-runs the previous one's best candidates on its fresh seeds (elitism), and the
 //!   last third of the generations also samples close to the previous best (local refinement of
-//!   its continuous parameters). Written here rather than taken from a crate: the maintained
+//!   its continuous parameters), and a quarter of every later generation stays uniform
+//!   (exploration: the worst run is an extreme over seeds and attacks, which a narrowed
+//!   distribution alone stops sampling). The elites are ranked by their worst run, then their
+//!   mean, since the search looks for the worst run. Written here rather than taken from a crate: the maintained
 //!   CMA-ES crate (`cmaes` 0.2.2) handles continuous variables only, pulls a second nalgebra
 //!   (0.33) and rand 0.8, and the categorical part of the problem is where most of the search
 //!   happens.
 //! - **Noise**: every candidate runs on 2 seeds (common within a generation, fresh for every
-//!   generation, the same for both methods), ranked by seed-averaged robustness (collisions
-//!   first); the best 4 distinct candidates (a re-run candidate ranked by all its runs) are re-run
+//!   generation, the same for both methods); the CEM's elites are ranked by their worst run (then
+//!   the mean, collisions first), the finalists by seed-averaged robustness; the best 4 distinct
+//!   candidates (a re-run candidate ranked by all its runs) are re-run
 //!   on held-out seeds, and both the seed-averaged and the worst robustness are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
 //!   run count and the same seeds.
@@ -191,7 +195,7 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} local from generation {}), then the best {} on {} held-out seeds = {} runs",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} uniform, {} local from generation {}), then the best {} on {} held-out seeds = {} runs",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,
@@ -199,6 +203,7 @@ impl Report {
             p.population,
             p.elites,
             p.carry,
+            p.explore,
             p.local,
             p.local_from + 1,
             p.finalists,

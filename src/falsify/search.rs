@@ -61,6 +61,8 @@ pub struct Plan {
     pub local: usize,
     /// First generation with local refinement.
     pub local_from: usize,
+    /// Candidates of each later generation that the CEM draws uniformly (exploration).
+    pub explore: usize,
     /// Best searched candidates re-run on held-out seeds.
     pub finalists: usize,
     /// Held-out seeds per finalist (the same for every finalist).
@@ -101,6 +103,7 @@ impl Plan {
             carry: (population / 8).max(1),
             local: population / 4,
             local_from: generations - (generations - 1).div_ceil(3),
+            explore: population / 4,
             finalists,
             final_seeds,
             runs: candidates * seeds_per_candidate + finalists * final_seeds,
@@ -224,6 +227,22 @@ impl Evaluation {
                 }
             })
             .expect("an evaluation has at least one run")
+    }
+
+    /// Ordering for the CEM's elites: more collisions first, then the lower worst run, then the
+    /// lower mean. The search looks for the worst run, so the tail of a candidate's runs ranks
+    /// it, not only their mean.
+    fn cmp_worse_tail(&self, other: &Evaluation) -> std::cmp::Ordering {
+        other
+            .collisions
+            .cmp(&self.collisions)
+            .then(
+                self.worst()
+                    .robustness
+                    .value
+                    .total_cmp(&other.worst().robustness.value),
+            )
+            .then(self.mean.total_cmp(&other.mean))
     }
 
     /// Ordering of candidates (seed-averaged): more collisions first, then the lower mean.
@@ -477,6 +496,12 @@ impl<'a> Proposer<'a> {
                 }
             }
         }
+        // Exploration: a quarter of each later generation stays uniform, so the CEM keeps
+        // sampling the whole space the way random search does while its distribution narrows.
+        let explore = self.plan.explore.min(n - out.len());
+        for _ in 0..explore {
+            out.push(uniform(self.space, &mut self.own));
+        }
         while out.len() < n {
             out.push(self.dist.sample(&mut self.own));
         }
@@ -486,7 +511,7 @@ impl<'a> Proposer<'a> {
     /// Ranks a generation's evaluations and moves the CEM's distribution towards its elites.
     fn observe(&mut self, evals: &[Evaluation]) {
         let mut order: Vec<&Evaluation> = evals.iter().collect();
-        order.sort_by(|a, b| a.cmp_worse(b));
+        order.sort_by(|a, b| a.cmp_worse_tail(b));
         if self.method == Method::Cem {
             let elites: Vec<&Candidate> = order
                 .iter()
@@ -848,7 +873,7 @@ mod tests {
         };
         for g in 1..plan.generations {
             let mut prev = generation(g - 1);
-            prev.sort_by(|a, b| a.cmp_worse(b));
+            prev.sort_by(|a, b| a.cmp_worse_tail(b));
             let now = generation(g);
             // The previous generation's best `carry` candidates (its best among them) are re-run
             // in this one.
