@@ -297,3 +297,77 @@ fn the_tracker_aims_where_the_floor_row_can_be_held() {
     let c = world("corridor_spoof.toml");
     assert_eq!(tracker_goal("corridor_spoof.toml"), c.file.goal.center);
 }
+
+/// Wheel odometry as robots have it (#12): a `speed` channel with `world_velocity = true` is
+/// fed to the filters as v·(cos θ̂, sin θ̂) with the compass heading, as two channels. `check`
+/// names them and says whether the patterns stay disjoint in effect: the compass outside every
+/// pattern (trusted) or in the odometry's own pattern keeps them; the compass in a receiver's
+/// pattern does not (one fault there would corrupt the odometry too).
+#[test]
+fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() {
+    let r = check_world(&world("turtlebot_realistic.toml")).expect("check");
+    assert!(r.verdict.applies, "{r}");
+    let x12 = r
+        .filters
+        .iter()
+        .find(|f| f.label.starts_with("x̂_12"))
+        .expect("pair filter");
+    assert_eq!(x12.channels, vec!["wheel_speed→vx", "wheel_speed→vy"]);
+    let odo = |r: &ftcbf_sim::check::CheckReport| {
+        r.hypotheses
+            .iter()
+            .find(|h| h.name.starts_with("odometry wheel_speed → world velocity"))
+            .cloned()
+            .expect("odometry hypothesis")
+    };
+    let h = odo(&r);
+    assert_eq!(h.status, Status::Holds);
+    assert!(h.detail.contains("trusted"), "{}", h.detail);
+
+    let r = check_world(&world("turtlebot_odometry_bias.toml")).expect("check");
+    let h = odo(&r);
+    assert_eq!(h.status, Status::Holds, "{}", h.detail);
+    assert!(h.detail.contains("both in odometry"), "{}", h.detail);
+
+    // The compass moved into receiver 1's pattern: not disjoint in effect.
+    let p = path("turtlebot_realistic.toml");
+    let text = std::fs::read_to_string(&p).expect("world");
+    let text = text.replace(
+        "channels = [\"gnss1_x\", \"gnss1_y\"]",
+        "channels = [\"gnss1_x\", \"gnss1_y\", \"compass\"]",
+    );
+    let w = World::from_str(&text, &p, &[]).expect("world");
+    let r = check_world(&w).expect("check");
+    let h = odo(&r);
+    assert_eq!(h.status, Status::Fails, "{}", h.detail);
+    assert!(!r.verdict.applies);
+    assert!(
+        r.verdict.line().contains("not disjoint in effect"),
+        "{}",
+        r.verdict.line()
+    );
+}
+
+/// `world_velocity` on a channel that is not a `speed` is refused with the key named (a robot
+/// world always has the heading channel the conversion needs: the world file refuses it
+/// otherwise).
+#[test]
+fn world_velocity_needs_a_speed_channel() {
+    use ftcbf_sim::runner::{RunOptions, Simulation};
+    let p = path("turtlebot_realistic.toml");
+    let text = std::fs::read_to_string(&p).expect("world");
+    let on_gnss = text.replacen(
+        "measures = \"x\"\nnoise_std = 0.02\n",
+        "measures = \"x\"\nnoise_std = 0.02\nworld_velocity = true\n",
+        1,
+    );
+    let w = World::from_str(&on_gnss, &p, &[]).expect("world parses");
+    let e = Simulation::new(&w, &RunOptions::default())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("sensors[0].world_velocity") && e.contains("only a `speed` channel"),
+        "{e}"
+    );
+}

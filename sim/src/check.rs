@@ -46,10 +46,11 @@ use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::runner::setup::{
     channel_mask, controller_name, initial_covariance, process_model, process_noise_intensity,
-    rest_hold, ControlSetup, MIN_VARIANCE,
+    rest_hold, ControlSetup, Conversion, MIN_VARIANCE,
 };
 use crate::runner::RunError;
 use crate::safe_sets::ellipse_phi_state;
+use crate::sensors::Quantity;
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
 /// Outcome of one hypothesis.
@@ -261,7 +262,12 @@ impl<'a> Names<'a> {
         let channels: Vec<String> = setup
             .sensor_of_channel
             .iter()
-            .map(|&s| sensors[s].to_string())
+            .zip(&setup.conversion)
+            .map(|(&s, c)| match c {
+                Conversion::Direct => sensors[s].to_string(),
+                Conversion::SpeedX => format!("{}→vx", sensors[s]),
+                Conversion::SpeedY => format!("{}→vy", sensors[s]),
+            })
             .collect();
         let patterns: Vec<&str> = f.fault_patterns.iter().map(|p| p.name.as_str()).collect();
         Self {
@@ -291,6 +297,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
 
     let mut found = Findings::default();
     check_disjoint_patterns(&setup, &names, &mut found); // 1
+    check_converted_odometry(world, &names, &mut found); // 1b
     let filters = check_filters(world, &setup, &names, &mut found); // 2-4
     check_finite_parameters(world, &setup, &mut found); // 4
     check_condition1(world, &setup, &mut found); // 5
@@ -432,6 +439,65 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
             fmt_list(&hb),
             b.h_bar(p.gamma_baseline)
         ));
+    }
+}
+
+/// 1b. Wheel odometry turned into world-frame velocity with the heading: its channels depend on
+/// the speed channel and on the heading channel, so one fault in the heading's pattern corrupts
+/// them. The patterns stay disjoint in effect only if both sensors are in the same pattern, or
+/// the heading is in none (trusted; an attack on it is then outside the model).
+fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) {
+    let f = &world.file;
+    let Some(h) = f
+        .sensors
+        .iter()
+        .position(|s| s.measures == Quantity::Heading)
+    else {
+        return;
+    };
+    let pattern_of = |si: usize| world.patterns.iter().position(|p| p.contains(&si));
+    for (si, s) in f.sensors.iter().enumerate() {
+        if !s.world_velocity {
+            continue;
+        }
+        let (ps, ph) = (pattern_of(si), pattern_of(h));
+        let label = |p: Option<usize>| {
+            p.map_or("no pattern".to_string(), |p| names.patterns[p].to_string())
+        };
+        let name = format!(
+            "odometry {} → world velocity with heading {}",
+            s.name, f.sensors[h].name
+        );
+        let (status, detail) = match (ps, ph) {
+            (_, None) => (
+                Status::Holds,
+                format!(
+                    "{} is in {}; the heading is in no fault pattern (trusted: an attack on it is outside the model); R = σ_v² + v_max²(σ_θ² + b_θ² + w_θ²T)",
+                    s.name,
+                    label(ps)
+                ),
+            ),
+            (Some(a), Some(b)) if a == b => (
+                Status::Holds,
+                format!("{} and the heading are both in {}", s.name, names.patterns[a]),
+            ),
+            _ => {
+                let d = format!(
+                    "{} is in {} but the heading it is turned with is in {}: a fault there corrupts {}'s channels too, so the patterns are not disjoint in effect; put both in one pattern",
+                    s.name,
+                    label(ps),
+                    label(ph),
+                    s.name
+                );
+                found.reasons.push(d.clone());
+                (Status::Fails, d)
+            }
+        };
+        found.hypotheses.push(Hypothesis {
+            name,
+            status,
+            detail,
+        });
     }
 }
 

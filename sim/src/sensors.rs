@@ -129,6 +129,12 @@ pub struct ChannelSpec {
     /// Probability that a due sample is lost. Default 0.
     #[serde(default)]
     pub dropout_prob: f64,
+    /// For a `speed` channel (wheel odometry: the forward speed of the base frame, ROS
+    /// `nav_msgs/Odometry` twist.linear.x in `base_footprint`): feed it to the controller's filters
+    /// as the world-frame velocity v·(cos θ̂, sin θ̂), θ̂ from the world's heading channel. Default
+    /// false (the channel is only recorded).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub world_velocity: bool,
 }
 
 impl ChannelSpec {
@@ -142,6 +148,7 @@ impl ChannelSpec {
             bias_walk_std: 0.0,
             rate_hz: None,
             dropout_prob: 0.0,
+            world_velocity: false,
         }
     }
 

@@ -344,8 +344,12 @@ impl<'w> Simulation<'w> {
             b.predicted_measurement(b.baseline_index(), c)
         };
         self.attacks.apply(t, samples, &detector);
+        // The heading as received (attacks included): a `speed` channel with `world_velocity`
+        // is turned into world-frame velocity with it; a missing heading makes it NaN, which the
+        // controller rejects as a malformed reading.
+        let theta = self.heading_channel.map_or(f64::NAN, |h| samples[h].value);
         for (c, &si) in self.setup.sensor_of_channel.iter().enumerate() {
-            self.y[c] = samples[si].value;
+            self.y[c] = self.setup.conversion[c].apply(samples[si].value, theta);
             self.fresh[c] = samples[si].fresh;
         }
         if let Some(s) = self.heading_channel.map(|h| samples[h]) {

@@ -55,8 +55,11 @@ pub struct ControlSetup {
     pub config: ControllerConfig,
     /// For each controller channel, the sensor index it reads.
     pub sensor_of_channel: Vec<usize>,
-    /// For each sensor, its controller channel (None: heading, speed, yaw rate).
+    /// For each sensor, its (first) controller channel (None: heading, yaw rate, a speed that
+    /// is only recorded).
     pub channel_of_sensor: Vec<Option<usize>>,
+    /// For each controller channel, how its value comes from its sensor's sample.
+    pub conversion: Vec<Conversion>,
     /// Barrier names: safe sets, then obstacles.
     pub barrier_names: Vec<String>,
     /// Number of closed-form safe sets (the first barriers).
@@ -263,8 +266,8 @@ impl ControlSetup {
     /// Builds the controller configuration for `world` run with `kind`.
     pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
         let file = &world.file;
-        let ch = Channels::of(world);
-        let patterns = model_patterns(world, &ch.channel_of_sensor)?;
+        let ch = Channels::of(world)?;
+        let patterns = model_patterns(world, &ch.channels_of_sensor)?;
         let model = LinearModel::new(
             LinearModel::double_integrator_f(),
             LinearModel::double_integrator_g(),
@@ -314,7 +317,12 @@ impl ControlSetup {
         Ok(Self {
             config,
             sensor_of_channel: ch.sensor_of_channel,
-            channel_of_sensor: ch.channel_of_sensor,
+            channel_of_sensor: ch
+                .channels_of_sensor
+                .iter()
+                .map(|c| c.first().copied())
+                .collect(),
+            conversion: ch.conversion,
             barrier_names,
             safe_sets,
             params,
@@ -508,60 +516,154 @@ fn setup_err(world: &World, key: &str, message: String) -> RunError {
     }
 }
 
+/// How a controller channel's value comes from its sensor's sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Conversion {
+    /// The sample itself (x, y, vx, vy).
+    Direct,
+    /// v·cos θ̂ of a `speed` channel with `world_velocity`, θ̂ the heading channel's sample.
+    SpeedX,
+    /// v·sin θ̂.
+    SpeedY,
+}
+
+impl Conversion {
+    /// The channel's value from its sensor's sample `v` and the heading sample `theta` [rad].
+    pub fn apply(self, v: f64, theta: f64) -> f64 {
+        match self {
+            Conversion::Direct => v,
+            Conversion::SpeedX => v * theta.cos(),
+            Conversion::SpeedY => v * theta.sin(),
+        }
+    }
+}
+
 /// The channels the linear model observes, in sensor order.
 struct Channels {
     c_rows: Vec<RowVector4<f64>>,
     r: Vec<f64>,
     sensor_of_channel: Vec<usize>,
-    channel_of_sensor: Vec<Option<usize>>,
+    channels_of_sensor: Vec<Vec<usize>>,
+    conversion: Vec<Conversion>,
 }
 
 impl Channels {
-    fn of(world: &World) -> Self {
+    fn of(world: &World) -> Result<Self, RunError> {
         let sensors = &world.file.sensors;
         let mut ch = Channels {
             c_rows: Vec::new(),
             r: Vec::new(),
             sensor_of_channel: Vec::new(),
-            channel_of_sensor: vec![None; sensors.len()],
+            channels_of_sensor: vec![Vec::new(); sensors.len()],
+            conversion: Vec::new(),
+        };
+        let push = |ch: &mut Channels, si: usize, row: RowVector4<f64>, r: f64, c: Conversion| {
+            ch.channels_of_sensor[si].push(ch.c_rows.len());
+            ch.sensor_of_channel.push(si);
+            ch.c_rows.push(row);
+            ch.r.push(r.max(MIN_VARIANCE));
+            ch.conversion.push(c);
         };
         for (si, s) in sensors.iter().enumerate() {
-            if let Some(row) = observation_row(s.measures) {
-                ch.channel_of_sensor[si] = Some(ch.c_rows.len());
-                ch.sensor_of_channel.push(si);
-                ch.c_rows.push(row);
-                ch.r.push((s.noise_std * s.noise_std).max(MIN_VARIANCE));
+            if s.world_velocity {
+                let r = speed_conversion_variance(world, si)?;
+                push(
+                    &mut ch,
+                    si,
+                    RowVector4::new(0.0, 0.0, 1.0, 0.0),
+                    r,
+                    Conversion::SpeedX,
+                );
+                push(
+                    &mut ch,
+                    si,
+                    RowVector4::new(0.0, 0.0, 0.0, 1.0),
+                    r,
+                    Conversion::SpeedY,
+                );
+            } else if let Some(row) = observation_row(s.measures) {
+                push(
+                    &mut ch,
+                    si,
+                    row,
+                    s.noise_std * s.noise_std,
+                    Conversion::Direct,
+                );
             }
         }
-        ch
+        Ok(ch)
     }
+}
+
+/// The variance of v·cos θ̂ (and of v·sin θ̂) for the `speed` channel `si` with
+/// `world_velocity`: σ_v² + v_max²·(σ_θ² + b_θ² + w_θ²·T), with the heading channel's noise σ_θ,
+/// bias b_θ and bias walk w_θ over the run's duration T. For a robot without sideslip the
+/// converted velocity's error is e_v·(cos θ̂, sin θ̂) + v·e_θ·(−sin θ, cos θ) to first order, so
+/// each axis' error is bounded by that; the heading bias enters as if it were noise (a
+/// conservative bound, not a white-noise model of it).
+fn speed_conversion_variance(world: &World, si: usize) -> Result<f64, RunError> {
+    let sensors = &world.file.sensors;
+    let s = &sensors[si];
+    let key = format!("sensors[{si}].world_velocity");
+    if s.measures != Quantity::Speed {
+        return Err(setup_err(
+            world,
+            &key,
+            format!(
+                "channel \"{}\" measures {}; only a `speed` channel (body-frame forward speed) can be converted to world-frame velocity",
+                s.name,
+                s.measures.as_str()
+            ),
+        ));
+    }
+    let Some(h) = sensors.iter().find(|c| c.measures == Quantity::Heading) else {
+        return Err(setup_err(
+            world,
+            &key,
+            format!(
+                "channel \"{}\" needs a heading channel (`measures = \"heading\"`, e.g. a compass or the IMU's yaw) to turn its speed into world-frame velocity",
+                s.name
+            ),
+        ));
+    };
+    let Some(v_max) = speed_bound(world) else {
+        return Err(setup_err(
+            world,
+            &key,
+            "the conversion's variance needs a speed bound: give [linear] v_max".to_string(),
+        ));
+    };
+    let theta_var = h.noise_std * h.noise_std
+        + h.bias * h.bias
+        + h.bias_walk_std * h.bias_walk_std * world.file.duration;
+    Ok(s.noise_std * s.noise_std + v_max * v_max * theta_var)
 }
 
 /// The world's fault patterns as controller channel indices.
 fn model_patterns(
     world: &World,
-    channel_of_sensor: &[Option<usize>],
+    channels_of_sensor: &[Vec<usize>],
 ) -> Result<Vec<Vec<usize>>, RunError> {
     let sensors = &world.file.sensors;
     let mut patterns = Vec::with_capacity(world.patterns.len());
     for (pi, p) in world.patterns.iter().enumerate() {
         let mut mapped = Vec::with_capacity(p.len());
         for &si in p {
-            match channel_of_sensor[si] {
-                Some(ci) => mapped.push(ci),
-                None => {
-                    return Err(setup_err(
-                        world,
-                        &format!("fault_patterns[{pi}].channels"),
-                        format!(
-                            "channel \"{}\" measures {}, which the controller's linear model does not use; \
-                             fault patterns may only hold x, y, vx and vy channels",
-                            sensors[si].name,
-                            sensors[si].measures.as_str()
-                        ),
-                    ))
-                }
+            let chans = &channels_of_sensor[si];
+            if chans.is_empty() && sensors[si].measures != Quantity::Heading {
+                return Err(setup_err(
+                    world,
+                    &format!("fault_patterns[{pi}].channels"),
+                    format!(
+                        "channel \"{}\" measures {}, which the controller's linear model does not use; \
+                         fault patterns may hold x, y, vx and vy channels, a speed channel with \
+                         `world_velocity = true`, and the heading channel those use",
+                        sensors[si].name,
+                        sensors[si].measures.as_str()
+                    ),
+                ));
             }
+            mapped.extend(chans.iter().copied());
         }
         patterns.push(mapped);
     }
