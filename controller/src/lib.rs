@@ -31,6 +31,7 @@ pub mod interface;
 pub mod lyapunov;
 pub mod model;
 pub mod nominal;
+pub mod odometry;
 pub mod params;
 pub mod policy;
 pub mod qp;

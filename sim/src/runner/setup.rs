@@ -7,6 +7,7 @@ use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
+use ftcbf_controller::odometry;
 use ftcbf_controller::params::{
     steady_state_gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule,
 };
@@ -532,8 +533,8 @@ impl Conversion {
     pub fn apply(self, v: f64, theta: f64) -> f64 {
         match self {
             Conversion::Direct => v,
-            Conversion::SpeedX => v * theta.cos(),
-            Conversion::SpeedY => v * theta.sin(),
+            Conversion::SpeedX => odometry::body_speed_to_world_velocity(v, theta)[0],
+            Conversion::SpeedY => odometry::body_speed_to_world_velocity(v, theta)[1],
         }
     }
 }
@@ -633,10 +634,14 @@ fn speed_conversion_variance(world: &World, si: usize) -> Result<f64, RunError> 
             "the conversion's variance needs a speed bound: give [linear] v_max".to_string(),
         ));
     };
-    let theta_var = h.noise_std * h.noise_std
-        + h.bias * h.bias
-        + h.bias_walk_std * h.bias_walk_std * world.file.duration;
-    Ok(s.noise_std * s.noise_std + v_max * v_max * theta_var)
+    Ok(odometry::world_velocity_variance(
+        s.noise_std,
+        v_max,
+        h.noise_std,
+        h.bias,
+        h.bias_walk_std,
+        world.file.duration,
+    ))
 }
 
 /// The world's fault patterns as controller channel indices.
