@@ -341,14 +341,29 @@ pub fn horizon_riccati(
 /// Steady-state `K c̄ = P∞⁺ c̄ᵀ R⁻¹ c̄ / dt` of a channel subset (the K of §4.2.1 used by
 /// [`crate::barrier::HigherOrderHalfPlane`]).
 pub fn steady_state_gain_product(model: &LinearModel, uses: &[bool], dt: f64) -> StateMatrix {
-    let sol = steady_state_riccati(model, uses, dt);
+    gain_product(
+        model,
+        uses,
+        &steady_state_riccati(model, uses, dt).posterior,
+        dt,
+    )
+}
+
+/// `K c̄ = P⁺ c̄ᵀ R⁻¹ c̄ / dt` of a channel subset for a given posterior covariance P⁺ (e.g. a
+/// [`steady_state_riccati`] solution already at hand).
+pub fn gain_product(
+    model: &LinearModel,
+    uses: &[bool],
+    posterior: &StateMatrix,
+    dt: f64,
+) -> StateMatrix {
     let mut info = StateMatrix::zeros();
     for (k, &u) in uses.iter().enumerate() {
         if u && k < model.channels() {
             info += model.c[k].transpose() * model.c[k] / model.r[k];
         }
     }
-    sol.posterior * info / dt
+    posterior * info / dt
 }
 
 /// `γ = sqrt(λ̄(P) χ²_n⁻¹(1 − ε))`: `Pr(‖e‖₂ > γ) ≤ ε` for `e ~ N(0, P)`, n = 4.

@@ -449,6 +449,16 @@ impl PolicyScratch {
     }
 }
 
+/// Appends unit `i`'s imposed CBF rows (those in X_t(δ)) to `out`.
+fn push_cbf_rows(p: &PolicyProblem, i: usize, out: &mut Vec<HalfSpace>) {
+    for b in 0..p.barriers {
+        let k = i * p.barriers + b;
+        if p.cbf_active[k] {
+            out.push(p.cbf[k].half_space());
+        }
+    }
+}
+
 fn collect(p: &PolicyProblem, s: &mut PolicyScratch) {
     s.cbf_rows.clear();
     s.clf_rows.clear();
@@ -456,12 +466,7 @@ fn collect(p: &PolicyProblem, s: &mut PolicyScratch) {
         if !s.alive[i] {
             continue;
         }
-        for b in 0..p.barriers {
-            let k = i * p.barriers + b;
-            if p.cbf_active[k] {
-                s.cbf_rows.push(p.cbf[k].half_space());
-            }
-        }
+        push_cbf_rows(p, i, &mut s.cbf_rows);
         if p.use_clf && p.clf_active[i] {
             s.clf_rows.push(p.clf[i].half_space());
         }
@@ -791,12 +796,7 @@ fn saturated_unit(p: &PolicyProblem, limit: Option<Input>, s: &mut PolicyScratch
     let mut found = None;
     for i in (0..p.units).filter(|&i| s.alive[i] && unit_has_cbf(p, i)) {
         rows.clear();
-        for b in 0..p.barriers {
-            let k = i * p.barriers + b;
-            if p.cbf_active[k] {
-                rows.push(p.cbf[k].half_space());
-            }
-        }
+        push_cbf_rows(p, i, &mut rows);
         if !check_half_spaces(&rows, &[], limit, &mut s.lines).is_feasible() {
             found = Some(i);
             break;

@@ -45,12 +45,11 @@ use ftcbf_controller::params::{
 use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::runner::setup::{
-    channel_mask, controller_name, initial_covariance, process_model, process_noise_intensity,
-    rest_hold, ControlSetup, Conversion, MIN_VARIANCE,
+    channel_mask, controller_name, heading_sensor, initial_covariance, process_model,
+    process_noise_intensity, rest_hold, ControlSetup, Conversion, MIN_VARIANCE,
 };
 use crate::runner::RunError;
 use crate::safe_sets::ellipse_phi_state;
-use crate::sensors::Quantity;
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
 /// Outcome of one hypothesis.
@@ -448,22 +447,18 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
 /// the heading is in none (trusted; an attack on it is then outside the model).
 fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) {
     let f = &world.file;
-    let Some(h) = f
-        .sensors
-        .iter()
-        .position(|s| s.measures == Quantity::Heading)
-    else {
+    let Some(h) = heading_sensor(world) else {
         return;
     };
     let pattern_of = |si: usize| world.patterns.iter().position(|p| p.contains(&si));
+    let label =
+        |p: Option<usize>| p.map_or("no pattern".to_string(), |p| names.patterns[p].to_string());
+    let ph = pattern_of(h);
     for (si, s) in f.sensors.iter().enumerate() {
         if !s.world_velocity {
             continue;
         }
-        let (ps, ph) = (pattern_of(si), pattern_of(h));
-        let label = |p: Option<usize>| {
-            p.map_or("no pattern".to_string(), |p| names.patterns[p].to_string())
-        };
+        let ps = pattern_of(si);
         let name = format!(
             "odometry {} → world velocity with heading {}",
             s.name, f.sensors[h].name

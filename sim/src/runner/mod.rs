@@ -45,7 +45,7 @@ use ftcbf_controller::Input;
 
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
-use crate::sensors::{Quantity, SensorSuite};
+use crate::sensors::SensorSuite;
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
@@ -241,10 +241,7 @@ impl<'w> Simulation<'w> {
     ) -> Self {
         let file = &world.file;
         let control_dt = world.control_dt();
-        let heading_channel = file
-            .sensors
-            .iter()
-            .position(|s| s.measures == Quantity::Heading);
+        let heading_channel = setup::heading_sensor(world);
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);

@@ -9,7 +9,7 @@ use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::odometry;
 use ftcbf_controller::params::{
-    steady_state_gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule,
+    gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule,
 };
 use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
@@ -288,7 +288,14 @@ impl ControlSetup {
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let params = parameters(world, &model, &patterns);
-        let form = problem_form(world, &bcfg, &model, &patterns, &params.gamma)?;
+        let form = problem_form(
+            world,
+            &bcfg,
+            &model,
+            &patterns,
+            &params.gamma,
+            &barriers[..safe_sets],
+        )?;
 
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
         let clf = clf_config(world, &model, goal)?;
@@ -339,6 +346,7 @@ fn problem_form(
     model: &LinearModel,
     patterns: &[Vec<usize>],
     gamma: &[f64],
+    safe_set_barriers: &[Arc<dyn Barrier>],
 ) -> Result<ProblemForm, RunError> {
     let file = &world.file;
     if file.control.form == FormSpec::Paper {
@@ -372,7 +380,7 @@ fn problem_form(
     t.waypoints = planned_path(world, bcfg, [start[0], start[1]]);
     // the tracker appends the goal itself
     t.waypoints.pop();
-    let rest = rest_targets(world, model, patterns, gamma);
+    let rest = rest_targets(world, model, patterns, gamma, safe_set_barriers);
     for w in &mut t.waypoints {
         *w = viable_point(&rest, *w, None);
     }
@@ -445,8 +453,8 @@ pub fn rest_hold(
 ) -> RestHold {
     let dt = world.control_dt();
     let mask = channel_mask(model.channels(), patterns, &[i]);
-    let kc = steady_state_gain_product(model, &mask, dt);
     let p = steady_state_riccati(model, &mask, dt).posterior;
+    let kc = gain_product(model, &mask, &p, dt);
     RestHold {
         needed_h: barrier.h_bar(gamma)
             + gamma * (kc.transpose() * a).norm() / world.file.control.cbf_gain,
@@ -456,14 +464,15 @@ pub fn rest_hold(
 
 /// Per half-plane safe set: its position normal (a_x, a_y), offset b, and the h the tracker
 /// aims for at rest, max over the fault-pattern filters of needed_h + 3σ_h: there the honest
-/// filter's row holds with u = 0 and its noise rarely makes it bind.
+/// filter's row holds with u = 0 and its noise rarely makes it bind. `barriers` are the safe
+/// sets' barriers, in `[[safe_sets]]` order.
 fn rest_targets(
     world: &World,
     model: &LinearModel,
     patterns: &[Vec<usize>],
     gamma: &[f64],
+    barriers: &[Arc<dyn Barrier>],
 ) -> Vec<([f64; 2], f64, f64)> {
-    let barriers = safe_set_barriers(world);
     let mut out = Vec::new();
     for (bi, s) in world.file.safe_sets.iter().enumerate() {
         if let SafeSetSpec::HalfPlane { a, b, .. } = s {
@@ -515,6 +524,16 @@ fn setup_err(world: &World, key: &str, message: String) -> RunError {
         key: key.to_string(),
         message,
     }
+}
+
+/// The heading channel (the first sensor that measures `heading`): the drive linearises about
+/// it, and `speed` channels with `world_velocity` are turned into world-frame velocity with it.
+pub fn heading_sensor(world: &World) -> Option<usize> {
+    world
+        .file
+        .sensors
+        .iter()
+        .position(|s| s.measures == Quantity::Heading)
 }
 
 /// How a controller channel's value comes from its sensor's sample.
@@ -617,7 +636,7 @@ fn speed_conversion_variance(world: &World, si: usize) -> Result<f64, RunError> 
             ),
         ));
     }
-    let Some(h) = sensors.iter().find(|c| c.measures == Quantity::Heading) else {
+    let Some(h) = heading_sensor(world).map(|h| &sensors[h]) else {
         return Err(setup_err(
             world,
             &key,
