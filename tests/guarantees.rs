@@ -299,10 +299,11 @@ fn the_tracker_aims_where_the_floor_row_can_be_held() {
 }
 
 /// Wheel odometry as robots have it (#12): a `speed` channel with `world_velocity = true` is
-/// fed to the filters as v·(cos θ̂, sin θ̂) with the compass heading, as two channels. `check`
-/// names them and says whether the patterns stay disjoint in effect: the compass outside every
-/// pattern (trusted) or in the odometry's own pattern keeps them; the compass in a receiver's
-/// pattern does not (one fault there would corrupt the odometry too).
+/// fed to the filters as v·(cos θ̂, sin θ̂) with the compass heading, as two channels. A sensor in
+/// a fault pattern takes along every controller channel made from it, so `check` says whether
+/// the patterns stay disjoint in effect: the odometry's sources (speed, compass, encoders, fused
+/// gyro) in at most one pattern keep them; sources in two patterns do not (a fault in either
+/// would corrupt the odometry).
 #[test]
 fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() {
     let r = check_world(&world("turtlebot_realistic.toml")).expect("check");
@@ -327,14 +328,49 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
     let r = check_world(&world("turtlebot_odometry_bias.toml")).expect("check");
     let h = odo(&r);
     assert_eq!(h.status, Status::Holds, "{}", h.detail);
-    assert!(h.detail.contains("both in odometry"), "{}", h.detail);
+    assert!(
+        h.detail.contains("wheel_speed, compass in odometry"),
+        "{}",
+        h.detail
+    );
 
-    // The compass moved into receiver 1's pattern: not disjoint in effect.
+    // The compass in receiver 1's pattern: that pattern's filter then drops the odometry too,
+    // so the patterns stay disjoint in effect.
     let p = path("turtlebot_realistic.toml");
     let text = std::fs::read_to_string(&p).expect("world");
     let text = text.replace(
         "channels = [\"gnss1_x\", \"gnss1_y\"]",
         "channels = [\"gnss1_x\", \"gnss1_y\", \"compass\"]",
+    );
+    let w = World::from_str(&text, &p, &[]).expect("world");
+    let r = check_world(&w).expect("check");
+    assert_eq!(odo(&r).status, Status::Holds, "{}", odo(&r).detail);
+    let x1 = r
+        .filters
+        .iter()
+        .find(|f| f.label.starts_with("x̂_1 "))
+        .expect("gnss1 filter");
+    assert!(
+        !x1.channels.iter().any(|c| c.starts_with("wheel_speed")),
+        "{:?}",
+        x1.channels
+    );
+    // But the drive turns u into wheel speeds about that compass, outside every filter: a fault
+    // in gnss1 would misapply u, so the theorem does not cover it.
+    let drive = |r: &ftcbf_sim::check::CheckReport| {
+        r.hypotheses
+            .iter()
+            .find(|h| h.name.starts_with("the drive's heading is trusted"))
+            .cloned()
+            .expect("drive heading hypothesis")
+    };
+    assert_eq!(drive(&r).status, Status::Fails, "{}", drive(&r).detail);
+    assert!(drive(&r).detail.contains("compass is in gnss1"));
+    assert!(!r.verdict.applies);
+    // ... and the wheel speed in receiver 2's: one fault in either corrupts the odometry.
+    let text = text.replace(
+        "channels = [\"gnss2_x\", \"gnss2_y\"]",
+        "channels = [\"gnss2_x\", \"gnss2_y\", \"wheel_speed\"]",
     );
     let w = World::from_str(&text, &p, &[]).expect("world");
     let r = check_world(&w).expect("check");
@@ -370,4 +406,73 @@ fn world_velocity_needs_a_speed_channel() {
         e.contains("sensors[0].world_velocity") && e.contains("only a `speed` channel"),
         "{e}"
     );
+}
+
+/// The odometry's R for each axis: σ_v² + v_max²·σ_θ² (+ the compass bias terms).
+fn odometry_variance(w: &World, name: &str) -> f64 {
+    use ftcbf_sim::runner::setup::ControlSetup;
+    use ftcbf_sim::world::ControllerKindSpec;
+    let s = ControlSetup::new(w, ControllerKindSpec::FtCbfClf).expect("setup");
+    let si = w
+        .file
+        .sensors
+        .iter()
+        .position(|c| c.name == name)
+        .expect("channel");
+    let c = s
+        .sensor_of_channel
+        .iter()
+        .position(|&x| x == si)
+        .expect("controller channel");
+    s.config.model.r[c]
+}
+
+/// A poor compass (σ 0.1 rad, 10 Hz) fused with the gyro (#12): the wheel odometry is turned
+/// into world-frame velocity with the heading filter's yaw, and its R uses the filter's yaw
+/// variance, bounded over the run from a marked start: 1.25e-4 (m/s)², against 5.84e-4 with the
+/// compass alone (σ_v² = 1e-4 plus v_max²·σ_θ² with σ_θ = 0.0228 rad instead of 0.1).
+#[test]
+fn gyro_fusion_shrinks_the_odometry_variance() {
+    let w = world("turtlebot_gyro_compass.toml");
+    let fused = odometry_variance(&w, "wheel_speed");
+    let p = path("turtlebot_gyro_compass.toml");
+    let text = std::fs::read_to_string(&p)
+        .expect("world")
+        .replace("gyro = \"gyro_z\"", "");
+    let alone = odometry_variance(
+        &World::from_str(&text, &p, &[]).expect("world"),
+        "wheel_speed",
+    );
+    assert!(
+        (alone - (1e-4 + 0.22f64.powi(2) * 0.01)).abs() < 1e-9,
+        "{alone}"
+    );
+    assert!((fused - 1.252e-4).abs() < 2e-6, "{fused}");
+    // The gyro feeds the odometry, so it rides with the odometry's fault pattern.
+    let r = check_world(&w).expect("check");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("odometry wheel_speed"))
+        .expect("odometry hypothesis");
+    assert!(h.detail.contains("gyro_z"), "{}", h.detail);
+}
+
+/// Odometry from quantised wheel encoders (#12): its σ is the encoders' count-difference
+/// quantisation carried through v = r(ω_l + ω_r)/2: q = 2π/(4096·0.02 s) = 0.0767 rad/s per
+/// wheel, variance q²/6 each, so σ_v = 0.033/2·√(2q²/6) = 0.73 mm/s.
+#[test]
+fn encoder_odometry_variance_is_the_quantisation() {
+    let w = world("turtlebot_encoders.toml");
+    let si = w
+        .file
+        .sensors
+        .iter()
+        .position(|c| c.name == "odom")
+        .expect("odom");
+    let sigma = ftcbf_sim::runner::setup::speed_std(&w, si);
+    let q = std::f64::consts::TAU / (4096.0 * 0.02);
+    let want = 0.033 / 2.0 * (2.0 * q * q / 6.0).sqrt();
+    assert!((sigma - want).abs() < 1e-6 * want, "{sigma} vs {want}");
+    assert!((sigma - 7.3e-4).abs() < 1e-5, "{sigma}");
 }

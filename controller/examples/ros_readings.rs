@@ -1,6 +1,8 @@
 //! The controller on readings as a ROS robot has them, without the simulator: two GNSS fixes
 //! (converted to local ENU, `map` frame), wheel odometry (`nav_msgs/Odometry` twist.linear.x in
-//! `base_footprint`) and an IMU orientation (`sensor_msgs/Imu`, REP-103 yaw). Out comes the
+//! `base_footprint`) and an IMU (`sensor_msgs/Imu`: the orientation's REP-103 yaw from a poor
+//! magnetometer, ±0.05 rad, fused with angular_velocity.z, biased by 0.003 rad/s, in a
+//! `HeadingFilter`). Out comes the
 //! planar acceleration the FT-CBF QP allows and the `cmd_vel` (v, ω) the compensator turns it
 //! into.
 //!
@@ -18,7 +20,8 @@ use std::sync::Arc;
 use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::drive::{Compensator, CompensatorConfig, LowSpeedLaw};
 use ftcbf_controller::odometry::{
-    body_speed_to_world_velocity, world_velocity_variance, yaw_from_quaternion,
+    body_speed_to_world_velocity, fused_yaw_variance, world_velocity_variance, yaw_from_quaternion,
+    HeadingFilter, HeadingFilterParams,
 };
 use ftcbf_controller::params::{BoundMethod, FtParameters};
 use ftcbf_controller::{
@@ -39,7 +42,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         r
     };
     let gnss_var = 0.02_f64 * 0.02;
-    let odom_var = world_velocity_variance(0.01, V_MAX, 0.005, 0.0, 0.0, 10.0);
+    // The yaw: gyro (σ 0.01 rad/s, bias walk 0.0005 rad/s/√s) fused with a ±0.05 rad compass,
+    // started at the marked start yaw (σ 0.01 rad). Its yaw variance, weighted by how fast the
+    // robot can be going, enters the odometry's variance.
+    let heading = HeadingFilterParams {
+        initial_yaw_std: 0.01,
+        ..HeadingFilterParams::new(0.01, 0.0005, 0.05)
+    };
+    let yaw_var = fused_yaw_variance(heading, DT, 1, 10.0, V_MAX, 2.0_f64.sqrt());
+    let odom_var = world_velocity_variance(0.01, V_MAX, yaw_var.sqrt(), 0.0, 0.0, 10.0);
+    let mut yaw_filter = HeadingFilter::started_at(heading, PI);
     let model = LinearModel::new(
         LinearModel::double_integrator_f(),
         LinearModel::double_integrator_g(),
@@ -94,20 +106,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         omega_resolution: 0.033 * 0.02398 / 0.16,
     })?;
 
-    println!("γ_i = {:?}, θ_12 = {:?}", params.gamma, params.theta);
+    println!(
+        "γ_i = {:?}, θ_12 = {:?}; fused yaw σ bound {:.4} rad (compass alone 0.05)",
+        params.gamma,
+        params.theta,
+        yaw_var.sqrt()
+    );
     println!(
         "   t [s] | (x, y) [m]       | cmd_vel v, ω    | u [m/s²]         | stage | dropped units"
     );
     // The hand-made robot: position [m], yaw [rad] (facing −x, west), forward speed [m/s].
-    let (mut px, mut py, mut yaw_true, mut v) = (1.0_f64, 0.0_f64, PI, 0.0_f64);
+    let (mut px, mut py, mut yaw_true, mut v, mut omega) = (1.0_f64, 0.0_f64, PI, 0.0, 0.0);
+    let mut worst_yaw_error = 0.0_f64;
     for k in 0..400 {
         let t = k as f64 * DT;
-        // What the robot reports: the IMU orientation as a quaternion about +z, wheel odometry
-        // (forward speed), and two GNSS fixes in local ENU.
-        let (qz, qw) = ((yaw_true / 2.0).sin(), (yaw_true / 2.0).cos());
-        let yaw = yaw_from_quaternion(0.0, 0.0, qz, qw);
-        let [vx, vy] = body_speed_to_world_velocity(v, yaw);
         let noise = if k % 2 == 0 { 0.01 } else { -0.01 };
+        // What the robot reports: the IMU orientation as a quaternion about +z (a magnetometer's
+        // yaw, ±0.05 rad) and its gyro's angular_velocity.z, wheel odometry (forward speed), and
+        // two GNSS fixes in local ENU.
+        let compass = yaw_true + 5.0 * noise;
+        let (qz, qw) = ((compass / 2.0).sin(), (compass / 2.0).cos());
+        if k > 0 {
+            yaw_filter.predict(omega + 0.003 + noise, DT);
+        }
+        yaw_filter.correct(yaw_from_quaternion(0.0, 0.0, qz, qw));
+        let yaw = yaw_filter.yaw();
+        let err = (yaw - yaw_true + PI).rem_euclid(2.0 * PI) - PI;
+        worst_yaw_error = worst_yaw_error.max(err.abs());
+        let [vx, vy] = body_speed_to_world_velocity(v, yaw);
         let spoof = if t >= 1.0 { 0.3 } else { 0.0 };
         let y = [
             px + noise,
@@ -134,6 +160,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         // The robot executes cmd_vel for one period.
         v = cmd.v;
+        omega = cmd.omega;
         px += v * yaw_true.cos() * DT;
         py += v * yaw_true.sin() * DT;
         yaw_true += cmd.omega * DT;
@@ -142,6 +169,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "end: ({px:+.3}, {py:+.3}), h = y + 0.2·ẏ + 0.05 = {:+.3} (≥ 0: safe), distance to the goal {:.3} m",
         py + 0.2 * v * yaw_true.sin() + 0.05,
         px.hypot(py)
+    );
+    println!(
+        "fused yaw: largest error {worst_yaw_error:.4} rad (compass ±0.05), gyro bias estimate {:.4} rad/s (true 0.003)",
+        yaw_filter.gyro_bias()
     );
     Ok(())
 }

@@ -45,8 +45,9 @@ use ftcbf_controller::params::{
 use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::runner::setup::{
-    channel_mask, controller_name, heading_sensor, initial_covariance, process_model,
-    process_noise_intensity, rest_hold, ControlSetup, Conversion, MIN_VARIANCE,
+    channel_mask, controller_name, heading_fusion, heading_sensor, initial_covariance,
+    process_model, process_noise_intensity, rest_hold, sensor_dependents, ControlSetup, Conversion,
+    MIN_VARIANCE,
 };
 use crate::runner::RunError;
 use crate::safe_sets::ellipse_phi_state;
@@ -297,6 +298,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     let mut found = Findings::default();
     check_disjoint_patterns(&setup, &names, &mut found); // 1
     check_converted_odometry(world, &names, &mut found); // 1b
+    check_drive_heading(world, &names, &mut found); // 1c
     let filters = check_filters(world, &setup, &names, &mut found); // 2-4
     check_finite_parameters(world, &setup, &mut found); // 4
     check_condition1(world, &setup, &mut found); // 5
@@ -441,47 +443,73 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     }
 }
 
-/// 1b. Wheel odometry turned into world-frame velocity with the heading: its channels depend on
-/// the speed channel and on the heading channel, so one fault in the heading's pattern corrupts
-/// them. The patterns stay disjoint in effect only if both sensors are in the same pattern, or
-/// the heading is in none (trusted; an attack on it is then outside the model).
+/// 1b. Wheel odometry turned into world-frame velocity with the heading: its channels are made
+/// from the speed channel, the wheel channels it is derived from, the heading channel and the gyro
+/// fused into it, so a fault in any of their patterns corrupts them. The patterns stay disjoint in
+/// effect only if all of those sensors that are in a pattern are in the same one (the others are
+/// trusted: an attack on them is outside the model).
 fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) {
     let f = &world.file;
     let Some(h) = heading_sensor(world) else {
         return;
     };
     let pattern_of = |si: usize| world.patterns.iter().position(|p| p.contains(&si));
-    let label =
-        |p: Option<usize>| p.map_or("no pattern".to_string(), |p| names.patterns[p].to_string());
-    let ph = pattern_of(h);
     for (si, s) in f.sensors.iter().enumerate() {
         if !s.world_velocity {
             continue;
         }
-        let ps = pattern_of(si);
+        let sources: Vec<usize> = (0..f.sensors.len())
+            .filter(|&o| sensor_dependents(world, o).contains(&si))
+            .collect();
+        let list = |sel: &dyn Fn(usize) -> bool| -> String {
+            sources
+                .iter()
+                .filter(|&&o| sel(o))
+                .map(|&o| f.sensors[o].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         let name = format!(
             "odometry {} → world velocity with heading {}",
             s.name, f.sensors[h].name
         );
-        let (status, detail) = match (ps, ph) {
-            (_, None) => (
+        let mut held: Vec<usize> = sources.iter().filter_map(|&o| pattern_of(o)).collect();
+        held.dedup();
+        held.sort_unstable();
+        held.dedup();
+        let trusted = list(&|o| pattern_of(o).is_none());
+        let (status, detail) = match held.as_slice() {
+            [] => (
                 Status::Holds,
                 format!(
-                    "{} is in {}; the heading is in no fault pattern (trusted: an attack on it is outside the model); R = σ_v² + v_max²(σ_θ² + b_θ² + w_θ²T)",
-                    s.name,
-                    label(ps)
+                    "made from {}, all in no fault pattern (trusted: an attack on them is outside the model)",
+                    list(&|_| true)
                 ),
             ),
-            (Some(a), Some(b)) if a == b => (
+            [p] => (
                 Status::Holds,
-                format!("{} and the heading are both in {}", s.name, names.patterns[a]),
+                format!(
+                    "made from {}; {} in {}{}",
+                    list(&|_| true),
+                    list(&|o| pattern_of(o) == Some(*p)),
+                    names.patterns[*p],
+                    if trusted.is_empty() {
+                        String::new()
+                    } else {
+                        format!(", {trusted} in none (trusted)")
+                    }
+                ),
             ),
-            _ => {
+            many => {
                 let d = format!(
-                    "{} is in {} but the heading it is turned with is in {}: a fault there corrupts {}'s channels too, so the patterns are not disjoint in effect; put both in one pattern",
+                    "{} is made from {}, which are in {} different fault patterns ({}): a fault in either corrupts {}'s channels, so the patterns are not disjoint in effect; put them in one pattern",
                     s.name,
-                    label(ps),
-                    label(ph),
+                    list(&|o| pattern_of(o).is_some()),
+                    many.len(),
+                    many.iter()
+                        .map(|&p| names.patterns[p].to_string())
+                        .collect::<Vec<_>>()
+                        .join(", "),
                     s.name
                 );
                 found.reasons.push(d.clone());
@@ -494,6 +522,55 @@ fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) 
             detail,
         });
     }
+}
+
+/// 1c. The robot's drive turns u into wheel speeds about the heading ((6.3)–(6.4)), outside every
+/// filter: the theorem's u is applied as computed only if that heading (and a gyro fused into it)
+/// is in no fault pattern. A malformed heading is dead-reckoned over by the runner; a finite lie
+/// misapplies u.
+fn check_drive_heading(world: &World, names: &Names, found: &mut Findings) {
+    if world.robot.is_none() {
+        return;
+    }
+    let Some(h) = heading_sensor(world) else {
+        return;
+    };
+    let sources = std::iter::once(h).chain(heading_fusion(world).map(|(g, _)| g));
+    let held: Vec<(usize, usize)> = sources
+        .filter_map(|si| {
+            world
+                .patterns
+                .iter()
+                .position(|p| p.contains(&si))
+                .map(|p| (si, p))
+        })
+        .collect();
+    let name = "the drive's heading is trusted ((6.3)–(6.4))".to_string();
+    let (status, detail) = if held.is_empty() {
+        (
+            Status::Holds,
+            format!(
+                "{} is in no fault pattern: the drive turns u into wheel speeds about a heading no modelled fault touches",
+                names.sensors[h]
+            ),
+        )
+    } else {
+        let list = held
+            .iter()
+            .map(|&(si, p)| format!("{} is in {}", names.sensors[si], names.patterns[p]))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let d = format!(
+            "{list}: the drive turns u into wheel speeds about this heading, outside every filter, so a fault there misapplies u, which the theorem (u applied as computed) does not cover; malformed readings are dead-reckoned over, a finite lie is not"
+        );
+        found.reasons.push(d.clone());
+        (Status::Fails, d)
+    };
+    found.hypotheses.push(Hypothesis {
+        name,
+        status,
+        detail,
+    });
 }
 
 /// 1. Disjoint fault patterns (§3.1); names the last overlap found.

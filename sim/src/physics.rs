@@ -133,6 +133,9 @@ pub struct PhysicsWorld {
     right: Vec<WheelMotor>,
     steps: u64,
     contacts_buf: Vec<usize>,
+    /// Accumulated wheel rotation (left, right) [rad], integrated from the joint speeds after
+    /// every step (what a wheel encoder counts).
+    wheel_angles: (f64, f64),
 }
 
 impl std::fmt::Debug for PhysicsWorld {
@@ -413,6 +416,7 @@ impl PhysicsWorld {
             right,
             steps: 0,
             contacts_buf: Vec::new(),
+            wheel_angles: (0.0, 0.0),
         };
         out.set_wheel_speeds(0.0, 0.0);
         Ok(out)
@@ -441,6 +445,9 @@ impl PhysicsWorld {
     pub fn step(&mut self) {
         self.world.step();
         self.steps += 1;
+        let (wl, wr) = self.wheel_speeds();
+        self.wheel_angles.0 += wl * self.cfg.dt;
+        self.wheel_angles.1 += wr * self.cfg.dt;
         self.contacts_buf.clear();
         for (i, &oc) in self.obstacle_colliders.iter().enumerate() {
             let hit = self.world.narrow_phase.contact_pairs_with(oc).any(|pair| {
@@ -481,6 +488,7 @@ impl PhysicsWorld {
         let vel = root.velocity_at_point(p.translation);
         let (vx, vy) = (vel.x as f64, vel.y as f64);
         let (s, c) = theta.sin_cos();
+        let (wheel_left, wheel_right) = self.wheel_speeds();
         TruthState {
             t: self.time(),
             x: iso.translation.x,
@@ -490,6 +498,10 @@ impl PhysicsWorld {
             vy,
             v_body: vx * c + vy * s,
             omega: root.angvel().z as f64,
+            wheel_left,
+            wheel_right,
+            wheel_angle_left: self.wheel_angles.0,
+            wheel_angle_right: self.wheel_angles.1,
         }
     }
 

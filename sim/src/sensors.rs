@@ -13,6 +13,12 @@
 //!   keeps seeing the last sample with `fresh = false` and its `age`;
 //! * a `dropout_prob`: each due sample is lost with this probability (the last sample is held).
 //!
+//! Wheel encoders (`wheel_left`, `wheel_right`) read the rapier wheel joints, so they turn while a
+//! wheel slips; with `ticks_per_rev` they count whole encoder steps. A `speed` or `yaw_rate`
+//! channel with `from_wheels` is computed from two wheel channels' readings (diff-drive
+//! kinematics, [`WheelGeometry::odometry`]) after they are sampled, and
+//! [`SensorSuite::propagate_attacks`] carries an attack on an encoder into it.
+//!
 //! The suite of eq. 6.5 of the thesis (x, x, y, y, ẋ, ẏ, plus an attack-free heading) is one
 //! instance; suites with more redundancy (three position fixes per axis) are others.
 //!
@@ -43,6 +49,7 @@ use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::robot::WheelGeometry;
 use crate::state::TruthState;
 
 /// Tolerance added before flooring a sample-slot number, so that `k·dt·rate` computed in floating
@@ -67,6 +74,12 @@ pub enum Quantity {
     Speed,
     /// Yaw rate ω [rad/s].
     YawRate,
+    /// Left drive wheel's angular speed relative to the base [rad/s], positive = rolling forward
+    /// (a wheel encoder, ROS `sensor_msgs/JointState` velocity of the wheel joint). Robot worlds
+    /// only.
+    WheelLeft,
+    /// Right drive wheel's angular speed [rad/s]. Robot worlds only.
+    WheelRight,
 }
 
 impl Quantity {
@@ -80,6 +93,8 @@ impl Quantity {
             Quantity::Heading => truth.theta,
             Quantity::Speed => truth.v_body,
             Quantity::YawRate => truth.omega,
+            Quantity::WheelLeft => truth.wheel_left,
+            Quantity::WheelRight => truth.wheel_right,
         }
     }
 
@@ -89,7 +104,7 @@ impl Quantity {
             Quantity::X | Quantity::Y => "m",
             Quantity::Vx | Quantity::Vy | Quantity::Speed => "m/s",
             Quantity::Heading => "rad",
-            Quantity::YawRate => "rad/s",
+            Quantity::YawRate | Quantity::WheelLeft | Quantity::WheelRight => "rad/s",
         }
     }
 
@@ -103,6 +118,22 @@ impl Quantity {
             Quantity::Heading => "heading",
             Quantity::Speed => "speed",
             Quantity::YawRate => "yaw_rate",
+            Quantity::WheelLeft => "wheel_left",
+            Quantity::WheelRight => "wheel_right",
+        }
+    }
+
+    /// `true` for the wheel-encoder quantities.
+    pub fn is_wheel(self) -> bool {
+        matches!(self, Quantity::WheelLeft | Quantity::WheelRight)
+    }
+
+    /// The accumulated wheel rotation [rad] behind a wheel quantity (what its encoder counts).
+    fn wheel_angle(self, truth: &TruthState) -> f64 {
+        match self {
+            Quantity::WheelLeft => truth.wheel_angle_left,
+            Quantity::WheelRight => truth.wheel_angle_right,
+            _ => f64::NAN,
         }
     }
 }
@@ -135,6 +166,26 @@ pub struct ChannelSpec {
     /// false (the channel is only recorded).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub world_velocity: bool,
+    /// For a `wheel_left`/`wheel_right` channel: the encoder's counts per wheel revolution
+    /// (TurtleBot3's Dynamixel XL430: 4096). The reading is then the count difference since the
+    /// channel's previous sample over the time between them, so it is quantised to
+    /// 2π/(N·Δt) rad/s. Absent: the joint's speed itself.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ticks_per_rev: Option<u32>,
+    /// For a `speed` or `yaw_rate` channel: derive it from two wheel channels `[left, right]` as a
+    /// differential-drive odometry does (ROS diff_drive_controller): v = r(ω_l + ω_r)/2,
+    /// ω = r(ω_r − ω_l)/L with the robot's wheel radius r and separation L. The wheel readings are
+    /// taken as received, so an attack on an encoder reaches the odometry. The channel's own
+    /// `noise_std`, `bias` and `bias_walk_std` are added on top (0 for a pure derivation); it is
+    /// fresh whenever a wheel reading is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from_wheels: Option<[String; 2]>,
+    /// For the `heading` channel: fuse it with this `yaw_rate` channel (the IMU gyro) in a
+    /// Kalman filter on (θ, gyro bias) (`ftcbf_controller::odometry::HeadingFilter`); the drive
+    /// and the wheel-odometry conversion then use the fused yaw, and the conversion's variance uses
+    /// the filter's. Absent: the heading reading itself.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<String>,
 }
 
 impl ChannelSpec {
@@ -149,6 +200,9 @@ impl ChannelSpec {
             rate_hz: None,
             dropout_prob: 0.0,
             world_velocity: false,
+            ticks_per_rev: None,
+            from_wheels: None,
+            gyro: None,
         }
     }
 
@@ -182,6 +236,39 @@ impl ChannelSpec {
         }
         if !(self.dropout_prob >= 0.0 && self.dropout_prob <= 1.0) {
             return bad("dropout_prob", self.dropout_prob, "a probability in [0, 1]");
+        }
+        if let Some(n) = self.ticks_per_rev {
+            if !self.measures.is_wheel() {
+                return bad(
+                    "ticks_per_rev",
+                    f64::from(n),
+                    "no value: only a wheel_left or wheel_right channel has encoder counts",
+                );
+            }
+            if n == 0 {
+                return bad(
+                    "ticks_per_rev",
+                    0.0,
+                    "a whole number of counts per revolution >= 1",
+                );
+            }
+        }
+        if self.from_wheels.is_some() {
+            if !matches!(self.measures, Quantity::Speed | Quantity::YawRate) {
+                return Err(SensorError::BadWheelSource {
+                    channel: self.name.clone(),
+                    problem: format!(
+                        "it measures {}; only a speed or yaw_rate channel is derived from the wheels",
+                        self.measures.as_str()
+                    ),
+                });
+            }
+            if self.rate_hz.is_some() || self.dropout_prob > 0.0 {
+                return Err(SensorError::BadWheelSource {
+                    channel: self.name.clone(),
+                    problem: "a derived channel takes its timing from its wheel channels; remove `rate_hz` and `dropout_prob` (set them on the wheel channels)".to_string(),
+                });
+            }
         }
         Ok(())
     }
@@ -271,6 +358,23 @@ pub enum SensorError {
         /// The repeated channel.
         channel: String,
     },
+    /// A `from_wheels` that does not name a left and a right wheel channel, or sits on the wrong
+    /// kind of channel.
+    #[error("sensor channel \"{channel}\": `from_wheels` is invalid: {problem}")]
+    BadWheelSource {
+        /// The derived channel.
+        channel: String,
+        /// What is wrong and what was expected.
+        problem: String,
+    },
+    /// A `gyro` that does not name a yaw-rate channel, or sits on a non-heading channel.
+    #[error("sensor channel \"{channel}\": `gyro` is invalid: {problem}")]
+    BadGyro {
+        /// The channel with the key.
+        channel: String,
+        /// What is wrong and what was expected.
+        problem: String,
+    },
     /// Two fault patterns share a channel.
     #[error("fault patterns \"{first}\" and \"{second}\" overlap on channel \"{channel}\"; fault patterns must be disjoint (F(r_i) ∩ F(r_j) = ∅, thesis §3.1)")]
     OverlappingPatterns {
@@ -300,7 +404,56 @@ pub fn validate_channels(specs: &[ChannelSpec]) -> Result<(), SensorError> {
         seen.insert(spec.name.as_str(), index);
         spec.validate()?;
     }
+    for spec in specs {
+        if let Some(g) = &spec.gyro {
+            let found = seen.get(g.as_str()).map(|&i| specs[i].measures);
+            if spec.measures != Quantity::Heading || found != Some(Quantity::YawRate) {
+                return Err(SensorError::BadGyro {
+                    channel: spec.name.clone(),
+                    problem: if spec.measures != Quantity::Heading {
+                        format!(
+                            "it measures {}; only the heading channel is fused with a gyro",
+                            spec.measures.as_str()
+                        )
+                    } else {
+                        format!(
+                            "\"{g}\" {}; expected the name of a `yaw_rate` channel",
+                            found.map_or("is not a declared channel".to_string(), |q| format!(
+                                "measures {}",
+                                q.as_str()
+                            ))
+                        )
+                    },
+                });
+            }
+        }
+        let Some(pair) = &spec.from_wheels else {
+            continue;
+        };
+        for (name, want) in pair.iter().zip([Quantity::WheelLeft, Quantity::WheelRight]) {
+            let found = seen.get(name.as_str()).map(|&i| specs[i].measures);
+            if found != Some(want) {
+                return Err(SensorError::BadWheelSource {
+                    channel: spec.name.clone(),
+                    problem: format!(
+                        "\"{name}\" {}; expected [left, right]: the name of a `wheel_left` channel, then of a `wheel_right` channel",
+                        found.map_or("is not a declared channel".to_string(), |q| format!(
+                            "measures {}",
+                            q.as_str()
+                        ))
+                    ),
+                });
+            }
+        }
+    }
     Ok(())
+}
+
+/// The indices of the wheel channels (left, right) a channel is derived from (`from_wheels`).
+pub fn wheel_sources(specs: &[ChannelSpec], channel: usize) -> Option<[usize; 2]> {
+    let pair = specs.get(channel)?.from_wheels.as_ref()?;
+    let find = |n: &String| specs.iter().position(|s| &s.name == n);
+    Some([find(&pair[0])?, find(&pair[1])?])
 }
 
 /// Resolves fault patterns to channel indices (in the order of `channels`), checking that every
@@ -474,6 +627,23 @@ struct ChannelState {
     /// Bias random-walk value and the tick it was last advanced.
     walk: f64,
     walk_tick: Option<i64>,
+    /// A quantised encoder's count (⌊angle·N/2π⌋) at its last delivered sample, and that tick.
+    count: Option<(f64, i64)>,
+    /// The wheel channels (left, right) a derived channel is computed from.
+    sources: Option<[usize; 2]>,
+}
+
+impl WheelGeometry {
+    /// What a channel measuring `q` reads from wheel speeds (left, right) [rad/s]: forward speed
+    /// r(ω_l + ω_r)/2 [m/s] or yaw rate r(ω_r − ω_l)/L [rad/s]. Linear in the wheel speeds, so it
+    /// maps a change of the wheel readings to the change of the odometry as well.
+    pub fn odometry(self, q: Quantity, left: f64, right: f64) -> f64 {
+        match q {
+            Quantity::Speed => self.radius * (left + right) / 2.0,
+            Quantity::YawRate => self.radius * (right - left) / self.separation,
+            _ => f64::NAN,
+        }
+    }
 }
 
 /// The sensor suite: validated channel specs plus each channel's random stream and schedule.
@@ -483,6 +653,9 @@ pub struct SensorSuite {
     dt: f64,
     channels: Vec<ChannelState>,
     out: Vec<Sample>,
+    /// This tick's readings before attacks (for [`SensorSuite::propagate_attacks`]).
+    pre_attack: Vec<f64>,
+    wheels: Option<WheelGeometry>,
 }
 
 impl SensorSuite {
@@ -495,13 +668,16 @@ impl SensorSuite {
         validate_channels(specs)?;
         let channels = specs
             .iter()
-            .map(|spec| ChannelState {
+            .enumerate()
+            .map(|(i, spec)| ChannelState {
                 rng: stream_rng(seed, "sensor", &spec.name),
                 schedule: Schedule::new(spec.rate_hz, dt),
                 last_slot: None,
                 held: None,
                 walk: 0.0,
                 walk_tick: None,
+                count: None,
+                sources: wheel_sources(specs, i),
             })
             .collect();
         Ok(SensorSuite {
@@ -509,7 +685,36 @@ impl SensorSuite {
             dt,
             channels,
             out: vec![Sample::NONE; specs.len()],
+            pre_attack: vec![f64::NAN; specs.len()],
+            wheels: None,
         })
+    }
+
+    /// Sets the wheel geometry that `from_wheels` channels use (without it they read NaN).
+    pub fn set_wheel_geometry(&mut self, geometry: Option<WheelGeometry>) {
+        self.wheels = geometry;
+    }
+
+    /// After attacks have rewritten this tick's samples (the buffer [`SensorSuite::sample`]
+    /// returned): every `from_wheels` channel gets the odometry of its wheel readings' change, so
+    /// an attack on an encoder reaches the speed and yaw rate derived from it (an attack on the
+    /// derived channel itself stays). Returns the samples.
+    pub fn propagate_attacks(&mut self) -> &mut [Sample] {
+        let samples = &mut self.out;
+        let Some(g) = self.wheels else {
+            return samples;
+        };
+        for (i, ch) in self.channels.iter().enumerate() {
+            let Some([l, r]) = ch.sources else {
+                continue;
+            };
+            let dl = samples[l].value - self.pre_attack[l];
+            let dr = samples[r].value - self.pre_attack[r];
+            if dl != 0.0 || dr != 0.0 {
+                samples[i].value += g.odometry(self.specs[i].measures, dl, dr);
+            }
+        }
+        samples
     }
 
     /// The channel specs, in suite order (the order of the measurement vector y).
@@ -557,50 +762,101 @@ impl SensorSuite {
     pub fn sample(&mut self, truth: &TruthState) -> &mut [Sample] {
         let k = self.tick_of(truth.t);
         let dt = self.dt;
-        for ((spec, ch), out) in self
-            .specs
-            .iter()
-            .zip(self.channels.iter_mut())
-            .zip(self.out.iter_mut())
-        {
-            let slot = ch.schedule.slot(k);
-            let due = ch.last_slot.is_none_or(|last| slot > last);
-            let mut fresh = false;
-            if due {
-                ch.last_slot = Some(slot);
-                // Fixed draw order, independent of the configuration (see module docs).
-                let u: f64 = ch.rng.random();
-                let z_noise: f64 = ch.rng.sample(StandardNormal);
-                let z_walk: f64 = ch.rng.sample(StandardNormal);
-                if let Some(kw) = ch.walk_tick {
-                    let elapsed = k.saturating_sub(kw) as f64 * dt;
-                    if elapsed > 0.0 {
-                        ch.walk += spec.bias_walk_std * elapsed.sqrt() * z_walk;
+        // Measured channels first, then the channels derived from their readings.
+        for derived in [false, true] {
+            for i in 0..self.specs.len() {
+                if self.channels[i].sources.is_some() != derived {
+                    continue;
+                }
+                let spec = &self.specs[i];
+                let due = match self.channels[i].sources {
+                    Some([l, r]) => self.out[l].fresh || self.out[r].fresh,
+                    None => {
+                        let ch = &self.channels[i];
+                        let slot = ch.schedule.slot(k);
+                        let due = ch.last_slot.is_none_or(|last| slot > last);
+                        if due {
+                            self.channels[i].last_slot = Some(slot);
+                        }
+                        due
+                    }
+                };
+                let mut fresh = false;
+                if due {
+                    let ch = &mut self.channels[i];
+                    // Fixed draw order, independent of the configuration (see module docs).
+                    let u: f64 = ch.rng.random();
+                    let z_noise: f64 = ch.rng.sample(StandardNormal);
+                    let z_walk: f64 = ch.rng.sample(StandardNormal);
+                    if let Some(kw) = ch.walk_tick {
+                        let elapsed = k.saturating_sub(kw) as f64 * dt;
+                        if elapsed > 0.0 {
+                            ch.walk += spec.bias_walk_std * elapsed.sqrt() * z_walk;
+                        }
+                    }
+                    ch.walk_tick = Some(k);
+                    if u >= spec.dropout_prob {
+                        let clean = spec.measures.of(truth);
+                        let measured = match (ch.sources, spec.ticks_per_rev) {
+                            (Some([l, r]), _) => self.wheels.map_or(f64::NAN, |g| {
+                                g.odometry(spec.measures, self.out[l].value, self.out[r].value)
+                            }),
+                            (None, Some(n)) => {
+                                let angle = spec.measures.wheel_angle(truth);
+                                encoder_speed(&mut ch.count, angle, clean, n, k, dt)
+                            }
+                            (None, None) => clean,
+                        };
+                        let mut value = measured + spec.bias + ch.walk + spec.noise_std * z_noise;
+                        if spec.measures == Quantity::Heading {
+                            value = wrap_angle(value);
+                        }
+                        ch.held = Some((value, clean, k));
+                        fresh = true;
                     }
                 }
-                ch.walk_tick = Some(k);
-                if u >= spec.dropout_prob {
-                    let clean = spec.measures.of(truth);
-                    let mut value = clean + spec.bias + ch.walk + spec.noise_std * z_noise;
-                    if spec.measures == Quantity::Heading {
-                        value = wrap_angle(value);
-                    }
-                    ch.held = Some((value, clean, k));
-                    fresh = true;
-                }
+                self.out[i] = match self.channels[i].held {
+                    Some((value, clean, k_sample)) => Sample {
+                        value,
+                        clean,
+                        fresh,
+                        age: k.saturating_sub(k_sample) as f64 * dt,
+                    },
+                    None => Sample::NONE,
+                };
             }
-            *out = match ch.held {
-                Some((value, clean, k_sample)) => Sample {
-                    value,
-                    clean,
-                    fresh,
-                    age: k.saturating_sub(k_sample) as f64 * dt,
-                },
-                None => Sample::NONE,
-            };
+        }
+        for (p, o) in self.pre_attack.iter_mut().zip(&self.out) {
+            *p = o.value;
         }
         &mut self.out
     }
+}
+
+/// A quantised encoder's speed reading [rad/s]: the count ⌊angle·N/2π⌋ now minus the count at the
+/// previous delivered sample, over the time between them. The first sample has no previous count
+/// and reads the true speed rounded to the encoder's step 2π/(N·dt).
+fn encoder_speed(
+    count: &mut Option<(f64, i64)>,
+    angle: f64,
+    speed: f64,
+    ticks_per_rev: u32,
+    k: i64,
+    dt: f64,
+) -> f64 {
+    let n = f64::from(ticks_per_rev);
+    let now = (angle * n / std::f64::consts::TAU).floor();
+    let value = match *count {
+        Some((before, k0)) if k > k0 => {
+            (now - before) * std::f64::consts::TAU / (n * (k - k0) as f64 * dt)
+        }
+        _ => {
+            let step = std::f64::consts::TAU / (n * dt);
+            (speed / step).round() * step
+        }
+    };
+    *count = Some((now, k));
+    value
 }
 
 /// Wraps an angle to (−π, π]. Non-finite input is returned unchanged.

@@ -20,6 +20,17 @@ pub struct TruthState {
     pub v_body: f64,
     /// Yaw rate ω [rad/s].
     pub omega: f64,
+    /// Left drive wheel's angular speed relative to the base [rad/s], positive = rolling forward
+    /// (the revolute joint's velocity, as a wheel encoder sees it: it turns while slipping too).
+    /// NaN for a plant without wheels (the linear model).
+    pub wheel_left: f64,
+    /// Right drive wheel's angular speed [rad/s]; NaN without wheels.
+    pub wheel_right: f64,
+    /// Left wheel's accumulated rotation since the start [rad] (what an encoder counts); NaN
+    /// without wheels.
+    pub wheel_angle_left: f64,
+    /// Right wheel's accumulated rotation [rad]; NaN without wheels.
+    pub wheel_angle_right: f64,
 }
 
 impl TruthState {

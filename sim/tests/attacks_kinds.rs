@@ -25,6 +25,7 @@ fn truth(t: f64) -> TruthState {
         vy: t.cos(),
         v_body: 0.5,
         omega: 0.0,
+        ..Default::default()
     }
 }
 

@@ -72,6 +72,7 @@ fn truth(t: f64) -> TruthState {
         vy: 0.5 * t.cos(),
         v_body: 0.2,
         omega: 0.0,
+        ..Default::default()
     }
 }
 

@@ -19,6 +19,7 @@ fn truth_at(k: i64) -> TruthState {
         vy: -0.1,
         v_body: 0.25,
         omega: 0.05,
+        ..Default::default()
     }
 }
 

@@ -12,7 +12,11 @@
 //! | 4 | the kind's third parameter (phase, cap, largest bias, recording length) |
 //! | 5 + i | weight wᵢ = 2 z − 1 of the pattern's i-th channel: the channel is attacked iff \|wᵢ\| ≥ 0.2 (if none is, the largest \|wᵢ\|), with sign sign(wᵢ) and relative size \|wᵢ\| / maxⱼ \|wⱼ\| |
 //!
-//! Channel scale: 1 m for x and y, 0.5 m/s for vx and vy. Every decoded number is rounded to four
+//! Channel scale: 1 m for x and y; 0.5 m/s for vx and vy; 0.2 m/s for a (wheel-odometry) speed;
+//! 0.5 rad for a heading and 0.5 rad/s for a yaw rate; 6 rad/s for a wheel encoder (0.2 m/s on a
+//! TurtleBot3 wheel). A stealthy attacker on a channel the filters do not read directly (a speed
+//! turned into world-frame velocity, an encoder, the heading) has no detector to hide under and
+//! grows at its rate up to its cap. Every decoded number is rounded to four
 //! significant digits, so the written world file is readable and replays the evaluated attack
 //! exactly.
 
@@ -131,23 +135,15 @@ pub enum SpaceError {
     /// No `[[fault_patterns]]`: the threat model allows no attack.
     #[error("the world declares no [[fault_patterns]], so the threat model allows no attack to search; declare the channels that may fail together")]
     NoPatterns,
-    /// A pattern channel measures something other than x, y, vx, vy.
-    #[error("fault pattern `{pattern}`: channel `{channel}` measures {quantity}, but attacks are searched on x, y, vx and vy channels only")]
-    UnsupportedChannel {
-        /// Pattern.
-        pattern: String,
-        /// Channel.
-        channel: String,
-        /// What it measures.
-        quantity: &'static str,
-    },
 }
 
 /// The channel scale used for magnitudes and rates [unit].
 fn scale(q: Quantity) -> f64 {
     match q {
         Quantity::X | Quantity::Y => 1.0,
-        _ => 0.5,
+        Quantity::Vx | Quantity::Vy | Quantity::Heading | Quantity::YawRate => 0.5,
+        Quantity::Speed => 0.2,
+        Quantity::WheelLeft | Quantity::WheelRight => 6.0,
     }
 }
 
@@ -165,7 +161,7 @@ fn round4(x: f64) -> f64 {
 }
 
 impl SearchSpace {
-    /// The search space of `world`: its declared fault patterns (x, y, vx, vy channels).
+    /// The search space of `world`: its declared fault patterns, whatever their channels measure.
     pub fn new(world: &World) -> Result<Self, SpaceError> {
         let f = &world.file;
         if world.patterns.is_empty() {
@@ -176,16 +172,6 @@ impl SearchSpace {
             let mut channels = Vec::with_capacity(idx.len());
             for &c in idx {
                 let ch = &f.sensors[c];
-                if !matches!(
-                    ch.measures,
-                    Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy
-                ) {
-                    return Err(SpaceError::UnsupportedChannel {
-                        pattern: spec.name.clone(),
-                        channel: ch.name.clone(),
-                        quantity: ch.measures.as_str(),
-                    });
-                }
                 channels.push((ch.name.clone(), ch.measures));
             }
             patterns.push(Pattern {

@@ -45,7 +45,7 @@ use ftcbf_controller::Input;
 
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
-use crate::sensors::SensorSuite;
+use crate::sensors::{wrap_angle, SensorSuite};
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
@@ -164,7 +164,7 @@ pub struct Simulation<'w> {
     attacks: AttackStack,
     law: Box<dyn ControlLaw>,
     plant: Plant,
-    heading_channel: Option<usize>,
+    heading_source: setup::HeadingSource,
     heading: f64,
     filters: Vec<String>,
     windows: Vec<(String, f64, Option<f64>)>,
@@ -216,12 +216,13 @@ impl<'w> Simulation<'w> {
         };
         let control_dt = world.control_dt();
         let setup = ControlSetup::new(world, kind)?;
-        let suite = SensorSuite::new(&file.sensors, control_dt, seed)
+        let mut suite = SensorSuite::new(&file.sensors, control_dt, seed)
             .map_err(|e| start_err("sensors", e.to_string()))?;
         let attacks = AttackStack::new(&file.attacks, &suite, seed)
             .map_err(|e| start_err("attacks", e.to_string()))?;
         let law = make(&setup.config).map_err(|e| start_err("controller", e))?;
         let plant = Plant::new(world, seed).map_err(|e| start_err("plant", e))?;
+        suite.set_wheel_geometry(plant.wheel_geometry());
         Ok(Self::assemble(
             world, seed, duration, setup, suite, attacks, law, plant,
         ))
@@ -241,7 +242,7 @@ impl<'w> Simulation<'w> {
     ) -> Self {
         let file = &world.file;
         let control_dt = world.control_dt();
-        let heading_channel = setup::heading_sensor(world);
+        let heading_source = setup::HeadingSource::new(world);
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
@@ -266,7 +267,7 @@ impl<'w> Simulation<'w> {
             attacks,
             law,
             plant,
-            heading_channel,
+            heading_source,
             filters,
             windows,
             attack_windows,
@@ -335,24 +336,37 @@ impl<'w> Simulation<'w> {
         }
         let bank = self.law.estimators();
         let map = &self.setup.channel_of_sensor;
+        let conversion = &self.setup.conversion;
+        // A stealthy attacker hides under the detector of a channel the filters read directly; a
+        // converted or derived one has none to hide under.
         let detector = |ch: usize| {
             let b = bank?;
             let c = map.get(ch).copied().flatten()?;
+            (conversion[c] == setup::Conversion::Direct).then_some(())?;
             b.predicted_measurement(b.baseline_index(), c)
         };
         self.attacks.apply(t, samples, &detector);
-        // The heading as received (attacks included): a `speed` channel with `world_velocity`
-        // is turned into world-frame velocity with it; a missing heading makes it NaN, which the
-        // controller rejects as a malformed reading.
-        let theta = self.heading_channel.map_or(f64::NAN, |h| samples[h].value);
+        let samples = self.suite.propagate_attacks();
+        // The heading as received (attacks included), or its fusion with the gyro: a `speed`
+        // channel with `world_velocity` is turned into world-frame velocity with it; a missing
+        // heading makes it NaN, which the controller rejects as a malformed reading.
+        // A heading outside [−π, π] (non-finite, absurd) is malformed: the odometry made with it
+        // is NaN (the controller rejects it), and the drive dead-reckons its heading with the yaw
+        // rate it executed last step instead of holding a stale one while the robot turns.
+        let theta = self.heading_source.update(samples, self.control_dt);
+        let theta = if ftcbf_controller::odometry::valid_yaw(theta) {
+            theta
+        } else {
+            f64::NAN
+        };
         for (c, &si) in self.setup.sensor_of_channel.iter().enumerate() {
             self.y[c] = self.setup.conversion[c].apply(samples[si].value, theta);
             self.fresh[c] = samples[si].fresh;
         }
-        if let Some(s) = self.heading_channel.map(|h| samples[h]) {
-            if s.fresh && s.value.is_finite() {
-                self.heading = s.value;
-            }
+        if theta.is_nan() {
+            self.heading = wrap_angle(self.heading + self.view.body_cmd[1] * self.control_dt);
+        } else if self.heading_source.fresh(samples) {
+            self.heading = theta;
         }
         self.view.received(samples, map, bank);
     }

@@ -11,6 +11,7 @@ use rand_distr::StandardNormal;
 use crate::drive::{Drive, DriveConfig};
 use crate::obstacles::ObstacleBarrier;
 use crate::physics::{PhysicsConfig, PhysicsWorld, Pose2};
+use crate::robot::WheelGeometry;
 use crate::sensors::stream_rng;
 use crate::state::TruthState;
 use crate::world::{Dynamics, World};
@@ -120,6 +121,14 @@ impl Plant {
         }
     }
 
+    /// The drive's wheel geometry (None for the linear plant, which has no wheels).
+    pub fn wheel_geometry(&self) -> Option<WheelGeometry> {
+        match self {
+            Plant::Rapier { drive, .. } => Some(*drive.geometry()),
+            Plant::Linear { .. } => None,
+        }
+    }
+
     /// The true state now.
     pub fn truth(&self) -> TruthState {
         match self {
@@ -135,6 +144,10 @@ impl Plant {
                     vy: x[3],
                     v_body: speed,
                     omega: 0.0,
+                    wheel_left: f64::NAN,
+                    wheel_right: f64::NAN,
+                    wheel_angle_left: f64::NAN,
+                    wheel_angle_right: f64::NAN,
                 }
             }
         }

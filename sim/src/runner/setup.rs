@@ -100,7 +100,11 @@ fn observation_row(q: Quantity) -> Option<RowVector4<f64>> {
         Quantity::Y => Some(RowVector4::new(0.0, 1.0, 0.0, 0.0)),
         Quantity::Vx => Some(RowVector4::new(0.0, 0.0, 1.0, 0.0)),
         Quantity::Vy => Some(RowVector4::new(0.0, 0.0, 0.0, 1.0)),
-        Quantity::Heading | Quantity::Speed | Quantity::YawRate => None,
+        Quantity::Heading
+        | Quantity::Speed
+        | Quantity::YawRate
+        | Quantity::WheelLeft
+        | Quantity::WheelRight => None,
     }
 }
 
@@ -536,6 +540,80 @@ pub fn heading_sensor(world: &World) -> Option<usize> {
         .position(|s| s.measures == Quantity::Heading)
 }
 
+/// The heading channel's gyro fusion (`gyro` on the heading channel): the gyro's index and the
+/// filter's parameters from the two channels' specs.
+pub fn heading_fusion(world: &World) -> Option<(usize, odometry::HeadingFilterParams)> {
+    let sensors = &world.file.sensors;
+    let h = &sensors[heading_sensor(world)?];
+    let g = sensors
+        .iter()
+        .position(|s| Some(&s.name) == h.gyro.as_ref())?;
+    let gyro = &sensors[g];
+    Some((
+        g,
+        odometry::HeadingFilterParams {
+            initial_yaw_std: START_YAW_STD,
+            ..odometry::HeadingFilterParams::new(gyro.noise_std, gyro.bias_walk_std, h.noise_std)
+        },
+    ))
+}
+
+/// 1σ of the start yaw the heading filter is given [rad] (0.6°): the run starts at the world's
+/// marked start pose, as the filters' `initial_std` assumes for the position.
+pub const START_YAW_STD: f64 = 0.01;
+
+/// Where the yaw comes from that the drive linearises about and that wheel odometry is turned
+/// into world-frame velocity with: the heading channel's reading, or its fusion with the gyro.
+#[derive(Debug, Clone)]
+pub struct HeadingSource {
+    channel: Option<usize>,
+    fusion: Option<(usize, odometry::HeadingFilter)>,
+}
+
+impl HeadingSource {
+    /// The source `world` declares; a heading filter starts at the world's start yaw.
+    pub fn new(world: &World) -> Self {
+        let start = world
+            .file
+            .robot
+            .as_ref()
+            .map_or(f64::NAN, |r| r.start.theta);
+        Self {
+            channel: heading_sensor(world),
+            fusion: heading_fusion(world)
+                .map(|(g, p)| (g, odometry::HeadingFilter::started_at(p, start))),
+        }
+    }
+
+    /// The yaw [rad] from this tick's samples as received (attacks included); NaN while there is
+    /// none. Without fusion it is the heading channel's current sample; with fusion the filter
+    /// integrates the gyro over `dt` and takes a fresh compass reading.
+    pub fn update(&mut self, samples: &[crate::sensors::Sample], dt: f64) -> f64 {
+        let Some(h) = self.channel else {
+            return f64::NAN;
+        };
+        match &mut self.fusion {
+            None => samples[h].value,
+            Some((g, filter)) => {
+                filter.predict(samples[*g].value, dt);
+                if samples[h].fresh {
+                    filter.correct(samples[h].value);
+                }
+                filter.yaw()
+            }
+        }
+    }
+
+    /// `true` when a heading channel's reading this tick is new (with fusion: every tick).
+    pub fn fresh(&self, samples: &[crate::sensors::Sample]) -> bool {
+        match (self.channel, &self.fusion) {
+            (Some(_), Some(_)) => true,
+            (Some(h), None) => samples[h].fresh,
+            (None, _) => false,
+        }
+    }
+}
+
 /// How a controller channel's value comes from its sensor's sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Conversion {
@@ -653,17 +731,78 @@ fn speed_conversion_variance(world: &World, si: usize) -> Result<f64, RunError> 
             "the conversion's variance needs a speed bound: give [linear] v_max".to_string(),
         ));
     };
+    let yaw_std = match heading_fusion(world) {
+        None => h.noise_std,
+        Some((_, params)) => {
+            let dt = world.control_dt();
+            let every = h
+                .rate_hz
+                .map_or(1, |r| (1.0 / (r * dt)).round().max(1.0) as usize);
+            let a_max = world
+                .file
+                .control
+                .input_limit
+                .map_or(f64::INFINITY, |u| std::f64::consts::SQRT_2 * u);
+            odometry::fused_yaw_variance(params, dt, every, world.file.duration, v_max, a_max)
+                .sqrt()
+        }
+    };
     Ok(odometry::world_velocity_variance(
-        s.noise_std,
+        speed_std(world, si),
         v_max,
-        h.noise_std,
+        yaw_std,
         h.bias,
         h.bias_walk_std,
         world.file.duration,
     ))
 }
 
-/// The world's fault patterns as controller channel indices.
+/// The noise σ [m/s] of a `speed` channel: its own, plus for one derived from wheel channels
+/// (`from_wheels`) the wheels' noise and quantisation carried through v = r(ω_l + ω_r)/2. A
+/// count-difference reading's error is the difference of two uniform rounding errors: variance
+/// q²/6 for the step q = 2π/(N·T_s).
+pub fn speed_std(world: &World, si: usize) -> f64 {
+    let sensors = &world.file.sensors;
+    let own = sensors[si].noise_std;
+    let (Some(pair), Some(robot)) = (
+        crate::sensors::wheel_sources(sensors, si),
+        world.robot.as_ref(),
+    ) else {
+        return own;
+    };
+    let r = robot.wheels.geometry.radius;
+    let dt = world.control_dt();
+    let wheel_var = |w: &crate::sensors::ChannelSpec| {
+        let quant = w.ticks_per_rev.map_or(0.0, |n| {
+            let period = w.rate_hz.map_or(dt, |hz| (1.0 / hz).max(dt));
+            (std::f64::consts::TAU / (f64::from(n) * period)).powi(2) / 6.0
+        });
+        w.noise_std * w.noise_std + quant
+    };
+    let var = own * own + 0.25 * r * r * pair.iter().map(|&w| wheel_var(&sensors[w])).sum::<f64>();
+    var.sqrt()
+}
+
+/// The sensors a sensor's readings flow into, itself included: a wheel channel into the odometry
+/// derived from it (`from_wheels`), the heading channel and its fused gyro into every `speed`
+/// channel turned into world-frame velocity with the yaw.
+pub fn sensor_dependents(world: &World, si: usize) -> Vec<usize> {
+    let sensors = &world.file.sensors;
+    let mut out = vec![si];
+    let heading = heading_sensor(world);
+    let gyro = heading_fusion(world).map(|(g, _)| g);
+    let feeds_yaw = Some(si) == heading || Some(si) == gyro;
+    for (d, s) in sensors.iter().enumerate() {
+        let from_wheel = crate::sensors::wheel_sources(sensors, d).is_some_and(|w| w.contains(&si));
+        if d != si && (from_wheel || (feeds_yaw && s.world_velocity)) {
+            out.push(d);
+        }
+    }
+    out
+}
+
+/// The world's fault patterns as controller channel indices: a sensor in a pattern takes along
+/// every controller channel its readings flow into ([`sensor_dependents`]).
 fn model_patterns(
     world: &World,
     channels_of_sensor: &[Vec<usize>],
@@ -671,23 +810,33 @@ fn model_patterns(
     let sensors = &world.file.sensors;
     let mut patterns = Vec::with_capacity(world.patterns.len());
     for (pi, p) in world.patterns.iter().enumerate() {
-        let mut mapped = Vec::with_capacity(p.len());
+        let mut mapped: Vec<usize> = Vec::with_capacity(p.len());
         for &si in p {
-            let chans = &channels_of_sensor[si];
-            if chans.is_empty() && sensors[si].measures != Quantity::Heading {
+            let dependents = sensor_dependents(world, si);
+            let feeds = dependents
+                .iter()
+                .any(|&d| !channels_of_sensor[d].is_empty());
+            if !feeds && sensors[si].measures != Quantity::Heading {
                 return Err(setup_err(
                     world,
                     &format!("fault_patterns[{pi}].channels"),
                     format!(
-                        "channel \"{}\" measures {}, which the controller's linear model does not use; \
+                        "channel \"{}\" measures {}, and nothing the controller's linear model uses is made from it; \
                          fault patterns may hold x, y, vx and vy channels, a speed channel with \
-                         `world_velocity = true`, and the heading channel those use",
+                         `world_velocity = true`, the wheel channels it is derived from (`from_wheels`), \
+                         and the heading channel and gyro those use",
                         sensors[si].name,
                         sensors[si].measures.as_str()
                     ),
                 ));
             }
-            mapped.extend(chans.iter().copied());
+            for d in dependents {
+                for &c in &channels_of_sensor[d] {
+                    if !mapped.contains(&c) {
+                        mapped.push(c);
+                    }
+                }
+            }
         }
         patterns.push(mapped);
     }

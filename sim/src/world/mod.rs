@@ -370,6 +370,22 @@ impl Validator<'_> {
         validate_attacks(&file.attacks, &file.sensors)
             .map_err(|e| self.err("attacks", e.to_string()))?;
         let measures = |q: Quantity| file.sensors.iter().any(|s| s.measures == q);
+        if file.dynamics == Dynamics::Linear {
+            if let Some((i, s)) = file
+                .sensors
+                .iter()
+                .enumerate()
+                .find(|(_, s)| s.measures.is_wheel() || s.from_wheels.is_some())
+            {
+                return Err(self.err(
+                    format!("sensors[{i}]"),
+                    format!(
+                        "channel \"{}\" reads the wheels, but dynamics = \"linear\" simulates eq. 6.2, which has none; use a [robot] (dynamics = \"rapier\") or another quantity",
+                        s.name
+                    ),
+                ));
+            }
+        }
         if file.dynamics == Dynamics::Rapier && !measures(Quantity::Heading) {
             return Err(self.err(
                 "sensors",
