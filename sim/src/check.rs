@@ -288,6 +288,20 @@ struct Findings {
     finite_horizon: bool,
 }
 
+impl Findings {
+    /// Records a hypothesis; a failing one's detail is also a reason of the verdict.
+    fn record(&mut self, name: String, status: Status, detail: String) {
+        if status == Status::Fails {
+            self.reasons.push(detail.clone());
+        }
+        self.hypotheses.push(Hypothesis {
+            name,
+            status,
+            detail,
+        });
+    }
+}
+
 /// Check `world` (see the module docs).
 pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     let f = &world.file;
@@ -512,15 +526,10 @@ fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) 
                         .join(", "),
                     s.name
                 );
-                found.reasons.push(d.clone());
                 (Status::Fails, d)
             }
         };
-        found.hypotheses.push(Hypothesis {
-            name,
-            status,
-            detail,
-        });
+        found.record(name, status, detail);
     }
 }
 
@@ -560,17 +569,14 @@ fn check_drive_heading(world: &World, names: &Names, found: &mut Findings) {
             .map(|&(si, p)| format!("{} is in {}", names.sensors[si], names.patterns[p]))
             .collect::<Vec<_>>()
             .join(", ");
-        let d = format!(
-            "{list}: the drive turns u into wheel speeds about this heading, outside every filter, so a fault there misapplies u, which the theorem (u applied as computed) does not cover; malformed readings are dead-reckoned over, a finite lie is not"
-        );
-        found.reasons.push(d.clone());
-        (Status::Fails, d)
+        (
+            Status::Fails,
+            format!(
+                "{list}: the drive turns u into wheel speeds about this heading, outside every filter, so a fault there misapplies u, which the theorem (u applied as computed) does not cover; malformed readings are dead-reckoned over, a finite lie is not"
+            ),
+        )
     };
-    found.hypotheses.push(Hypothesis {
-        name,
-        status,
-        detail,
-    });
+    found.record(name, status, detail);
 }
 
 /// 1. Disjoint fault patterns (§3.1); names the last overlap found.

@@ -351,8 +351,10 @@ impl<'w> Simulation<'w> {
         // channel with `world_velocity` is turned into world-frame velocity with it; a missing
         // heading makes it NaN, which the controller rejects as a malformed reading.
         // A heading outside [−π, π] (non-finite, absurd) is malformed: the odometry made with it
-        // is NaN (the controller rejects it), and the drive dead-reckons its heading with the yaw
-        // rate it executed last step instead of holding a stale one while the robot turns.
+        // is NaN (the controller rejects it). Without a fresh, well-formed heading (malformed,
+        // between a slow compass's samples, or denied) the drive dead-reckons its heading with
+        // the yaw rate it executed last step instead of holding a stale one while the robot
+        // turns.
         let theta = self.heading_source.update(samples, self.control_dt);
         let theta = if ftcbf_controller::odometry::valid_yaw(theta) {
             theta
@@ -363,9 +365,9 @@ impl<'w> Simulation<'w> {
             self.y[c] = self.setup.conversion[c].apply(samples[si].value, theta);
             self.fresh[c] = samples[si].fresh;
         }
-        if theta.is_nan() {
+        if theta.is_nan() || !self.heading_source.fresh(samples) {
             self.heading = wrap_angle(self.heading + self.view.body_cmd[1] * self.control_dt);
-        } else if self.heading_source.fresh(samples) {
+        } else {
             self.heading = theta;
         }
         self.view.received(samples, map, bank);
