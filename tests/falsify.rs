@@ -132,6 +132,35 @@ fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
     assert_eq!(v["methods"][1]["method"], "random");
     // Same run count for both methods.
     assert_eq!(v["methods"][0]["runs"], v["methods"][1]["runs"]);
+    // The paired comparison plays both best attacks on the same held-out seeds and counts, seed
+    // by seed, which is worse; the counts match the finalists' runs.
+    let best_runs = |m: usize| -> Vec<(u64, f64)> {
+        v["methods"][m]["finalists"][0]["runs"]
+            .as_array()
+            .expect("runs")
+            .iter()
+            .map(|r| {
+                (
+                    r["seed"].as_u64().expect("seed"),
+                    r["robustness"]["value"].as_f64().expect("rho"),
+                )
+            })
+            .collect()
+    };
+    let (a, b) = (best_runs(0), best_runs(1));
+    let cem_worse = a
+        .iter()
+        .zip(&b)
+        .filter(|((sa, ra), (sb, rb))| sa == sb && ra < rb)
+        .count();
+    let paired = &v["paired"];
+    assert_eq!(paired["seeds"].as_u64(), Some(a.len() as u64), "{paired}");
+    assert_eq!(
+        paired["cem_worse"].as_u64(),
+        Some(cem_worse as u64),
+        "{paired}"
+    );
+    assert!(out1.contains("best attacks, paired on the"), "{out1}");
     let patterns: Vec<Vec<String>> = v["patterns"]
         .as_array()
         .expect("patterns")

@@ -61,7 +61,8 @@ pub struct Plan {
     pub local: usize,
     /// First generation with local refinement.
     pub local_from: usize,
-    /// Candidates of each later generation that the CEM draws uniformly (exploration).
+    /// Candidates of each later generation that the CEM draws for exploration: uniform parameters
+    /// in the least-tried (pattern, kind) cell.
     pub explore: usize,
     /// Best searched candidates re-run on held-out seeds.
     pub finalists: usize,
@@ -103,7 +104,7 @@ impl Plan {
             carry: (population / 8).max(1),
             local: population / 4,
             local_from: generations - (generations - 1).div_ceil(3),
-            explore: population / 4,
+            explore: population / 2,
             finalists,
             final_seeds,
             runs: candidates * seeds_per_candidate + finalists * final_seeds,
@@ -454,6 +455,8 @@ struct Proposer<'a> {
     dist: Sampler,
     /// The previous generation's candidates, worst for the controller first.
     ranked: Vec<Candidate>,
+    /// Candidates proposed so far per (pattern, kind) cell, `pattern · KINDS.len() + kind`.
+    visits: Vec<usize>,
 }
 
 impl<'a> Proposer<'a> {
@@ -466,6 +469,31 @@ impl<'a> Proposer<'a> {
             own: stream(seed, Method::Cem),
             dist: Sampler::new(space.patterns.len(), space.dim),
             ranked: Vec::new(),
+            visits: vec![0; space.patterns.len() * KINDS.len()],
+        }
+    }
+
+    /// An exploration candidate: uniform z in the (pattern, kind) cell proposed least so far
+    /// (ties broken at random). A rare cell — one kind on one pattern is 1/36 of a three-pattern
+    /// world — is then tried within a few generations, where uniform draws may miss it for the
+    /// whole budget.
+    fn explore(&mut self) -> Candidate {
+        let least = self.visits.iter().copied().min().unwrap_or(0);
+        let cells: Vec<usize> = (0..self.visits.len())
+            .filter(|&i| self.visits[i] == least)
+            .collect();
+        let cell = cells[self.own.random_range(0..cells.len())];
+        let mut c = uniform(self.space, &mut self.own);
+        c.pattern = cell / KINDS.len();
+        c.kind = KINDS[cell % KINDS.len()];
+        c
+    }
+
+    fn count(&mut self, cs: &[Candidate]) {
+        for c in cs {
+            if let Some(v) = self.visits.get_mut(c.pattern * KINDS.len() + kind_index(c)) {
+                *v += 1;
+            }
         }
     }
 
@@ -473,9 +501,11 @@ impl<'a> Proposer<'a> {
     fn propose(&mut self, g: usize) -> Vec<Candidate> {
         let n = self.plan.generation_size(g);
         if g == 0 || self.method == Method::Random {
-            return (0..n)
+            let out: Vec<Candidate> = (0..n)
                 .map(|_| uniform(self.space, &mut self.shared))
                 .collect();
+            self.count(&out);
+            return out;
         }
         // Elitism: the previous generation's best, re-run on this generation's seeds.
         let mut out: Vec<Candidate> = Vec::with_capacity(n);
@@ -496,15 +526,20 @@ impl<'a> Proposer<'a> {
                 }
             }
         }
-        // Exploration: a quarter of each later generation stays uniform, so the CEM keeps
-        // sampling the whole space the way random search does while its distribution narrows.
+        // Exploration: half of each later generation samples the whole space while the
+        // distribution narrows, the least-tried (pattern, kind) cells first.
+        self.count(&out);
         let explore = self.plan.explore.min(n - out.len());
         for _ in 0..explore {
-            out.push(uniform(self.space, &mut self.own));
+            let c = self.explore();
+            self.count(std::slice::from_ref(&c));
+            out.push(c);
         }
+        let sampled = out.len();
         while out.len() < n {
             out.push(self.dist.sample(&mut self.own));
         }
+        self.count(&out[sampled..]);
         out
     }
 
@@ -839,6 +874,29 @@ mod tests {
         .expect("search")
     }
 
+    /// The CEM's exploration tries every (pattern, kind) cell within the budget: a catastrophic
+    /// attack that lives in one rare cell (one kind on one of three patterns) cannot be missed
+    /// for lack of a draw, which uniform sampling of the same number of candidates risks.
+    #[test]
+    fn exploration_tries_every_pattern_and_kind() {
+        let plan = Plan::new(400).expect("plan");
+        let sp = space(3);
+        for seed in 1..=5 {
+            let cem = evaluations(Method::Cem, &plan, &sp, seed);
+            let mut cells: Vec<(usize, Kind)> = cem
+                .iter()
+                .map(|e| (e.candidate.pattern, e.candidate.kind))
+                .collect();
+            cells.sort_by_key(|(p, k)| (*p, kind_index_of(*k)));
+            cells.dedup();
+            assert_eq!(cells.len(), 3 * KINDS.len(), "seed {seed}: {cells:?}");
+        }
+    }
+
+    fn kind_index_of(k: Kind) -> usize {
+        KINDS.iter().position(|x| *x == k).unwrap_or(0)
+    }
+
     fn worst(e: &[Evaluation]) -> f64 {
         e.iter()
             .flat_map(|e| &e.runs)
@@ -912,7 +970,9 @@ mod tests {
         let sp = space(2);
         // A deceptive objective: the best arm is 1 of 24 and its average is worse than the
         // others'. Random search can still get lucky on a seed (seed 4 here: 0.090 vs 0.111),
-        // so the test asks for most seeds and a clearly lower average.
+        // so the test asks for most seeds and a clearly lower average. This narrow optimum
+        // rewards exploitation; half of every generation now explores (the catalogue rewards
+        // that), which moved the CEM's sum from below half of random search's to 0.63 of it.
         let (mut better, mut sum_c, mut sum_r) = (0, 0.0, 0.0);
         for seed in 0..10 {
             let c = worst(&evaluations(Method::Cem, &plan, &sp, seed));
@@ -922,7 +982,7 @@ mod tests {
             sum_r += r;
         }
         assert!(better >= 8, "CEM strictly better on {better}/10");
-        assert!(sum_c < 0.5 * sum_r, "CEM {sum_c} vs random {sum_r}");
+        assert!(sum_c < 0.7 * sum_r, "CEM {sum_c} vs random {sum_r}");
     }
 
     #[test]
