@@ -6,28 +6,28 @@
 //! the fault vector `a_t` of eq. 3.2 — but unlike the thesis' assumption they may also touch channels
 //! outside any declared fault pattern ([`AttackStack::outside_fault_patterns`] tells which do).
 //!
-//! # Kinds (TOML `kind = "…"`, kind-specific keys in brackets)
-//! * `bias` [`value`]: adds a constant (the thesis' `+1` on y₄).
-//! * `ramp` / `drift` [`rate`, optional `cap`]: adds `rate·(t − start)`, clamped to `±cap`.
-//! * `sinusoid` [`amplitude`, `frequency_hz`, `phase` = 0]: adds `amplitude·sin(2π·f·(t − start) + phase)`.
-//! * `freeze` / `stuck_at` [optional `value`]: the reading is held at `value`, or at the last
+//! # Kinds (TOML `kind = "…"`, kind-specific keys in parentheses)
+//! * `bias` (keys: `value`): adds a constant (the thesis' `+1` on y₄).
+//! * `ramp` / `drift` (keys: `rate`, optional `cap`): adds `rate·(t − start)`, clamped to `±cap`.
+//! * `sinusoid` (keys: `amplitude`, `frequency_hz`, `phase` = 0): adds `amplitude·sin(2π·f·(t − start) + phase)`.
+//! * `freeze` / `stuck_at` (keys: optional `value`): the reading is held at `value`, or at the last
 //!   reading the injector saw before `start` (the first reading in the window if there is none);
 //!   the channel keeps reporting at its rate (`fresh`, `age` untouched).
-//! * `replay` [`record_start`, `length`]: records the readings (value, fresh, age) of the ticks in
+//! * `replay` (keys: `record_start`, `length`): records the readings (value, fresh, age) of the ticks in
 //!   `[record_start, record_start + length)` and plays them back, one per tick, from `start`,
 //!   bit for bit, cycling if the window is longer than the recording. The recording must end at or
 //!   before `start`. If nothing was recorded (no tick fell in the recording window), readings pass
 //!   through unchanged.
-//! * `dropout` / `denial_of_service` []: no new samples reach the controller: `fresh = false`, the
+//! * `dropout` / `denial_of_service` (no keys): no new samples reach the controller: `fresh = false`, the
 //!   last delivered value is held and its age keeps growing (`NaN`/`+∞` if none was ever delivered).
-//! * `scale` [`factor`]: multiplies the reading.
-//! * `spikes` [`probability`, `magnitude`]: each sample is, with `probability`, offset by
+//! * `scale` (keys: `factor`): multiplies the reading.
+//! * `spikes` (keys: `probability`, `magnitude`): each sample is, with `probability`, offset by
 //!   `±magnitude` (sign equally likely); seeded, one stream per (attack, channel).
-//! * `non_finite` [`value` = `"nan"` | `"inf"` | `"-inf"`]: the reading is replaced.
-//! * `absurd` [`value` = 1e12]: the reading is replaced by a finite but absurd number.
-//! * `stealthy` [`max_rate`, `threshold`, `direction` = `"positive"`, optional `max_bias`]: a bias that
+//! * `non_finite` (keys: `value` = `"nan"` | `"inf"` | `"-inf"`): the reading is replaced.
+//! * `absurd` (keys: `value` = 1e12): the reading is replaced by a finite but absurd number.
+//! * `stealthy` (keys: `max_rate`, `threshold`, `direction` = `"positive"`, optional `max_bias`): a bias that
 //!   grows as fast as the defender's detector allows; see below.
-//! * `coordinated` [`velocity` (one per channel), optional `cap`]: the channels (e.g. both axes of
+//! * `coordinated` (keys: `velocity` (one per channel), optional `cap`): the channels (e.g. both axes of
 //!   one GNSS) are spoofed consistently along a path: offset vector `o(t) = velocity·(t − start)`,
 //!   scaled down to Euclidean norm `cap` if longer; channel `i` gets `o_i`.
 //!
