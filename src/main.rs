@@ -329,12 +329,13 @@ fn print_summary(s: &RunSummary) {
     let fc = &s.fail_closed;
     if fc.any() {
         println!(
-            "  fail-closed: {} step(s) with non-finite constraint rows · {} unusable reading(s) · {} step(s) where Step 2 kept the last barrier · {} step(s) where Step 3 kept a saturated estimator · {} braking step(s)",
+            "  fail-closed: {} step(s) with non-finite constraint rows · {} unusable reading(s) · {} step(s) where Step 2 kept the last barrier · {} step(s) where Step 3 kept a saturated estimator · {} braking step(s) · {} refused heading reading(s)",
             fc.non_finite_row_steps,
             fc.skipped_updates,
             fc.step2_retained_steps,
             fc.step3_saturated_steps,
-            fc.brake_steps
+            fc.brake_steps,
+            fc.refused_headings
         );
     }
     for w in &s.attack_windows {

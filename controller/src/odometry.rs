@@ -66,6 +66,32 @@ fn wrap(a: f64) -> f64 {
     }
 }
 
+/// Flags a stuck sensor: a sensor with noise never repeats a reading bit for bit, so a fresh
+/// reading equal to the previous one is a driver republishing its last message (or a `freeze`
+/// attack). For a noise-free sensor nothing is flagged.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RepeatDetector {
+    noisy: bool,
+    last: u64,
+}
+
+impl RepeatDetector {
+    /// A detector for a sensor with noise σ `noise_std` (> 0: repeats are flagged).
+    pub fn new(noise_std: f64) -> Self {
+        Self {
+            noisy: noise_std > 0.0,
+            last: f64::NAN.to_bits(),
+        }
+    }
+
+    /// `true` when the fresh `reading` repeats the previous fresh one bit for bit.
+    pub fn is_repeat(&mut self, reading: f64) -> bool {
+        let repeated = self.noisy && reading.to_bits() == self.last;
+        self.last = reading.to_bits();
+        repeated
+    }
+}
+
 /// Noise figures of a [`HeadingFilter`], from the sensors' data sheets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeadingFilterParams {
@@ -83,11 +109,16 @@ pub struct HeadingFilterParams {
     /// 1σ of the start yaw given to [`HeadingFilter::started_at`] [rad] (a marked start pose);
     /// ∞ when the start is unknown and the first compass reading starts the filter.
     pub initial_yaw_std: f64,
+    /// Innovation gate [σ]: a compass reading further than this many standard deviations of the
+    /// innovation from the gyro-propagated yaw is rejected (a frozen or jumping compass while the
+    /// gyro sees the robot turn). The gate widens by itself while readings are rejected, since
+    /// the yaw variance keeps growing with the gyro's noise and bias uncertainty.
+    pub gate_sigma: f64,
 }
 
 impl HeadingFilterParams {
-    /// Parameters with a 0.01 rad/s bias prior, a 34.9 rad/s (2000 °/s) gyro range and an
-    /// unknown start yaw.
+    /// Parameters with a 0.01 rad/s bias prior, a 34.9 rad/s (2000 °/s) gyro range, an unknown
+    /// start yaw and a 5σ innovation gate.
     pub fn new(gyro_std: f64, gyro_bias_walk: f64, compass_std: f64) -> Self {
         Self {
             gyro_std,
@@ -96,6 +127,7 @@ impl HeadingFilterParams {
             compass_std,
             gyro_range: 34.9,
             initial_yaw_std: f64::INFINITY,
+            gate_sigma: 5.0,
         }
     }
 }
@@ -111,6 +143,9 @@ pub struct HeadingFilter {
     bias: f64,
     /// Covariance [[P_θθ, P_θb], [P_θb, P_bb]].
     p: [f64; 3],
+    /// Compass readings rejected (repeats of the last one, or outside the innovation gate).
+    rejected: u64,
+    repeats: RepeatDetector,
 }
 
 impl HeadingFilter {
@@ -121,6 +156,8 @@ impl HeadingFilter {
             yaw: f64::NAN,
             bias: 0.0,
             p: [f64::INFINITY, 0.0, params.gyro_bias_prior.powi(2)],
+            rejected: 0,
+            repeats: RepeatDetector::new(params.compass_std),
         }
     }
 
@@ -157,10 +194,15 @@ impl HeadingFilter {
         }
     }
 
-    /// Corrects with one compass reading `yaw` [rad]; a reading outside [−π, π] (non-finite,
-    /// absurd) is malformed and skipped.
+    /// Corrects with one fresh compass reading `yaw` [rad]. Skipped: a reading outside [−π, π]
+    /// (non-finite, absurd), one that repeats the previous reading bit for bit while the compass
+    /// has noise (stuck: [`RepeatDetector`]), and one outside the innovation gate.
     pub fn correct(&mut self, yaw: f64) {
         if !valid_yaw(yaw) {
+            return;
+        }
+        if self.repeats.is_repeat(yaw) {
+            self.rejected += 1;
             return;
         }
         let r = self.params.compass_std.powi(2);
@@ -174,8 +216,12 @@ impl HeadingFilter {
         if s.is_nan() || s <= 0.0 {
             return;
         }
-        let (k0, k1) = (a / s, b / s);
         let innovation = wrap(yaw - self.yaw);
+        if innovation * innovation > self.params.gate_sigma.powi(2) * s {
+            self.rejected += 1;
+            return;
+        }
+        let (k0, k1) = (a / s, b / s);
         self.yaw = wrap(self.yaw + k0 * innovation);
         self.bias += k1 * innovation;
         // P ← (I − K H) P with H = [1, 0].
@@ -196,6 +242,11 @@ impl HeadingFilter {
     pub fn gyro_bias(&self) -> f64 {
         self.bias
     }
+
+    /// Compass readings rejected so far (stuck repeats and innovation-gate rejections).
+    pub fn rejected(&self) -> u64 {
+        self.rejected
+    }
 }
 
 /// The yaw variance [rad²] to put into [`world_velocity_variance`] (as σ_θ², with the compass's
@@ -214,6 +265,9 @@ pub fn fused_yaw_variance(
     a_max: f64,
 ) -> f64 {
     let mut f = HeadingFilter::started_at(params, 0.0);
+    // The covariance does not depend on the readings; the same reading every time must not count
+    // as a stuck compass here.
+    f.repeats = RepeatDetector::new(0.0);
     let steps = (horizon / dt).ceil().max(1.0) as usize;
     let every = compass_every.max(1);
     let mut worst: f64 = 0.0;
@@ -307,6 +361,50 @@ mod tests {
         f.correct(f64::INFINITY);
         f.correct(1e12);
         assert_eq!(f, before);
+    }
+
+    /// A compass that freezes (repeats its reading) while the gyro sees the robot turn is
+    /// refused as stuck, and one that jumps by 1 rad (a bias switched on) is gated out: the yaw
+    /// follows the gyro. Without both, the frozen reading drags the yaw back (the filter explains
+    /// the turn by a gyro bias) and the jump is taken in.
+    #[test]
+    fn stuck_and_jumping_compasses_are_refused() {
+        let params = HeadingFilterParams {
+            initial_yaw_std: 0.01,
+            ..HeadingFilterParams::new(0.01, 0.0005, 0.02)
+        };
+        let run = |p: HeadingFilterParams, lie: &dyn Fn(usize, f64) -> f64| {
+            let mut f = HeadingFilter::started_at(p, 0.0);
+            let (dt, mut theta) = (0.02, 0.0);
+            for k in 1..=500 {
+                theta += 0.3 * dt;
+                f.predict(0.3, dt);
+                // Honest readings carry a small deterministic noise pattern.
+                let noise = 0.01 * ((k * 7919 % 13) as f64 / 6.0 - 1.0);
+                f.correct(lie(k, theta + noise));
+            }
+            (wrap(f.yaw() - theta).abs(), f.rejected())
+        };
+        let frozen = |k: usize, honest: f64| if k < 10 { honest } else { 0.054 };
+        let jump = |k: usize, honest: f64| if k < 100 { honest } else { wrap(honest + 1.0) };
+        let (err, rejected) = run(params, &frozen);
+        assert!(
+            err < 0.02 && rejected > 480,
+            "frozen: error {err} rad, {rejected} refused"
+        );
+        let (err, rejected) = run(params, &jump);
+        assert!(
+            err < 0.02 && rejected > 390,
+            "jump: error {err} rad, {rejected} refused"
+        );
+        // Without the checks (a noise-free compass declared, no gate) both drag the yaw off.
+        let bare = HeadingFilterParams {
+            compass_std: 0.0,
+            gate_sigma: f64::INFINITY,
+            ..params
+        };
+        assert!(run(bare, &frozen).0 > 0.5);
+        assert!(run(bare, &jump).0 > 0.5);
     }
 
     #[test]

@@ -65,6 +65,11 @@ pub struct FailClosedCounts {
     /// input box cannot meet (the fallback then weighed every estimator still kept).
     #[serde(default)]
     pub step3_saturated_steps: u64,
+    /// Heading readings the robot's heading source refused: a noisy compass repeating its last
+    /// reading bit for bit (stuck), or, with gyro fusion, a reading outside the innovation gate.
+    /// The drive dead-reckons over them.
+    #[serde(default)]
+    pub refused_headings: u64,
 }
 
 impl FailClosedCounts {

@@ -365,7 +365,8 @@ impl<'w> Simulation<'w> {
             self.y[c] = self.setup.conversion[c].apply(samples[si].value, theta);
             self.fresh[c] = samples[si].fresh;
         }
-        if theta.is_nan() || !self.heading_source.fresh(samples) {
+        self.fail_closed.refused_headings = self.heading_source.refused_readings();
+        if theta.is_nan() || !self.heading_source.fresh() {
             self.heading = wrap_angle(self.heading + self.view.body_cmd[1] * self.control_dt);
         } else {
             self.heading = theta;

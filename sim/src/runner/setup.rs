@@ -568,6 +568,13 @@ pub const START_YAW_STD: f64 = 0.01;
 pub struct HeadingSource {
     channel: Option<usize>,
     fusion: Option<(usize, odometry::HeadingFilter)>,
+    /// A fresh reading of a noisy heading channel that repeats the last one bit for bit is a
+    /// stuck sensor (a driver republishing its last message, a `freeze` attack).
+    repeats: odometry::RepeatDetector,
+    /// Whether this tick brought a new, unrepeated reading.
+    new_reading: bool,
+    /// Fresh readings refused as repeats.
+    stuck: u64,
 }
 
 impl HeadingSource {
@@ -578,11 +585,23 @@ impl HeadingSource {
             .robot
             .as_ref()
             .map_or(f64::NAN, |r| r.start.theta);
+        let channel = heading_sensor(world);
         Self {
-            channel: heading_sensor(world),
+            channel,
             fusion: heading_fusion(world)
                 .map(|(g, p)| (g, odometry::HeadingFilter::started_at(p, start))),
+            repeats: odometry::RepeatDetector::new(
+                channel.map_or(0.0, |h| world.file.sensors[h].noise_std),
+            ),
+            new_reading: false,
+            stuck: 0,
         }
+    }
+
+    /// Fresh heading readings refused so far: repeats of the previous one bit for bit (a noisy
+    /// channel), and with fusion also readings outside the filter's innovation gate.
+    pub fn refused_readings(&self) -> u64 {
+        self.stuck + self.fusion.as_ref().map_or(0, |(_, f)| f.rejected())
     }
 
     /// The yaw [rad] from this tick's samples as received (attacks included); NaN while there is
@@ -592,23 +611,32 @@ impl HeadingSource {
         let Some(h) = self.channel else {
             return f64::NAN;
         };
+        let s = samples[h];
         match &mut self.fusion {
-            None => samples[h].value,
+            None => {
+                let repeated = s.fresh && self.repeats.is_repeat(s.value);
+                self.stuck += u64::from(repeated);
+                self.new_reading = s.fresh && !repeated;
+                s.value
+            }
+            // The filter refuses repeats itself (and gates jumps against the gyro).
             Some((g, filter)) => {
                 filter.predict(samples[*g].value, dt);
-                if samples[h].fresh {
-                    filter.correct(samples[h].value);
+                if s.fresh {
+                    filter.correct(s.value);
                 }
+                self.new_reading = true;
                 filter.yaw()
             }
         }
     }
 
-    /// `true` when a heading channel's reading this tick is new (with fusion: every tick).
-    pub fn fresh(&self, samples: &[crate::sensors::Sample]) -> bool {
+    /// `true` when this tick's heading is new (with fusion: every tick; without, a fresh reading
+    /// that does not repeat the last one of a noisy channel). Call after [`HeadingSource::update`].
+    pub fn fresh(&self) -> bool {
         match (self.channel, &self.fusion) {
             (Some(_), Some(_)) => true,
-            (Some(h), None) => samples[h].fresh,
+            (Some(_), None) => self.new_reading,
             (None, _) => false,
         }
     }
