@@ -20,8 +20,8 @@ use std::sync::Arc;
 use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::drive::{Compensator, CompensatorConfig, LowSpeedLaw};
 use ftcbf_controller::odometry::{
-    body_speed_to_world_velocity, fused_yaw_variance, world_velocity_variance, yaw_from_quaternion,
-    HeadingFilter, HeadingFilterParams,
+    body_speed_to_world_velocity, fused_yaw_variance, world_velocity_variance, wrap_angle,
+    yaw_from_quaternion, HeadingFilter, HeadingFilterParams,
 };
 use ftcbf_controller::params::{BoundMethod, FtParameters};
 use ftcbf_controller::{
@@ -131,7 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         yaw_filter.correct(yaw_from_quaternion(0.0, 0.0, qz, qw));
         let yaw = yaw_filter.yaw();
-        let err = (yaw - yaw_true + PI).rem_euclid(2.0 * PI) - PI;
+        let err = wrap_angle(yaw - yaw_true);
         worst_yaw_error = worst_yaw_error.max(err.abs());
         let [vx, vy] = body_speed_to_world_velocity(v, yaw);
         let spoof = if t >= 1.0 { 0.3 } else { 0.0 };

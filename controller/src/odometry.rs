@@ -56,11 +56,15 @@ pub fn valid_yaw(yaw: f64) -> bool {
     yaw.abs() <= std::f64::consts::PI + 1e-9
 }
 
-/// Wraps an angle to (−π, π].
-fn wrap(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w <= -std::f64::consts::PI {
-        w + std::f64::consts::TAU
+/// Wraps an angle to (−π, π]. Non-finite input is returned unchanged.
+pub fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if !a.is_finite() {
+        return a;
+    }
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    if w <= -PI {
+        w + TAU
     } else {
         w
     }
@@ -166,7 +170,7 @@ impl HeadingFilter {
     pub fn started_at(params: HeadingFilterParams, yaw: f64) -> Self {
         let mut f = Self::new(params);
         if params.initial_yaw_std.is_finite() && yaw.is_finite() {
-            f.yaw = wrap(yaw);
+            f.yaw = wrap_angle(yaw);
             f.p[0] = params.initial_yaw_std.powi(2);
         }
         f
@@ -178,12 +182,19 @@ impl HeadingFilter {
         if !(gyro.is_finite() && gyro.abs() <= self.params.gyro_range && dt > 0.0) {
             return;
         }
+        if self.yaw.is_finite() {
+            self.yaw = wrap_angle(self.yaw + (gyro - self.bias) * dt);
+        }
+        self.predict_covariance(dt);
+    }
+
+    /// P ← F P Fᵀ + Q with F = [[1, −dt], [0, 1]]; before the first compass reading only the
+    /// bias variance grows. It does not depend on the readings.
+    fn predict_covariance(&mut self, dt: f64) {
         let q_theta = (self.params.gyro_std * dt).powi(2);
         let q_bias = self.params.gyro_bias_walk.powi(2) * dt;
         let [a, b, c] = self.p;
         if self.yaw.is_finite() {
-            self.yaw = wrap(self.yaw + (gyro - self.bias) * dt);
-            // F = [[1, −dt], [0, 1]]: P ← F P Fᵀ + Q.
             self.p = [
                 a - 2.0 * dt * b + dt * dt * c + q_theta,
                 b - dt * c,
@@ -201,13 +212,26 @@ impl HeadingFilter {
         if !valid_yaw(yaw) {
             return;
         }
-        if self.repeats.is_repeat(yaw) {
+        if self.repeats.is_repeat(yaw) || self.outside_gate(yaw) {
             self.rejected += 1;
             return;
         }
+        self.update(yaw);
+    }
+
+    /// `true` when `yaw` lies more than `gate_sigma` innovation standard deviations from the
+    /// propagated yaw (never before the first reading).
+    fn outside_gate(&self, yaw: f64) -> bool {
+        let s = self.p[0] + self.params.compass_std.powi(2);
+        let innovation = wrap_angle(yaw - self.yaw);
+        self.yaw.is_finite() && innovation * innovation > self.params.gate_sigma.powi(2) * s
+    }
+
+    /// The Kalman update with a compass reading (the first one starts the yaw).
+    fn update(&mut self, yaw: f64) {
         let r = self.params.compass_std.powi(2);
         if !self.yaw.is_finite() {
-            self.yaw = wrap(yaw);
+            self.yaw = wrap_angle(yaw);
             self.p = [r, 0.0, self.p[2]];
             return;
         }
@@ -216,13 +240,9 @@ impl HeadingFilter {
         if s.is_nan() || s <= 0.0 {
             return;
         }
-        let innovation = wrap(yaw - self.yaw);
-        if innovation * innovation > self.params.gate_sigma.powi(2) * s {
-            self.rejected += 1;
-            return;
-        }
+        let innovation = wrap_angle(yaw - self.yaw);
         let (k0, k1) = (a / s, b / s);
-        self.yaw = wrap(self.yaw + k0 * innovation);
+        self.yaw = wrap_angle(self.yaw + k0 * innovation);
         self.bias += k1 * innovation;
         // P ← (I − K H) P with H = [1, 0].
         self.p = [(1.0 - k0) * a, (1.0 - k0) * b, c - k1 * b];
@@ -264,19 +284,18 @@ pub fn fused_yaw_variance(
     v_max: f64,
     a_max: f64,
 ) -> f64 {
+    // The covariance does not depend on the readings: run its recursion alone (a zero
+    // innovation keeps the yaw at 0).
     let mut f = HeadingFilter::started_at(params, 0.0);
-    // The covariance does not depend on the readings; the same reading every time must not count
-    // as a stuck compass here.
-    f.repeats = RepeatDetector::new(0.0);
     let steps = (horizon / dt).ceil().max(1.0) as usize;
     let every = compass_every.max(1);
     let mut worst: f64 = 0.0;
     for k in 0..steps {
         if k > 0 {
-            f.predict(0.0, dt);
+            f.predict_covariance(dt);
         }
         if k % every == 0 {
-            f.correct(0.0);
+            f.update(0.0);
         }
         let t = k as f64 * dt;
         let share = if v_max > 0.0 {
@@ -333,12 +352,12 @@ mod tests {
         let (mut theta, mut sq, mut n) = (0.3, 0.0, 0);
         for k in 0..3000 {
             if k > 0 {
-                theta = wrap(theta + 0.5 * dt);
+                theta = wrap_angle(theta + 0.5 * dt);
                 f.predict(0.5 + 0.02 + 0.01 * gauss(), dt);
             }
             f.correct(theta + 0.1 * gauss());
             if k >= 1500 {
-                sq += wrap(f.yaw() - theta).powi(2);
+                sq += wrap_angle(f.yaw() - theta).powi(2);
                 n += 1;
             }
         }
@@ -383,10 +402,16 @@ mod tests {
                 let noise = 0.01 * ((k * 7919 % 13) as f64 / 6.0 - 1.0);
                 f.correct(lie(k, theta + noise));
             }
-            (wrap(f.yaw() - theta).abs(), f.rejected())
+            (wrap_angle(f.yaw() - theta).abs(), f.rejected())
         };
         let frozen = |k: usize, honest: f64| if k < 10 { honest } else { 0.054 };
-        let jump = |k: usize, honest: f64| if k < 100 { honest } else { wrap(honest + 1.0) };
+        let jump = |k: usize, honest: f64| {
+            if k < 100 {
+                honest
+            } else {
+                wrap_angle(honest + 1.0)
+            }
+        };
         let (err, rejected) = run(params, &frozen);
         assert!(
             err < 0.02 && rejected > 480,

@@ -488,7 +488,6 @@ fn check_converted_odometry(world: &World, names: &Names, found: &mut Findings) 
             s.name, f.sensors[h].name
         );
         let mut held: Vec<usize> = sources.iter().filter_map(|&o| pattern_of(o)).collect();
-        held.dedup();
         held.sort_unstable();
         held.dedup();
         let trusted = list(&|o| pattern_of(o).is_none());

@@ -41,13 +41,14 @@
 //! measurement-noise sequence of the channel unchanged.
 
 use std::collections::HashMap;
-use std::f64::consts::PI;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha20Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+
+pub use ftcbf_controller::odometry::wrap_angle;
 
 use crate::robot::WheelGeometry;
 use crate::state::TruthState;
@@ -857,17 +858,4 @@ fn encoder_speed(
     };
     *count = Some((now, k));
     value
-}
-
-/// Wraps an angle to (−π, π]. Non-finite input is returned unchanged.
-pub fn wrap_angle(a: f64) -> f64 {
-    if !a.is_finite() {
-        return a;
-    }
-    let w = (a + PI).rem_euclid(2.0 * PI) - PI;
-    if w <= -PI {
-        w + 2.0 * PI
-    } else {
-        w
-    }
 }
