@@ -45,7 +45,7 @@ use ftcbf_controller::Input;
 
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
-use crate::sensors::{wrap_angle, SensorSuite};
+use crate::sensors::SensorSuite;
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
@@ -165,7 +165,6 @@ pub struct Simulation<'w> {
     law: Box<dyn ControlLaw>,
     plant: Plant,
     heading_source: setup::HeadingSource,
-    heading: f64,
     filters: Vec<String>,
     windows: Vec<(String, f64, Option<f64>)>,
     attack_windows: Vec<AttackWindow>,
@@ -242,7 +241,7 @@ impl<'w> Simulation<'w> {
     ) -> Self {
         let file = &world.file;
         let control_dt = world.control_dt();
-        let heading_source = setup::HeadingSource::new(world);
+        let heading_source = setup::HeadingSource::new(world, plant.truth().theta);
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
@@ -261,7 +260,6 @@ impl<'w> Simulation<'w> {
             control_dt,
             n_steps: (duration / control_dt).round().max(1.0) as u64,
             k: 0,
-            heading: plant.truth().theta,
             setup,
             suite,
             attacks,
@@ -348,28 +346,14 @@ impl<'w> Simulation<'w> {
         self.attacks.apply(t, samples, &detector);
         let samples = self.suite.propagate_attacks();
         // The heading as received (attacks included), or its fusion with the gyro: a `speed`
-        // channel with `world_velocity` is turned into world-frame velocity with it; a missing
-        // heading makes it NaN, which the controller rejects as a malformed reading.
-        // A heading outside [−π, π] (non-finite, absurd) is malformed: the odometry made with it
-        // is NaN (the controller rejects it). Without a fresh, well-formed heading (malformed,
-        // between a slow compass's samples, or denied) the drive dead-reckons its heading with
-        // the yaw rate it executed last step instead of holding a stale one while the robot
-        // turns.
-        let theta = self.heading_source.update(samples, self.control_dt);
-        let theta = if ftcbf_controller::odometry::valid_yaw(theta) {
-            theta
-        } else {
-            f64::NAN
-        };
+        // channel with `world_velocity` is turned into world-frame velocity with it, and the
+        // drive keeps its own heading from it (see `HeadingSource::update`).
+        let theta = self
+            .heading_source
+            .update(samples, self.control_dt, self.view.body_cmd[1]);
         for (c, &si) in self.setup.sensor_of_channel.iter().enumerate() {
             self.y[c] = self.setup.conversion[c].apply(samples[si].value, theta);
             self.fresh[c] = samples[si].fresh;
-        }
-        self.fail_closed.refused_headings = self.heading_source.refused_readings();
-        if theta.is_nan() || !self.heading_source.fresh() {
-            self.heading = wrap_angle(self.heading + self.view.body_cmd[1] * self.control_dt);
-        } else {
-            self.heading = theta;
         }
         self.view.received(samples, map, bank);
     }
@@ -419,7 +403,9 @@ impl<'w> Simulation<'w> {
 
     /// Holds `u` through the drive for one control period of plant ticks, checking the truth.
     fn actuate(&mut self, u: Input) {
-        self.view.body_cmd = self.plant.apply_input(&u, self.heading, self.control_dt);
+        self.view.body_cmd =
+            self.plant
+                .apply_input(&u, self.heading_source.drive_yaw(), self.control_dt);
         let p = [self.view.truth.x, self.view.truth.y];
         self.smooth.observe(self.view.body_cmd, p);
         for _ in 0..self.world.ticks_per_control {
@@ -482,7 +468,10 @@ impl<'w> Simulation<'w> {
             steps: self.steps,
             control_steps: self.k,
             rejected_readings: self.rejected,
-            fail_closed: self.fail_closed,
+            fail_closed: FailClosedCounts {
+                refused_headings: self.heading_source.refused_readings(),
+                ..self.fail_closed
+            },
             attacks_outside_fault_patterns: self.attacks_together_outside
                 || self.attack_windows.iter().any(|w| w.outside_fault_patterns),
             attacks_together_outside_fault_patterns: self.attacks_together_outside,

@@ -17,7 +17,7 @@ use nalgebra::{Matrix2, RowVector4};
 use crate::obstacles::BarrierConfig;
 use crate::planner::{plan, PlannerConfig};
 use crate::safe_sets::{LiftedEllipse, LiftedProp1};
-use crate::sensors::Quantity;
+use crate::sensors::{wrap_angle, Quantity};
 use crate::world::{
     BoundsSpec, ControllerKindSpec, Dynamics, FormSpec, Param, ProcessModel, SafeSetSpec, World,
 };
@@ -571,15 +571,16 @@ pub struct HeadingSource {
     /// A fresh reading of a noisy heading channel that repeats the last one bit for bit is a
     /// stuck sensor (a driver republishing its last message, a `freeze` attack).
     repeats: odometry::RepeatDetector,
-    /// Whether this tick brought a new, unrepeated reading.
-    new_reading: bool,
     /// Fresh readings refused as repeats.
     stuck: u64,
+    /// The heading the drive linearises about [rad].
+    drive: f64,
 }
 
 impl HeadingSource {
-    /// The source `world` declares; a heading filter starts at the world's start yaw.
-    pub fn new(world: &World) -> Self {
+    /// The source `world` declares; a heading filter starts at the world's start yaw, and the
+    /// drive's heading at `start_yaw` (the plant's true start).
+    pub fn new(world: &World, start_yaw: f64) -> Self {
         let start = world
             .file
             .robot
@@ -593,8 +594,8 @@ impl HeadingSource {
             repeats: odometry::RepeatDetector::new(
                 channel.map_or(0.0, |h| world.file.sensors[h].noise_std),
             ),
-            new_reading: false,
             stuck: 0,
+            drive: start_yaw,
         }
     }
 
@@ -604,41 +605,50 @@ impl HeadingSource {
         self.stuck + self.fusion.as_ref().map_or(0, |(_, f)| f.rejected())
     }
 
-    /// The yaw [rad] from this tick's samples as received (attacks included); NaN while there is
-    /// none. Without fusion it is the heading channel's current sample; with fusion the filter
-    /// integrates the gyro over `dt` and takes a fresh compass reading.
-    pub fn update(&mut self, samples: &[crate::sensors::Sample], dt: f64) -> f64 {
-        let Some(h) = self.channel else {
-            return f64::NAN;
-        };
-        let s = samples[h];
-        match &mut self.fusion {
-            None => {
-                let repeated = s.fresh && self.repeats.is_repeat(s.value);
-                self.stuck += u64::from(repeated);
-                self.new_reading = s.fresh && !repeated;
-                s.value
-            }
-            // The filter refuses repeats itself (and gates jumps against the gyro).
-            Some((g, filter)) => {
-                filter.predict(samples[*g].value, dt);
-                if s.fresh {
-                    filter.correct(s.value);
-                }
-                self.new_reading = true;
-                filter.yaw()
-            }
-        }
+    /// The heading [rad] the drive linearises about ([`HeadingSource::update`] keeps it).
+    pub fn drive_yaw(&self) -> f64 {
+        self.drive
     }
 
-    /// `true` when this tick's heading is new (with fusion: every tick; without, a fresh reading
-    /// that does not repeat the last one of a noisy channel). Call after [`HeadingSource::update`].
-    pub fn fresh(&self) -> bool {
-        match (self.channel, &self.fusion) {
-            (Some(_), Some(_)) => true,
-            (Some(_), None) => self.new_reading,
-            (None, _) => false,
-        }
+    /// Takes this tick's samples as received (attacks included) and returns the yaw [rad] the
+    /// odometry is turned with: the heading channel's current sample, or with fusion the
+    /// filter's yaw after it integrated the gyro over `dt` and took a fresh compass reading.
+    /// NaN while there is none or when it is outside [−π, π] (malformed: the odometry made with
+    /// it is then NaN, which the controller rejects).
+    ///
+    /// The drive's heading takes a new, well-formed yaw; otherwise (malformed, stuck, denied,
+    /// between a slow compass's samples) it dead-reckons with `omega` [rad/s], the yaw rate the
+    /// drive executed over the last period, instead of holding a stale heading while the robot
+    /// turns.
+    pub fn update(&mut self, samples: &[crate::sensors::Sample], dt: f64, omega: f64) -> f64 {
+        let (yaw, new_reading) = match (self.channel, &mut self.fusion) {
+            (None, _) => (f64::NAN, false),
+            (Some(h), None) => {
+                let s = samples[h];
+                let repeated = s.fresh && self.repeats.is_repeat(s.value);
+                self.stuck += u64::from(repeated);
+                (s.value, s.fresh && !repeated)
+            }
+            // The filter refuses repeats itself (and gates jumps against the gyro).
+            (Some(h), Some((g, filter))) => {
+                filter.predict(samples[*g].value, dt);
+                if samples[h].fresh {
+                    filter.correct(samples[h].value);
+                }
+                (filter.yaw(), true)
+            }
+        };
+        let yaw = if odometry::valid_yaw(yaw) {
+            yaw
+        } else {
+            f64::NAN
+        };
+        self.drive = if new_reading && !yaw.is_nan() {
+            yaw
+        } else {
+            wrap_angle(self.drive + omega * dt)
+        };
+        yaw
     }
 }
 
