@@ -132,6 +132,44 @@ fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
     assert_eq!(v["methods"][1]["method"], "random");
     // Same run count for both methods.
     assert_eq!(v["methods"][0]["runs"], v["methods"][1]["runs"]);
+    // The CEM's last generation descends from the worst run it had before (searched or
+    // held-out) on that run's seed, and the witness is at least as bad; random search does not
+    // refine.
+    let rho = |r: &Value| {
+        if r["robustness"]["collided"].as_bool() == Some(true) {
+            f64::NEG_INFINITY
+        } else {
+            r["robustness"]["value"].as_f64().expect("rho")
+        }
+    };
+    let evals = |m: usize| {
+        let m = &v["methods"][m];
+        let mut e = m["search"].as_array().expect("search").clone();
+        e.extend(
+            m["finalists"]
+                .as_array()
+                .expect("finalists")
+                .iter()
+                .cloned(),
+        );
+        e
+    };
+    let (refined, before): (Vec<_>, Vec<_>) = evals(0)
+        .into_iter()
+        .partition(|e| e["refinement"].as_bool() == Some(true));
+    assert!(!refined.is_empty());
+    assert!(evals(1).iter().all(|e| e["refinement"] == false));
+    let start = before
+        .iter()
+        .flat_map(|e| e["runs"].as_array().expect("runs").clone())
+        .min_by(|a, b| rho(a).total_cmp(&rho(b)))
+        .expect("runs");
+    for e in &refined {
+        let runs = e["runs"].as_array().expect("runs");
+        assert!(runs.len() == 1 && runs[0]["seed"] == start["seed"], "{e}");
+    }
+    let witness = &v["methods"][0]["witness"];
+    assert!(rho(witness) <= rho(&start), "{witness} vs {start}");
     // The paired comparison plays both best attacks on the same held-out seeds and counts, seed
     // by seed, which is worse; the counts match the finalists' runs.
     let best_runs = |m: usize| -> Vec<(u64, f64)> {

@@ -21,7 +21,9 @@ use crate::falsify::search::MIN_BUDGET;
 /// of the signed obstacle clearance (negative = unsafe; a collision ranks below any run without
 /// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, starting
 /// from random search's first candidates and carrying its best candidates from one generation to
-/// the next, and re-runs its best 4 candidates on held-out seeds; random search with the same
+/// the next, re-runs its best 3 candidates on held-out seeds, then spends a fourth finalist's
+/// runs descending from its worst run so far on that run's seed (with the noise fixed, ρ is a
+/// deterministic function of the attack); random search (4 finalists) with the same
 /// budget and seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
 /// controller) that `ftcbf run` replays to the same ρ, with its recording next to it.
 /// The same command gives the same output files (the recording's blueprint ids aside), for any

@@ -22,16 +22,21 @@
 //!   narrowed distribution alone stops sampling, and a catastrophic attack can live in one rare
 //!   cell: random search found a `non_finite` compass attack on `turtlebot_odometry_bias` that
 //!   a quarter of uniform exploration missed. Measured on 8 worlds × 3 base seeds (README,
-//!   "Worst attacks found"), half explores beat a quarter on the paired held-out comparison. The elites are ranked by their worst run, then their
-//!   mean, since the search looks for the worst run. Written here rather than taken from a crate: the maintained
-//!   CMA-ES crate (`cmaes` 0.2.2) handles continuous variables only, pulls a second nalgebra
-//!   (0.33) and rand 0.8, and the categorical part of the problem is where most of the search
-//!   happens.
+//!   "Worst attacks found"), half explores beat a quarter on the paired held-out comparison.
+//!   The elites are ranked by their worst run, then their mean, since the search looks for the
+//!   worst run. The CEM re-runs one finalist fewer than random search and spends those runs,
+//!   after the finalists' held-out runs, on a counterexample refinement: the worst run so far
+//!   (searched or held-out) fixes a seed, on which ρ is a deterministic function of the attack,
+//!   and a (1 + λ) evolution strategy descends from that run's attack on that seed (random
+//!   search cannot use a seed this way: its draws ignore what it has seen). Written here rather
+//!   than taken from a crate: the maintained CMA-ES crate (`cmaes` 0.2.2) handles continuous
+//!   variables only, pulls a second nalgebra (0.33) and rand 0.8, and the categorical part of
+//!   the problem is where most of the search happens.
 //! - **Noise**: every candidate runs on 2 seeds (common within a generation, fresh for every
 //!   generation, the same for both methods); the CEM's elites are ranked by their worst run (then
 //!   the mean, collisions first), the finalists by seed-averaged robustness; the best 4 distinct
-//!   candidates (a re-run candidate ranked by all its runs) are re-run
-//!   on held-out seeds, and both the seed-averaged and the worst robustness are reported.
+//!   candidates (3 for the CEM; a re-run candidate ranked by all its runs) are re-run on
+//!   held-out seeds, and both the seed-averaged and the worst robustness are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
 //!   run count and the same seeds.
 //! - **Determinism**: candidates are drawn from seeded ChaCha streams; runs go to the batch
@@ -268,7 +273,7 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells, {} local from generation {}), then the best {} on {} held-out seeds = {} runs",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells, {} local from generation {}), then the best {} on {} held-out seeds = {} runs; the CEM re-runs one finalist fewer and spends those runs, after the held-out ones, descending from its worst run so far on that run's seed ({} rounds × {} runs)",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,
@@ -281,7 +286,9 @@ impl Report {
             p.local_from + 1,
             p.finalists,
             p.final_seeds,
-            p.runs
+            p.runs,
+            p.refine_rounds,
+            p.refine_per_round,
         );
         let _ = writeln!(s);
         let _ = writeln!(

@@ -32,6 +32,11 @@ const SIGMA_MIN: f64 = 0.02;
 const PATTERN_FLOOR: f64 = 0.1;
 /// Standard deviation of the local refinement's steps in z.
 const LOCAL_SIGMA: f64 = 0.05;
+/// First and largest step (standard deviation in z) of the counterexample refinement.
+const REFINE_SIGMA0: f64 = 0.1;
+const REFINE_SIGMA_MAX: f64 = 0.3;
+/// Stream tag of the counterexample refinement's perturbations ("REF").
+const REFINE_TAG: u64 = 0x52_45_46;
 const KIND_FLOOR: f64 = 0.12;
 
 /// How a budget of runs is spent (the same for the CEM and for random search).
@@ -64,7 +69,14 @@ pub struct Plan {
     /// Candidates of each later generation that the CEM draws for exploration: uniform parameters
     /// in the least-tried (pattern, kind) cell.
     pub explore: usize,
-    /// Best searched candidates re-run on held-out seeds.
+    /// Rounds of the CEM's counterexample refinement, which comes after the finalists and
+    /// spends the held-out runs of random search's last finalist (the CEM re-runs one finalist
+    /// fewer): with the worst run's seed fixed, ρ is a deterministic function of the attack, and
+    /// each round runs `refine_per_round` perturbations of the worst attack so far on that seed.
+    pub refine_rounds: usize,
+    /// Candidates per refinement round (one run each).
+    pub refine_per_round: usize,
+    /// Best searched candidates re-run on held-out seeds (random search; the CEM one fewer).
     pub finalists: usize,
     /// Held-out seeds per finalist (the same for every finalist).
     pub final_seeds: usize,
@@ -93,6 +105,16 @@ impl Plan {
             .min(candidates.saturating_sub(population))
             .max(population.min(candidates - 1));
         let generations = 1 + (candidates - first).div_ceil(population);
+        // The CEM spends its last finalist's held-out runs on the refinement (finalists ≥ 2 at
+        // every budget ≥ MIN_BUDGET), in rounds of at least two runs where possible.
+        let refine_runs = if finalists >= 2 { final_seeds } else { 0 };
+        let refine_rounds = if refine_runs >= 8 && refine_runs.is_multiple_of(4) {
+            4
+        } else if refine_runs >= 4 && refine_runs.is_multiple_of(2) {
+            2
+        } else {
+            1
+        };
         Ok(Plan {
             budget,
             seeds_per_candidate,
@@ -105,10 +127,17 @@ impl Plan {
             local: population / 4,
             local_from: generations - (generations - 1).div_ceil(3),
             explore: population / 2,
+            refine_rounds,
+            refine_per_round: refine_runs / refine_rounds,
             finalists,
             final_seeds,
             runs: candidates * seeds_per_candidate + finalists * final_seeds,
         })
+    }
+
+    /// Runs of the CEM's counterexample refinement.
+    pub fn refine_runs(&self) -> usize {
+        self.refine_rounds * self.refine_per_round
     }
 
     /// Candidates in generation `g`.
@@ -194,6 +223,9 @@ pub struct Evaluation {
     pub collisions: usize,
     /// Unsafe runs (collision or negative margin).
     pub unsafe_runs: usize,
+    /// A counterexample-refinement candidate (CEM, run after the finalists on the worst run's
+    /// seed only, no generation): it takes part in the worst run, not in the choice of finalists.
+    pub refinement: bool,
 }
 
 impl Evaluation {
@@ -213,6 +245,7 @@ impl Evaluation {
             candidate,
             runs,
             mean,
+            refinement: false,
         }
     }
 
@@ -415,14 +448,14 @@ fn uniform(space: &SearchSpace, rng: &mut ChaCha8Rng) -> Candidate {
     Candidate { pattern, kind, z }
 }
 
-/// `c` with every continuous coordinate moved by N(0, [`LOCAL_SIGMA`]²) (clipped to [0, 1]);
-/// the same pattern and kind.
-fn perturb(c: &Candidate, rng: &mut ChaCha8Rng) -> Candidate {
+/// `c` with every continuous coordinate moved by N(0, `sigma`²) (clipped to [0, 1]); the same
+/// pattern and kind.
+fn perturb(c: &Candidate, sigma: f64, rng: &mut ChaCha8Rng) -> Candidate {
     let z =
         c.z.iter()
             .map(|v| {
                 let n: f64 = StandardNormal.sample(rng);
-                (v + LOCAL_SIGMA * n).clamp(0.0, 1.0)
+                (v + sigma * n).clamp(0.0, 1.0)
             })
             .collect();
     Candidate {
@@ -522,7 +555,7 @@ impl<'a> Proposer<'a> {
             if let Some(best) = self.ranked.first() {
                 let k = self.plan.local.min(n - out.len());
                 for _ in 0..k {
-                    out.push(perturb(best, &mut self.own));
+                    out.push(perturb(best, LOCAL_SIGMA, &mut self.own));
                 }
             }
         }
@@ -561,7 +594,7 @@ impl<'a> Proposer<'a> {
 
 /// The distinct searched candidates (distinct attacks), worst for the controller first: by the
 /// share of their runs that collided, then by their mean robustness over all their runs.
-fn pooled_ranking(search: &[Evaluation]) -> Vec<&Candidate> {
+fn pooled_ranking<'a>(search: impl IntoIterator<Item = &'a Evaluation>) -> Vec<&'a Candidate> {
     // (candidate, attacks, runs, collisions, sum of ρ)
     let mut pooled: Vec<(&Candidate, &Vec<AttackSpec>, usize, usize, f64)> = Vec::new();
     for e in search {
@@ -586,23 +619,77 @@ fn pooled_ranking(search: &[Evaluation]) -> Vec<&Candidate> {
     pooled.into_iter().map(|p| p.0).collect()
 }
 
-/// All generations of one method's search; `evaluate(g, candidates)` runs generation `g`.
+/// The run with the lowest robustness among `evals` (collisions first), and its candidate.
+fn worst_run<'a>(
+    evals: impl IntoIterator<Item = &'a Evaluation>,
+) -> Option<(&'a Evaluation, &'a SeedRun)> {
+    evals.into_iter().map(|e| (e, e.worst())).reduce(|a, b| {
+        if b.1.robustness.cmp_worse(&a.1.robustness).is_lt() {
+            b
+        } else {
+            a
+        }
+    })
+}
+
+/// All generations of one method's search; `evaluate(g, candidates, seeds)` runs generation
+/// `g`'s candidates on `seeds`.
 fn search_generations(
     method: Method,
     plan: &Plan,
     space: &SearchSpace,
     seed: u64,
-    mut evaluate: impl FnMut(usize, Vec<Candidate>) -> anyhow::Result<Vec<Evaluation>>,
+    mut evaluate: impl FnMut(usize, Vec<Candidate>, &[u64]) -> anyhow::Result<Vec<Evaluation>>,
 ) -> anyhow::Result<Vec<Evaluation>> {
     let mut proposer = Proposer::new(method, plan, space, seed);
     let mut search: Vec<Evaluation> = Vec::with_capacity(plan.candidates);
     for g in 0..plan.generations {
         let candidates = proposer.propose(g);
-        let evals = evaluate(g, candidates)?;
+        let evals = evaluate(g, candidates, &plan.generation_seeds(seed, g))?;
         proposer.observe(&evals);
         search.extend(evals);
     }
     Ok(search)
+}
+
+/// The CEM's counterexample refinement, with the held-out runs of one finalist: the worst run so
+/// far (`start`, searched or held-out) fixes a seed, on which ρ is a deterministic function of
+/// the attack (the noise is the seed's), and a (1 + λ) evolution strategy descends from that
+/// run's attack. Each round runs `refine_per_round` Gaussian perturbations of the incumbent's
+/// continuous parameters (same pattern and kind) on that seed, moves the incumbent to the round's
+/// worst run if it is worse than the incumbent's, and widens its step (×1.5, at most
+/// [`REFINE_SIGMA_MAX`]) after a success, halves it after a failure. `evaluate(candidates,
+/// seeds)` runs them; the evaluations come back marked as refinement.
+fn refine_counterexample(
+    plan: &Plan,
+    seed: u64,
+    start: (&Evaluation, &SeedRun),
+    mut evaluate: impl FnMut(Vec<Candidate>, &[u64]) -> anyhow::Result<Vec<Evaluation>>,
+) -> anyhow::Result<Vec<Evaluation>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(trial_seed(seed, u64::MAX - REFINE_TAG));
+    let mut incumbent = start.0.candidate.clone();
+    let (fixed, mut record) = (start.1.seed, start.1.robustness.clone());
+    let mut out = Vec::with_capacity(plan.refine_rounds * plan.refine_per_round);
+    let mut sigma = REFINE_SIGMA0;
+    for _ in 0..plan.refine_rounds {
+        let candidates: Vec<Candidate> = (0..plan.refine_per_round)
+            .map(|_| perturb(&incumbent, sigma, &mut rng))
+            .collect();
+        let mut evals = evaluate(candidates, &[fixed])?;
+        evals.iter_mut().for_each(|e| e.refinement = true);
+        let improved = worst_run(&evals)
+            .filter(|(_, r)| r.robustness.cmp_worse(&record).is_lt())
+            .map(|(e, r)| (e.candidate.clone(), r.robustness.clone()));
+        if let Some((c, r)) = improved {
+            incumbent = c;
+            record = r;
+            sigma = (1.5 * sigma).min(REFINE_SIGMA_MAX);
+        } else {
+            sigma *= 0.5;
+        }
+        out.extend(evals);
+    }
+    Ok(out)
 }
 
 impl Search<'_> {
@@ -669,45 +756,56 @@ impl Search<'_> {
         first: Option<&[Evaluation]>,
     ) -> anyhow::Result<MethodResult> {
         let plan = &self.plan;
-        let search = search_generations(method, plan, self.space, self.seed, |g, candidates| {
-            if let Some(f) = first.filter(|_| g == 0) {
-                if f.iter().map(|e| &e.candidate).eq(candidates.iter()) {
-                    return Ok(f.to_vec());
+        let mut search = search_generations(
+            method,
+            plan,
+            self.space,
+            self.seed,
+            |g, candidates, seeds| {
+                if let Some(f) = first.filter(|_| g == 0) {
+                    if f.iter().map(|e| &e.candidate).eq(candidates.iter()) {
+                        return Ok(f.to_vec());
+                    }
+                    return Err(anyhow!(
+                        "the shared first generation does not match; this is a bug"
+                    ));
                 }
-                return Err(anyhow!(
-                    "the shared first generation does not match; this is a bug"
+                self.bar.set_message(format!(
+                    "{} generation {}/{}",
+                    method.name(),
+                    g + 1,
+                    plan.generations
                 ));
-            }
-            self.bar.set_message(format!(
-                "{} generation {}/{}",
-                method.name(),
-                g + 1,
-                plan.generations
-            ));
-            self.evaluate(Some(g), candidates, &plan.generation_seeds(self.seed, g))
-        })?;
+                self.evaluate(Some(g), candidates, seeds)
+            },
+        )?;
         // Finalists: the best distinct searched candidates, on held-out seeds. A candidate the
         // CEM carried over several generations is ranked by all its runs together.
+        let finalists =
+            plan.finalists - usize::from(method == Method::Cem && plan.refine_runs() > 0);
         let picked: Vec<Candidate> = pooled_ranking(&search)
             .into_iter()
-            .take(plan.finalists)
+            .take(finalists)
             .cloned()
             .collect();
         self.bar
             .set_message(format!("{} final re-evaluation", method.name()));
         let mut finalists = self.evaluate(None, picked, &plan.final_seeds(self.seed))?;
         finalists.sort_by(|a, b| a.cmp_worse(b));
+        // The CEM's last finalist's runs: refine the worst run so far, held-out runs included
+        // (the finalists' held-out results are final before it starts).
+        if method == Method::Cem && plan.refine_runs() > 0 {
+            if let Some(start) = worst_run(search.iter().chain(&finalists)) {
+                self.bar
+                    .set_message(format!("{} refining the worst run", method.name()));
+                let refined = refine_counterexample(plan, self.seed, start, |cs, seeds| {
+                    self.evaluate(None, cs, seeds)
+                })?;
+                search.extend(refined);
+            }
+        }
         let all = || search.iter().chain(&finalists);
-        let worst = all()
-            .map(|e| (e, e.worst()))
-            .reduce(|a, b| {
-                if b.1.robustness.cmp_worse(&a.1.robustness).is_lt() {
-                    b
-                } else {
-                    a
-                }
-            })
-            .ok_or_else(|| anyhow!("the search made no run"))?;
+        let worst = worst_run(all()).ok_or_else(|| anyhow!("the search made no run"))?;
         let witness = Witness {
             attacks: worst.0.attacks.clone(),
             description: worst.0.description.clone(),
@@ -748,6 +846,10 @@ mod tests {
             assert!(sizes.iter().all(|&n| n > 0), "{p:?} {sizes:?}");
             assert!(p.carry + p.local < p.population, "{p:?}");
             assert!((1..p.generations).contains(&p.local_from), "{p:?}");
+            // The refinement spends exactly one finalist's held-out runs.
+            assert!(p.finalists >= 2, "{p:?}");
+            assert_eq!(p.refine_runs(), p.final_seeds, "{p:?}");
+            assert!(p.refine_per_round >= 1, "{p:?}");
         }
         let p = Plan::new(200).expect("plan");
         assert_eq!(
@@ -850,28 +952,47 @@ mod tests {
         arm + d + 0.01 * noise
     }
 
+    /// Synthetic evaluations of `cs` on `seeds`.
+    fn synthetic_evals(
+        g: Option<usize>,
+        cs: Vec<Candidate>,
+        space: &SearchSpace,
+        seeds: &[u64],
+    ) -> Vec<Evaluation> {
+        cs.into_iter()
+            .map(|c| {
+                let runs = seeds
+                    .iter()
+                    .map(|&s| SeedRun {
+                        seed: s,
+                        robustness: Robustness {
+                            value: synthetic(&c, s),
+                            collided: false,
+                            binding: "x".into(),
+                        },
+                    })
+                    .collect();
+                Evaluation::new(g, c, space, runs)
+            })
+            .collect()
+    }
+
+    /// One method's searched evaluations, then (the CEM) its refinement from the worst of them,
+    /// as [`Search::run`] does without the finalists.
     fn evaluations(method: Method, plan: &Plan, space: &SearchSpace, seed: u64) -> Vec<Evaluation> {
-        search_generations(method, plan, space, seed, |g, cs| {
-            let seeds = plan.generation_seeds(seed, g);
-            Ok(cs
-                .into_iter()
-                .map(|c| {
-                    let runs = seeds
-                        .iter()
-                        .map(|&s| SeedRun {
-                            seed: s,
-                            robustness: Robustness {
-                                value: synthetic(&c, s),
-                                collided: false,
-                                binding: "x".into(),
-                            },
-                        })
-                        .collect();
-                    Evaluation::new(Some(g), c, space, runs)
-                })
-                .collect())
+        let mut search = search_generations(method, plan, space, seed, |g, cs, seeds| {
+            Ok(synthetic_evals(Some(g), cs, space, seeds))
         })
-        .expect("search")
+        .expect("search");
+        if method == Method::Cem {
+            let start = worst_run(&search).expect("runs");
+            let refined = refine_counterexample(plan, seed, start, |cs, seeds| {
+                Ok(synthetic_evals(None, cs, space, seeds))
+            })
+            .expect("refine");
+            search.extend(refined);
+        }
+        search
     }
 
     /// The CEM's exploration tries every (pattern, kind) cell within the budget: a catastrophic
@@ -910,15 +1031,48 @@ mod tests {
         let sp = space(2);
         let cem = evaluations(Method::Cem, &plan, &sp, 3);
         let rnd = evaluations(Method::Random, &plan, &sp, 3);
-        assert_eq!(cem.len(), plan.candidates);
+        let runs = |e: &[Evaluation]| e.iter().map(|e| e.runs.len()).sum::<usize>();
+        // The CEM's refinement replaces one finalist (not simulated here).
+        assert_eq!(runs(&rnd), plan.candidates * plan.seeds_per_candidate);
+        assert_eq!(runs(&cem), runs(&rnd) + plan.refine_runs());
         assert_eq!(rnd.len(), plan.candidates);
         assert_eq!(cem[..plan.first], rnd[..plan.first]);
         assert_ne!(cem[plan.first..], rnd[plan.first..]);
+        let n = |e: &[Evaluation], g: Option<usize>| e.iter().filter(|e| e.generation == g).count();
         for g in 0..plan.generations {
-            let n = |e: &[Evaluation]| e.iter().filter(|e| e.generation == Some(g)).count();
-            assert_eq!(n(&cem), plan.generation_size(g));
-            assert_eq!(n(&rnd), plan.generation_size(g));
+            assert_eq!(n(&cem, Some(g)), plan.generation_size(g));
+            assert_eq!(n(&rnd, Some(g)), plan.generation_size(g));
         }
+        assert_eq!(n(&cem, None), plan.refine_runs());
+        assert!(cem.iter().all(|e| e.refinement == e.generation.is_none()));
+        assert!(rnd.iter().all(|e| !e.refinement));
+    }
+
+    /// The CEM's refinement descends from the worst run on that run's seed: every
+    /// refinement run uses that seed and the worst run only gets worse (here, on a smooth
+    /// objective, strictly on most base seeds).
+    #[test]
+    fn refinement_descends_on_the_worst_runs_seed() {
+        let plan = Plan::new(400).expect("plan");
+        assert_eq!((plan.refine_rounds, plan.refine_per_round), (4, 5));
+        let sp = space(2);
+        let mut strictly = 0;
+        for seed in 0..10 {
+            let cem = evaluations(Method::Cem, &plan, &sp, seed);
+            let (before, after): (Vec<Evaluation>, Vec<Evaluation>) =
+                cem.into_iter().partition(|e| !e.refinement);
+            let (e, run) = worst_run(&before).expect("runs");
+            assert!(after.iter().all(|a| a.runs.len() == 1
+                && a.runs[0].seed == run.seed
+                && a.candidate.pattern == e.candidate.pattern
+                && a.candidate.kind == e.candidate.kind));
+            let refined = worst(&after).min(run.robustness.value);
+            strictly += usize::from(refined < run.robustness.value);
+        }
+        assert!(
+            strictly >= 8,
+            "refinement improved the worst run on {strictly}/10"
+        );
     }
 
     #[test]
