@@ -170,6 +170,11 @@ fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
     }
     let witness = &v["methods"][0]["witness"];
     assert!(rho(witness) <= rho(&start), "{witness} vs {start}");
+    assert_eq!(
+        witness["found_in"] == "refinement",
+        rho(witness) < rho(&start),
+        "{witness}"
+    );
     // The paired comparison plays both best attacks on the same held-out seeds and counts, seed
     // by seed, which is worse; the counts match the finalists' runs.
     let best_runs = |m: usize| -> Vec<(u64, f64)> {

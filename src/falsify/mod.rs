@@ -338,9 +338,10 @@ impl Report {
             let _ = writeln!(s);
             let _ = writeln!(
                 s,
-                "{} — worst run (seed {}):",
+                "{} — worst run (seed {}, found in the {} runs):",
                 m.method.name(),
-                m.witness.seed
+                m.witness.seed,
+                m.witness.found_in.name()
             );
             let _ = writeln!(s, "  {}", m.witness.description);
             let _ = writeln!(

@@ -299,6 +299,39 @@ pub struct Witness {
     pub seed: u64,
     /// The run's robustness.
     pub robustness: Robustness,
+    /// Which part of the search made the run.
+    pub found_in: Phase,
+}
+
+/// The parts of a search that make runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// A generation of the search (2 seeds per candidate).
+    Search,
+    /// A finalist's re-run on the held-out seeds.
+    HeldOut,
+    /// The CEM's counterexample refinement (on the worst run's seed).
+    Refinement,
+}
+
+impl Phase {
+    fn of(e: &Evaluation) -> Phase {
+        match (e.refinement, e.generation) {
+            (true, _) => Phase::Refinement,
+            (false, Some(_)) => Phase::Search,
+            (false, None) => Phase::HeldOut,
+        }
+    }
+
+    /// Its name in the summary.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Search => "search",
+            Phase::HeldOut => "held-out",
+            Phase::Refinement => "refinement",
+        }
+    }
 }
 
 /// What one search found.
@@ -811,6 +844,7 @@ impl Search<'_> {
             description: worst.0.description.clone(),
             seed: worst.1.seed,
             robustness: worst.1.robustness.clone(),
+            found_in: Phase::of(worst.0),
         };
         let runs = all().map(|e| e.runs.len()).sum();
         let unsafe_runs = all().map(|e| e.unsafe_runs).sum();
