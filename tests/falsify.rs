@@ -132,9 +132,9 @@ fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
     assert_eq!(v["methods"][1]["method"], "random");
     // Same run count for both methods.
     assert_eq!(v["methods"][0]["runs"], v["methods"][1]["runs"]);
-    // The CEM's last generation descends from the worst run it had before (searched or
-    // held-out) on that run's seed, and the witness is at least as bad; random search does not
-    // refine.
+    // The CEM's refinement (its fourth finalist's runs) descends from the worst run it had
+    // before (searched or held-out) on that run's seed, and the witness is at least as bad;
+    // random search does not refine.
     let rho = |r: &Value| {
         if r["robustness"]["collided"].as_bool() == Some(true) {
             f64::NEG_INFINITY

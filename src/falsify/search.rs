@@ -39,7 +39,8 @@ const REFINE_SIGMA_MAX: f64 = 0.3;
 const REFINE_TAG: u64 = 0x52_45_46;
 const KIND_FLOOR: f64 = 0.12;
 
-/// How a budget of runs is spent (the same for the CEM and for random search).
+/// How a budget of runs is spent (the same for the CEM and for random search, but for the
+/// CEM's last finalist, whose runs go to its counterexample refinement).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Plan {
     /// Runs allowed.
@@ -107,7 +108,7 @@ impl Plan {
         let generations = 1 + (candidates - first).div_ceil(population);
         // The CEM spends its last finalist's held-out runs on the refinement (finalists ≥ 2 at
         // every budget ≥ MIN_BUDGET), in rounds of at least two runs where possible.
-        let refine_runs = if finalists >= 2 { final_seeds } else { 0 };
+        let refine_runs = final_seeds;
         let refine_rounds = if refine_runs >= 8 && refine_runs.is_multiple_of(4) {
             4
         } else if refine_runs >= 4 && refine_runs.is_multiple_of(2) {
@@ -627,7 +628,7 @@ impl<'a> Proposer<'a> {
 
 /// The distinct searched candidates (distinct attacks), worst for the controller first: by the
 /// share of their runs that collided, then by their mean robustness over all their runs.
-fn pooled_ranking<'a>(search: impl IntoIterator<Item = &'a Evaluation>) -> Vec<&'a Candidate> {
+fn pooled_ranking(search: &[Evaluation]) -> Vec<&Candidate> {
     // (candidate, attacks, runs, collisions, sum of ρ)
     let mut pooled: Vec<(&Candidate, &Vec<AttackSpec>, usize, usize, f64)> = Vec::new();
     for e in search {
@@ -665,20 +666,19 @@ fn worst_run<'a>(
     })
 }
 
-/// All generations of one method's search; `evaluate(g, candidates, seeds)` runs generation
-/// `g`'s candidates on `seeds`.
+/// All generations of one method's search; `evaluate(g, candidates)` runs generation `g`.
 fn search_generations(
     method: Method,
     plan: &Plan,
     space: &SearchSpace,
     seed: u64,
-    mut evaluate: impl FnMut(usize, Vec<Candidate>, &[u64]) -> anyhow::Result<Vec<Evaluation>>,
+    mut evaluate: impl FnMut(usize, Vec<Candidate>) -> anyhow::Result<Vec<Evaluation>>,
 ) -> anyhow::Result<Vec<Evaluation>> {
     let mut proposer = Proposer::new(method, plan, space, seed);
     let mut search: Vec<Evaluation> = Vec::with_capacity(plan.candidates);
     for g in 0..plan.generations {
         let candidates = proposer.propose(g);
-        let evals = evaluate(g, candidates, &plan.generation_seeds(seed, g))?;
+        let evals = evaluate(g, candidates)?;
         proposer.observe(&evals);
         search.extend(evals);
     }
@@ -789,12 +789,8 @@ impl Search<'_> {
         first: Option<&[Evaluation]>,
     ) -> anyhow::Result<MethodResult> {
         let plan = &self.plan;
-        let mut search = search_generations(
-            method,
-            plan,
-            self.space,
-            self.seed,
-            |g, candidates, seeds| {
+        let mut search =
+            search_generations(method, plan, self.space, self.seed, |g, candidates| {
                 if let Some(f) = first.filter(|_| g == 0) {
                     if f.iter().map(|e| &e.candidate).eq(candidates.iter()) {
                         return Ok(f.to_vec());
@@ -809,13 +805,12 @@ impl Search<'_> {
                     g + 1,
                     plan.generations
                 ));
-                self.evaluate(Some(g), candidates, seeds)
-            },
-        )?;
+                self.evaluate(Some(g), candidates, &plan.generation_seeds(self.seed, g))
+            })?;
         // Finalists: the best distinct searched candidates, on held-out seeds. A candidate the
         // CEM carried over several generations is ranked by all its runs together.
-        let finalists =
-            plan.finalists - usize::from(method == Method::Cem && plan.refine_runs() > 0);
+        let refine = method == Method::Cem;
+        let finalists = plan.finalists - usize::from(refine);
         let picked: Vec<Candidate> = pooled_ranking(&search)
             .into_iter()
             .take(finalists)
@@ -827,7 +822,7 @@ impl Search<'_> {
         finalists.sort_by(|a, b| a.cmp_worse(b));
         // The CEM's last finalist's runs: refine the worst run so far, held-out runs included
         // (the finalists' held-out results are final before it starts).
-        if method == Method::Cem && plan.refine_runs() > 0 {
+        if refine {
             if let Some(start) = worst_run(search.iter().chain(&finalists)) {
                 self.bar
                     .set_message(format!("{} refining the worst run", method.name()));
@@ -1014,8 +1009,13 @@ mod tests {
     /// One method's searched evaluations, then (the CEM) its refinement from the worst of them,
     /// as [`Search::run`] does without the finalists.
     fn evaluations(method: Method, plan: &Plan, space: &SearchSpace, seed: u64) -> Vec<Evaluation> {
-        let mut search = search_generations(method, plan, space, seed, |g, cs, seeds| {
-            Ok(synthetic_evals(Some(g), cs, space, seeds))
+        let mut search = search_generations(method, plan, space, seed, |g, cs| {
+            Ok(synthetic_evals(
+                Some(g),
+                cs,
+                space,
+                &plan.generation_seeds(seed, g),
+            ))
         })
         .expect("search");
         if method == Method::Cem {
