@@ -320,6 +320,31 @@ fn print_summary(s: &RunSummary) {
         sm.path_length,
         sm.stalls
     );
+    if !s.estimation_errors.is_empty() {
+        println!("  estimation error against the truth, max over the run (‖x − x̂‖ vs the γ its rows assume):");
+        for e in &s.estimation_errors {
+            let bound = match (e.gamma, e.max_ratio) {
+                (Some(g), Some(r)) => format!(
+                    "{:.3}·γ (γ = {g:.4}){}",
+                    r,
+                    if e.exceeded() {
+                        format!(", over γ at {} step(s)", e.steps_over)
+                    } else {
+                        String::new()
+                    }
+                ),
+                _ => "no γ".to_string(),
+            };
+            println!(
+                "    {:<22} {:<9} {bound} · position {:.4} m · velocity {:.4} m/s · worst at t = {:.2} s",
+                e.filter,
+                if e.honest { "honest" } else { "attacked" },
+                e.max_position_error,
+                e.max_velocity_error,
+                e.t_worst
+            );
+        }
+    }
     if s.rejected_readings > 0 {
         println!(
             "  rejected readings (non-finite or absurd): {}",

@@ -209,6 +209,9 @@ pub struct Controller {
     elapsed: f64,
     /// The safety-filter form's tracker (None: problem 5.3).
     tracker: Option<PathTracker>,
+    /// The acceleration the drive realised over the period now ending, when the platform
+    /// reported it ([`Controller::set_applied_input`]); the next prediction uses it once.
+    applied: Option<Input>,
 }
 
 fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
@@ -572,7 +575,18 @@ impl Controller {
             theta_schedule: cfg.theta_schedule,
             elapsed: 0.0,
             tracker,
+            applied: None,
         })
+    }
+
+    /// Reports the world-frame acceleration [m/s²] the platform's drive actually realised over
+    /// the control period now ending (after its speed and yaw-rate limits, its low-speed law and
+    /// its wheels' saturation; see [`crate::drive::realized_acceleration`]). The next
+    /// [`Controller::step`] predicts its filters with it instead of the u it asked for: a
+    /// unicycle cannot realise a lateral acceleration at rest, and a filter that believes it
+    /// did carries a velocity error its γ does not cover. Non-finite values are ignored.
+    pub fn set_applied_input(&mut self, a: Input) {
+        self.applied = (a[0].is_finite() && a[1].is_finite()).then_some(a);
     }
 
     /// Which controller this is.
@@ -644,8 +658,9 @@ impl Controller {
         self.elapsed += self.last_dt;
         if !rej.invalid_dt {
             // valid[k] implies k < y.len(): the filters only read valid channels.
+            let predict_with = self.applied.take().unwrap_or(self.u);
             self.bank
-                .step(&self.u, dt, y, &self.valid, &self.rejected_buf);
+                .step(&predict_with, dt, y, &self.valid, &self.rejected_buf);
         }
         self.output.rejected.skipped_updates = self
             .bank

@@ -108,6 +108,35 @@ pub struct BodyCommand {
     pub omega: f64,
 }
 
+/// The world-frame acceleration [m/s²] a unicycle realises over one period of `dt` [s] in
+/// which its body command goes from `before` to `after` (the commands actually sent, after every
+/// limit) while its heading starts at `yaw` [rad] and turns at `after.omega`:
+/// `(v_after·e(yaw + ω_after·dt) − v_before·e(yaw)) / dt`, e(θ) = (cos θ, sin θ).
+///
+/// This is u as the drive performed it, not as the controller asked for it: at rest a lateral
+/// request turns the robot in place (no lateral acceleration), a speed or yaw-rate limit cuts
+/// it, wheel saturation scales it. A filter predicting with it, not with the asked-for u, does
+/// not build up a velocity the robot never had. `None` for a non-finite input or `dt ≤ 0`.
+pub fn realized_acceleration(
+    before: BodyCommand,
+    after: BodyCommand,
+    yaw: f64,
+    dt: f64,
+) -> Option<Input> {
+    let finite = [before.v, after.v, after.omega, yaw, dt]
+        .iter()
+        .all(|x| x.is_finite());
+    if !finite || dt <= 0.0 {
+        return None;
+    }
+    let (s0, c0) = yaw.sin_cos();
+    let (s1, c1) = (yaw + after.omega * dt).sin_cos();
+    Some(Input::new(
+        (after.v * c1 - before.v * c0) / dt,
+        (after.v * s1 - before.v * s0) / dt,
+    ))
+}
+
 /// The compensator state: the integrator of (6.3) and the last ω (for the rate limit).
 #[derive(Debug, Clone)]
 pub struct Compensator {
@@ -242,6 +271,7 @@ impl Compensator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::FRAC_PI_2;
 
     fn cfg(law: LowSpeedLaw) -> CompensatorConfig {
         CompensatorConfig {
@@ -253,6 +283,23 @@ mod tests {
             speed_gain: 1.0,
             omega_resolution: 0.0,
         }
+    }
+
+    #[test]
+    fn realized_acceleration_of_a_unicycle() {
+        let cmd = |v, omega| BodyCommand { v, omega };
+        // Straight ahead along +y, speeding up 0.1 → 0.2 m/s in 0.1 s: 1 m/s² along +y.
+        let a = realized_acceleration(cmd(0.1, 0.0), cmd(0.2, 0.0), FRAC_PI_2, 0.1).unwrap();
+        assert!(a[0].abs() < 1e-12 && (a[1] - 1.0).abs() < 1e-12);
+        // Turning in place at rest: no acceleration at all, whatever the yaw rate.
+        let a = realized_acceleration(cmd(0.0, 0.0), cmd(0.0, 2.0), 0.3, 0.02).unwrap();
+        assert_eq!(a, Input::zeros());
+        // Constant speed on a circle: |a| → v·ω (centripetal), pointing to the left of e(yaw).
+        let (v, w, dt) = (0.2, 1.0, 1e-4);
+        let a = realized_acceleration(cmd(v, w), cmd(v, w), 0.0, dt).unwrap();
+        assert!((a[1] - v * w).abs() < 1e-4 && a[0].abs() < 1e-4);
+        assert!(realized_acceleration(cmd(0.0, 0.0), cmd(f64::NAN, 0.0), 0.0, 0.1).is_none());
+        assert!(realized_acceleration(cmd(0.0, 0.0), cmd(0.1, 0.0), 0.0, 0.0).is_none());
     }
 
     #[test]

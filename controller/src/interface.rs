@@ -23,6 +23,11 @@ pub struct Readings<'a> {
     pub y: &'a [f64],
     /// Per channel: a new sample arrived this step (stale values must not be used as new).
     pub fresh: &'a [bool],
+    /// The world-frame acceleration [m/s²] the drive actually realised over the period now
+    /// ending, when the platform knows it (a differential drive: from the body commands it sent
+    /// after its limits, [`crate::drive::realized_acceleration`]); `None` when the input asked for
+    /// was realised as asked (the linear plant).
+    pub applied: Option<Input>,
 }
 
 /// What a law decided at one step.
@@ -60,6 +65,9 @@ impl ControlLaw for Controller {
     }
 
     fn step(&mut self, readings: &Readings<'_>) -> Decision<'_> {
+        if let Some(a) = readings.applied {
+            self.set_applied_input(a);
+        }
         let out = Controller::step(self, readings.y, readings.fresh, readings.dt);
         Decision {
             u: out.u,
@@ -113,6 +121,7 @@ mod tests {
                 dt: 0.02,
                 y: &y,
                 fresh: &fresh,
+                applied: None,
             };
             let d = law.step(&r);
             assert_eq!(d.u, Input::new(0.5, -0.25));

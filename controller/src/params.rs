@@ -338,6 +338,24 @@ pub fn horizon_riccati(
     worst
 }
 
+/// The largest posterior covariance (by λ̄) of the `n` estimates a filter started at `p0`
+/// produces: [`horizon_riccati`] without P0 itself, which no estimate carries (every estimate
+/// is posterior to at least one update). `p0` for `n = 0`.
+pub fn horizon_posterior_max(
+    model: &LinearModel,
+    uses: &[bool],
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+) -> StateMatrix {
+    if n == 0 {
+        return *p0;
+    }
+    let d = model.discretize(dt);
+    let first = riccati_step(model, uses, &d, p0).1;
+    horizon_riccati(model, uses, dt, &first, n - 1)
+}
+
 /// Steady-state `K c̄ = P∞⁺ c̄ᵀ R⁻¹ c̄ / dt` of a channel subset (the K of §4.2.1 used by
 /// [`crate::barrier::HigherOrderHalfPlane`]).
 pub fn steady_state_gain_product(model: &LinearModel, uses: &[bool], dt: f64) -> StateMatrix {

@@ -87,6 +87,9 @@ pub struct EstimateView {
     pub residue: f64,
     /// V(x̂) of the CLF.
     pub clf: f64,
+    /// ‖x − x̂‖ / γ of this filter against the truth (NaN without γ): above 1 the bound of
+    /// Theorem 1 that its rows assume does not hold at this step.
+    pub error_ratio: f64,
 }
 
 /// One sensor channel at a control step.

@@ -241,6 +241,7 @@ mod tests {
             final_clf_value: None,
             final_state: [0.0; 4],
             smoothness: Default::default(),
+            estimation_errors: Vec::new(),
         }
     }
 

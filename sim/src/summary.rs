@@ -160,6 +160,41 @@ impl SmoothnessMeter {
     }
 }
 
+/// One filter's estimation error against the truth over a run, next to the bound γ its
+/// Step-1 rows assume (thesis Theorem 1, §4.3: Pr(sup_t ‖x_t − x̂_t‖ ≤ γ) ≥ 1 − ε). The error is
+/// the 4-D ‖(p_x, p_y, v_x, v_y) − x̂‖ at every control step, after the step's measurement
+/// update, against the truth at the sampling instant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EstimationError {
+    /// The filter's label (`drop_<pattern>`, `drop_<a>+<b>`, `all`).
+    pub filter: String,
+    /// γ of this filter: γ_i for a single, γ_ij for a pair, the baseline's γ for `all`
+    /// (`None` when no bound was computed for it, e.g. pairs under a hand-set γ).
+    pub gamma: Option<f64>,
+    /// No attack of the run touched a channel this filter reads: the bound must hold for it.
+    pub honest: bool,
+    /// Largest ‖x − x̂‖ over the run.
+    pub max_error: f64,
+    /// Largest position part ‖(p_x, p_y) − (p̂_x, p̂_y)‖ [m].
+    pub max_position_error: f64,
+    /// Largest velocity part ‖(v_x, v_y) − (v̂_x, v̂_y)‖ [m/s].
+    pub max_velocity_error: f64,
+    /// Largest ‖x − x̂‖/γ (`None` without γ); above 1 the bound was left.
+    pub max_ratio: Option<f64>,
+    /// When the largest ratio (or error, without γ) occurred [s].
+    pub t_worst: f64,
+    /// Control steps with ‖x − x̂‖ > γ.
+    pub steps_over: u64,
+}
+
+impl EstimationError {
+    /// The error left γ at some step (false without γ). A non-finite error counts as leaving
+    /// it: the bound cannot be said to hold on a number that is not one.
+    pub fn exceeded(&self) -> bool {
+        self.gamma.is_some() && (self.steps_over > 0 || !self.max_error.is_finite())
+    }
+}
+
 /// Length of the final stretch of a run over which "settled in the goal" is judged [s].
 pub const SETTLE_WINDOW: f64 = 2.0;
 
@@ -226,6 +261,19 @@ pub struct RunSummary {
     /// Smoothness of the command and the path (all zero for the linear plant's command).
     #[serde(default)]
     pub smoothness: Smoothness,
+    /// Per filter of the bank, its estimation error against the truth and its γ (empty for a
+    /// law without a bank).
+    #[serde(default)]
+    pub estimation_errors: Vec<EstimationError>,
+}
+
+impl RunSummary {
+    /// Whether some honest filter (one that reads no attacked channel) left its γ.
+    pub fn honest_gamma_exceeded(&self) -> bool {
+        self.estimation_errors
+            .iter()
+            .any(|e| e.honest && e.exceeded())
+    }
 }
 
 /// A yes/no outcome of a run that `[expect]` can count over seeds (`safe = true`,

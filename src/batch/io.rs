@@ -16,7 +16,9 @@
 //! step), `control_steps`, `rejected_readings`, `duration` [s], `outside_fault_patterns`,
 //! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` [m],
 //! `omega_sign_change_fraction` (control steps whose commanded ω changed sign),
-//! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker).
+//! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker), `estimation`
+//! (per filter of the bank, as a JSON array: `filter`, `honest` — it read no attacked channel —,
+//! `max_ratio` — its largest ‖x − x̂‖/γ — and `exceeded` — it left γ).
 //! Fields containing `,`, `"` or a line break are quoted (RFC 4180).
 
 use std::fmt::Write as _;
@@ -116,7 +118,7 @@ pub const CSV_HEADER: &str =
 first_collision_obstacle,first_violation_t,first_violation_set,first_violation_value,min_barrier,\
 min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2,step3,infeasible,\
 control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance,\
-omega_sign_change_fraction,mean_abs_domega,stalls";
+omega_sign_change_fraction,mean_abs_domega,stalls,estimation";
 
 fn csv_text(out: &mut String, s: &str) {
     if s.contains([',', '"', '\n', '\r']) {
@@ -169,9 +171,9 @@ pub fn to_csv(results: &[BatchResult]) -> String {
                 opt_f(r.min_barrier)
             );
             csv_text(&mut out, r.min_barrier_name.as_deref().unwrap_or(""));
-            let _ = writeln!(
+            let _ = write!(
                 out,
-                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},",
                 opt_f(r.min_clearance),
                 r.goal_reached,
                 opt_f(r.time_to_goal),
@@ -190,6 +192,10 @@ pub fn to_csv(results: &[BatchResult]) -> String {
                 float_text(r.mean_abs_domega),
                 r.stalls
             );
+            // The per-filter rows as one JSON cell (quoted: it holds commas).
+            let cell = serde_json::to_string(&r.estimation).unwrap_or_else(|_| "[]".into());
+            csv_text(&mut out, &cell);
+            out.push('\n');
         }
     }
     out
@@ -365,6 +371,7 @@ mod tests {
             omega_sign_change_fraction: f[28].parse().expect("omega_sign_change_fraction"),
             mean_abs_domega: f[29].parse().expect("mean_abs_domega"),
             stalls: u(30),
+            estimation: serde_json::from_str(&f[31]).expect("estimation cell"),
         }
     }
 

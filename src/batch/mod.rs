@@ -177,6 +177,17 @@ pub(crate) mod testutil {
                     path_length: 3.0,
                     stalls: seed % 2,
                 },
+                estimation_errors: vec![ftcbf_sim::summary::EstimationError {
+                    filter: "drop_r1".into(),
+                    gamma: Some(0.1),
+                    honest: true,
+                    max_error: 0.1 * (0.5 + unit(seed, 16)),
+                    max_position_error: 0.05,
+                    max_velocity_error: 0.05,
+                    max_ratio: Some(0.5 + unit(seed, 16)),
+                    t_worst: 1.0,
+                    steps_over: u64::from(unit(seed, 16) > 0.5),
+                }],
             })
         }
     }

@@ -74,6 +74,99 @@ pub struct TrialRecord {
     /// Stalls the safety filter's tracker detected.
     #[serde(default)]
     pub stalls: u64,
+    /// Per filter of the bank: whether it was honest (read no attacked channel), its largest
+    /// ‖x − x̂‖/γ and whether it left γ (empty for a law without a bank).
+    #[serde(default)]
+    pub estimation: Vec<FilterGammaRecord>,
+}
+
+/// One filter's estimation error against its γ in one trial (see
+/// `ftcbf_sim::summary::EstimationError`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilterGammaRecord {
+    /// Filter label.
+    pub filter: String,
+    /// The filter read no attacked channel.
+    pub honest: bool,
+    /// Largest ‖x − x̂‖/γ (`None` without γ; "inf" for a non-finite estimate).
+    #[serde(with = "io::float_or_text::option")]
+    pub max_ratio: Option<f64>,
+    /// The error left γ at some step.
+    pub exceeded: bool,
+}
+
+impl FilterGammaRecord {
+    fn of(e: &ftcbf_sim::summary::EstimationError) -> Self {
+        Self {
+            filter: e.filter.clone(),
+            honest: e.honest,
+            max_ratio: e.max_ratio,
+            exceeded: e.exceeded(),
+        }
+    }
+}
+
+/// Over a batch, one filter's share of honest trials whose error left γ (thesis Theorem 1:
+/// at most ε), with its Clopper–Pearson interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilterGammaSummary {
+    /// Filter label.
+    pub filter: String,
+    /// Trials in which the filter read no attacked channel.
+    pub honest_trials: u64,
+    /// Of those, trials whose error left γ.
+    pub exceeded: u64,
+    /// exceeded / honest_trials (0 without honest trials).
+    pub exceeded_rate: f64,
+    /// Clopper–Pearson interval of that share (`None` without honest trials).
+    pub exceeded_ci: Option<Interval>,
+    /// Largest ‖x − x̂‖/γ over the honest trials.
+    #[serde(with = "io::float_or_text::option")]
+    pub worst_ratio: Option<f64>,
+    /// The lower bound of the interval lies above ε: the bound γ is refuted on this robot.
+    pub refuted: bool,
+}
+
+/// Per filter (in bank order), the share of honest trials over γ.
+fn gamma_summaries(
+    recs: &[&TrialRecord],
+    confidence: f64,
+    epsilon: Option<f64>,
+) -> Vec<FilterGammaSummary> {
+    let Some(first) = recs.iter().find(|r| !r.estimation.is_empty()) else {
+        return Vec::new();
+    };
+    first
+        .estimation
+        .iter()
+        .enumerate()
+        .map(|(i, f0)| {
+            let rows: Vec<&FilterGammaRecord> = recs
+                .iter()
+                .filter_map(|r| r.estimation.get(i))
+                .filter(|f| f.honest && f.filter == f0.filter)
+                .collect();
+            let n = rows.len() as u64;
+            let k = rows.iter().filter(|f| f.exceeded).count() as u64;
+            let ci = stats::clopper_pearson(k, n, confidence);
+            let worst_ratio = rows.iter().filter_map(|f| f.max_ratio).reduce(|a, b| {
+                if b.is_nan() || b > a {
+                    b
+                } else {
+                    a
+                }
+            });
+            FilterGammaSummary {
+                filter: f0.filter.clone(),
+                honest_trials: n,
+                exceeded: k,
+                exceeded_rate: rate(k, n),
+                exceeded_ci: ci,
+                worst_ratio,
+                refuted: matches!((ci, epsilon), (Some(ci), Some(e)) if ci.lower > e),
+            }
+        })
+        .collect()
 }
 
 impl TrialRecord {
@@ -113,6 +206,11 @@ impl TrialRecord {
             omega_sign_change_fraction: s.smoothness.omega_sign_change_fraction,
             mean_abs_domega: s.smoothness.mean_abs_domega,
             stalls: s.smoothness.stalls,
+            estimation: s
+                .estimation_errors
+                .iter()
+                .map(FilterGammaRecord::of)
+                .collect(),
         }
     }
 }
@@ -298,6 +396,9 @@ pub struct ControllerSummary {
     /// Smoothness of the commanded (v, ω) over the trials (issue #11).
     #[serde(default)]
     pub smoothness: SmoothnessSummary,
+    /// Per filter, the share of honest trials whose estimation error left γ (issue #35).
+    #[serde(default)]
+    pub estimation: Vec<FilterGammaSummary>,
 }
 
 /// Control smoothness over a batch: per-trial figures, averaged and at their worst.
@@ -531,6 +632,7 @@ fn summarize<'a>(
         rejected_trials: count(&|r| r.rejected_readings > 0),
         worst: worst_trials(&recs),
         smoothness: SmoothnessSummary::of(&recs),
+        estimation: gamma_summaries(&recs, plan.confidence, plan.epsilon),
     })
 }
 

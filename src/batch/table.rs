@@ -101,6 +101,7 @@ pub fn summary_text(res: &BatchResult) -> String {
     safety_table(res, &mut out);
     steps_table(res, &mut out);
     smoothness_table(res, &mut out);
+    gamma_table(res, &mut out);
     worst_table(res, &mut out);
     paired_and_warnings(res, &mut out);
     out
@@ -257,6 +258,56 @@ fn smoothness_table(res: &BatchResult, out: &mut String) {
             ]
         })
         .collect();
+    out.push_str(&render(&headers, &align, &rows));
+}
+
+/// Theorem 1's hypothesis measured: per filter, the share of the trials in which it read no
+/// attacked channel whose estimation error ‖x − x̂‖ left γ, against ε.
+fn gamma_table(res: &BatchResult, out: &mut String) {
+    use Align::{Left, Right};
+    let rows: Vec<Vec<String>> = res
+        .summaries
+        .iter()
+        .flat_map(|s| {
+            s.estimation
+                .iter()
+                .filter(|g| g.honest_trials > 0)
+                .map(|g| {
+                    vec![
+                        s.controller.clone(),
+                        g.filter.clone(),
+                        format!("{} / {}", g.exceeded, g.honest_trials),
+                        g.exceeded_ci.map_or("—".into(), |ci| {
+                            format!("[{:.4}, {:.4}]", ci.lower, ci.upper)
+                        }),
+                        g.worst_ratio.map_or("—".into(), |r| format!("{r:.3}")),
+                        if g.refuted {
+                            "REFUTED (lower bound > ε)".into()
+                        } else {
+                            String::new()
+                        },
+                    ]
+                })
+        })
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    out.push_str(&format!(
+        "\nEstimation error against γ (honest filters: those reading no attacked channel; Theorem 1 asks Pr(over γ) ≤ ε{})\n",
+        res.plan
+            .epsilon
+            .map_or(String::new(), |e| format!(" = {e}"))
+    ));
+    let headers = [
+        "controller",
+        "filter",
+        "trials over γ",
+        "95 % interval",
+        "worst ‖x − x̂‖/γ",
+        "",
+    ];
+    let align = [Left, Left, Right, Right, Right, Left];
     out.push_str(&render(&headers, &align, &rows));
 }
 

@@ -143,6 +143,10 @@ fn blueprint(scene: &Scene) -> (Blueprint, Option<EntityPath>) {
             "/detector".into(),
         ),
         plot("CLF V/V₀ per estimator".into(), "/clf".into()),
+        plot(
+            "estimation error ‖x − x̂‖/γ against the truth (above 1: γ does not hold)".into(),
+            "/estimation_error".into(),
+        ),
     ]);
     let control = Tabs::new([
         TimeSeriesView::new("command to the drive: v [m/s], ω [rad/s]")

@@ -12,7 +12,8 @@
 //!   [`TRAIL_EVERY`] control steps);
 //! - plots, as [`plots`] describes: `barriers/<barrier>/{truth,<filter>,zero,clipped}`,
 //!   `sensors/<channel>/{clean,received,rejected,attack_window,clipped}`, `detector/<channel>`,
-//!   `residues/<filter>`, `clf/<filter>` (V/V₀), `control/{v,omega,u_x,u_y}`, `attacks/<label>`;
+//!   `residues/<filter>`, `clf/<filter>` (V/V₀), `estimation_error/<filter>` (‖x − x̂‖/γ against
+//!   the truth, with `estimation_error/bound` at 1), `control/{v,omega,u_x,u_y}`, `attacks/<label>`;
 //! - `events/policy` (stage changes and dropped constraints; WARN when infeasible, naming the
 //!   tightest constraint), `events/safety` (WARN: collisions and violations, naming the obstacle
 //!   or set), `events/attacks` (WARN at a window's start, INFO at its end).

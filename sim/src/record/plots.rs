@@ -6,6 +6,8 @@
 //!   each side; received and rejected readings are cut to it;
 //! - a barrier: the true h's range widened the same way; h on the estimates is cut to it;
 //! - V on an estimate is shown as V/V₀ (V₀ = its first value), cut to [0, [`V_RATIO_MAX`]];
+//! - the estimation error ‖x − x̂‖/γ of each estimate against the truth is cut to
+//!   [0, [`GAMMA_RATIO_MAX`]], with the bound 1 drawn as a line;
 //! - Step-3 residues are drawn as log10, cut to [−6, 6]
 //!   ([`RESIDUE_FLOOR`], [`RESIDUE_MAX`]); detector statistics are cut to ±[`Z_MAX`].
 
@@ -15,6 +17,8 @@ use super::draw::{other, palette, seg, ATTACK, CLEAN, MARK, RECEIVED, TRUTH};
 
 /// Smallest span used to widen a reference range (in the signal's unit).
 pub const MIN_SPAN: f64 = 0.5;
+/// Upper end of the ‖x − x̂‖/γ plot.
+pub const GAMMA_RATIO_MAX: f64 = 5.0;
 /// Upper end of the V/V₀ plot.
 pub const V_RATIO_MAX: f64 = 10.0;
 /// Residues are plotted as log10(residue), cut to [log10 RESIDUE_FLOOR, log10 RESIDUE_MAX]
@@ -100,6 +104,8 @@ pub(crate) struct Plots {
     attack_labels: Vec<String>,
     clf: Vec<Series>,
     residues: Vec<Series>,
+    /// ‖x − x̂‖/γ per filter.
+    gamma_ratio: Vec<Series>,
     clean: Vec<Series>,
     received: Vec<Series>,
     rejected: Vec<Series>,
@@ -133,6 +139,7 @@ impl Plots {
             attack_labels: scene.attacks.clone(),
             clf: per("clf", f, ""),
             residues: per("residues", f, ""),
+            gamma_ratio: per("estimation_error", f, ""),
             clean: per("sensors", c, "/clean"),
             received: per("sensors", c, "/received"),
             rejected: per("sensors", c, "/rejected"),
@@ -165,6 +172,7 @@ impl Plots {
         for (i, e) in f.estimates.iter().enumerate().take(self.clf.len()) {
             self.clf[i].push(t, k, e.clf);
             self.residues[i].push(t, k, e.residue);
+            self.gamma_ratio[i].push(t, k, e.error_ratio);
         }
         for (i, c) in f.channels.iter().enumerate().take(self.clean.len()) {
             self.clean[i].push(t, k, c.clean);
@@ -298,6 +306,26 @@ impl Plots {
                 .for_each(|x| *x = x.max(RESIDUE_FLOOR).log10());
             r.clip((RESIDUE_FLOOR.log10(), RESIDUE_MAX.log10()), &mut r_marks);
             out.push((r, self.filters[i].clone(), Look::Line(palette(i), 1.5)));
+        }
+        let mut g_marks = Series::new("estimation_error/clipped".into());
+        let mut g_span = Series::default();
+        for (i, mut g) in std::mem::take(&mut self.gamma_ratio)
+            .into_iter()
+            .enumerate()
+        {
+            g.clip((0.0, GAMMA_RATIO_MAX), &mut g_marks);
+            if g_span.t.len() < g.t.len() {
+                g_span = g.clone();
+            }
+            out.push((g, self.filters[i].clone(), Look::Line(palette(i), 1.5)));
+        }
+        if !g_span.t.is_empty() {
+            out.push((
+                Series::constant("estimation_error/bound".into(), &g_span, 1.0),
+                "γ (Theorem 1's bound)".into(),
+                Look::Line(MARK, 1.0),
+            ));
+            out.push((g_marks, "clipped to plot range".into(), cross));
         }
         let mut z_marks = Series::new("detector/clipped".into());
         let mut span = Series::default();

@@ -31,6 +31,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod errors;
 mod monitor;
 mod plant;
 mod scene;
@@ -38,6 +39,7 @@ pub mod setup;
 mod view;
 
 use ftcbf_controller::controller::{Controller, ControllerConfig};
+use ftcbf_controller::drive::{realized_acceleration, BodyCommand};
 use ftcbf_controller::estimator::FilterRole;
 use ftcbf_controller::interface::{ControlLaw, Readings};
 use ftcbf_controller::policy::{QpOutcome, SafeAction, Stage};
@@ -49,6 +51,7 @@ use crate::sensors::SensorSuite;
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
 use crate::world::{ControllerKindSpec, World};
 
+use errors::ErrorMeter;
 use monitor::Monitor;
 use view::StepView;
 
@@ -179,6 +182,9 @@ pub struct Simulation<'w> {
     view: StepView,
     link_poses: bool,
     smooth: SmoothnessMeter,
+    errors: ErrorMeter,
+    /// The acceleration the drive realised over the last period (None for the linear plant).
+    applied: Option<Input>,
 }
 
 impl<'w> Simulation<'w> {
@@ -254,6 +260,14 @@ impl<'w> Simulation<'w> {
             windows.len(),
         );
         let q = setup.sensor_of_channel.len();
+        let errors = match law.estimators() {
+            Some(bank) => ErrorMeter::new(
+                &filters,
+                &errors::filter_gammas(bank, &setup.params),
+                &errors::honest_filters(bank, &attacks, world),
+            ),
+            None => ErrorMeter::default(),
+        };
         Self {
             world,
             seed,
@@ -279,6 +293,8 @@ impl<'w> Simulation<'w> {
             view,
             link_poses: false,
             smooth: SmoothnessMeter::default(),
+            errors,
+            applied: None,
         }
     }
 
@@ -365,6 +381,7 @@ impl<'w> Simulation<'w> {
             dt: self.control_dt,
             y: &self.y,
             fresh: &self.fresh,
+            applied: self.applied,
         };
         let decision = self.law.step(&readings);
         if let Some(out) = decision.record {
@@ -391,7 +408,7 @@ impl<'w> Simulation<'w> {
         self.view.decision(decision.record, &self.filters);
         let u = decision.u;
         self.view.u = [u[0], u[1]];
-        self.view.estimates(self.law.estimators());
+        self.view.estimates(self.law.estimators(), &mut self.errors);
         self.view.attacks_active.iter_mut().for_each(|a| *a = false);
         for i in self.attacks.active(t) {
             if let Some(a) = self.view.attacks_active.get_mut(i) {
@@ -403,9 +420,18 @@ impl<'w> Simulation<'w> {
 
     /// Holds `u` through the drive for one control period of plant ticks, checking the truth.
     fn actuate(&mut self, u: Input) {
-        self.view.body_cmd =
-            self.plant
-                .apply_input(&u, self.heading_source.drive_yaw(), self.control_dt);
+        let before = self.view.body_cmd;
+        let yaw = self.heading_source.drive_yaw();
+        self.view.body_cmd = self.plant.apply_input(&u, yaw, self.control_dt);
+        // What the drive made of u, for the filters' next prediction (the linear plant
+        // realises u exactly: nothing to report).
+        self.applied = self.plant.wheel_geometry().and_then(|_| {
+            let cmd = |c: [f64; 2]| BodyCommand {
+                v: c[0],
+                omega: c[1],
+            };
+            realized_acceleration(cmd(before), cmd(self.view.body_cmd), yaw, self.control_dt)
+        });
         let p = [self.view.truth.x, self.view.truth.y];
         self.smooth.observe(self.view.body_cmd, p);
         for _ in 0..self.world.ticks_per_control {
@@ -478,6 +504,7 @@ impl<'w> Simulation<'w> {
             attack_windows: self.attack_windows.clone(),
             final_state: [end.x, end.y, end.vx, end.vy],
             smoothness: self.smooth.smoothness(),
+            estimation_errors: self.errors.rows().to_vec(),
         }
     }
 }

@@ -1,0 +1,182 @@
+//! The estimation error of every filter of the bank against the truth, next to its γ: the
+//! hypothesis Pr(sup_t ‖x_t − x̂_i,t‖ ≤ γ_i) ≥ 1 − ε of Theorem 3 (thesis Theorem 1, §4.3)
+//! measured where it can be, in a simulator that knows x_t.
+
+use ftcbf_controller::estimator::{EstimatorBank, FilterRole};
+
+use crate::attacks::AttackStack;
+use crate::summary::EstimationError;
+use crate::world::World;
+
+use super::setup::ParamReport;
+
+/// The γ each filter of the bank is held to: γ_i for the filter that drops pattern i, γ_ij for
+/// the one that drops i and j (computed bounds only), γ of the baseline for `all`.
+pub fn filter_gammas(bank: &EstimatorBank, params: &ParamReport) -> Vec<Option<f64>> {
+    let m = bank.patterns();
+    bank.filters()
+        .iter()
+        .map(|f| match f.role() {
+            FilterRole::DropPattern(i) => params.gamma.get(i).copied(),
+            FilterRole::DropPair(i, j) => {
+                // Pairs in the order (0,1), (0,2), …, (1,2), … of FtParameters::gamma_pair.
+                let packed = (0..i).map(|a| m - 1 - a).sum::<usize>() + (j - i - 1);
+                params
+                    .computed
+                    .as_ref()
+                    .and_then(|c| c.gamma_pair.get(packed).copied())
+            }
+            FilterRole::Baseline => Some(params.gamma_baseline),
+        })
+        .map(|g| g.filter(|g| g.is_finite() && *g > 0.0))
+        .collect()
+}
+
+/// Whether each filter reads no attacked channel: every attack's targets lie in the patterns
+/// the filter drops (all filters without attacks; never the baseline under attack).
+pub fn honest_filters(bank: &EstimatorBank, attacks: &AttackStack, world: &World) -> Vec<bool> {
+    let dropped = |role: FilterRole| -> Vec<usize> {
+        let of = |i: usize| world.patterns.get(i).cloned().unwrap_or_default();
+        match role {
+            FilterRole::DropPattern(i) => of(i),
+            FilterRole::DropPair(i, j) => [of(i), of(j)].concat(),
+            FilterRole::Baseline => Vec::new(),
+        }
+    };
+    bank.filters()
+        .iter()
+        .map(|f| {
+            let d = dropped(f.role());
+            (0..attacks.len()).all(|a| {
+                attacks
+                    .targets(a)
+                    .is_none_or(|t| t.iter().all(|s| d.contains(s)))
+            })
+        })
+        .collect()
+}
+
+/// Running maxima of ‖x − x̂_i‖ per filter (allocated once per run).
+#[derive(Debug, Clone, Default)]
+pub struct ErrorMeter {
+    rows: Vec<EstimationError>,
+}
+
+impl ErrorMeter {
+    /// A meter for filters with these labels, bounds and honesty.
+    pub fn new(labels: &[String], gammas: &[Option<f64>], honest: &[bool]) -> Self {
+        let rows = labels
+            .iter()
+            .enumerate()
+            .map(|(i, l)| EstimationError {
+                filter: l.clone(),
+                gamma: gammas.get(i).copied().flatten(),
+                honest: honest.get(i).copied().unwrap_or(false),
+                max_error: 0.0,
+                max_position_error: 0.0,
+                max_velocity_error: 0.0,
+                max_ratio: gammas.get(i).copied().flatten().map(|_| 0.0),
+                t_worst: 0.0,
+                steps_over: 0,
+            })
+            .collect();
+        Self { rows }
+    }
+
+    /// Compares each estimate with the truth `x` = (p_x, p_y, v_x, v_y) at time `t`, and
+    /// returns each filter's ‖x − x̂‖ / γ (NaN without γ) through `ratios`.
+    pub fn observe(&mut self, t: f64, x: [f64; 4], estimates: &[[f64; 4]], ratios: &mut [f64]) {
+        for (i, (row, xh)) in self.rows.iter_mut().zip(estimates).enumerate() {
+            let d = [x[0] - xh[0], x[1] - xh[1], x[2] - xh[2], x[3] - xh[3]];
+            let pos = d[0].hypot(d[1]);
+            let vel = d[2].hypot(d[3]);
+            let err = pos.hypot(vel);
+            // A non-finite error is the worst there is: NaN never wins a `>` comparison.
+            let worse = |old: f64, new: f64| !new.is_finite() || new > old;
+            if worse(row.max_position_error, pos) && row.max_position_error.is_finite() {
+                row.max_position_error = if pos.is_finite() { pos } else { f64::INFINITY };
+            }
+            if worse(row.max_velocity_error, vel) && row.max_velocity_error.is_finite() {
+                row.max_velocity_error = if vel.is_finite() { vel } else { f64::INFINITY };
+            }
+            let ratio = row.gamma.map_or(f64::NAN, |g| err / g);
+            let key = if row.gamma.is_some() { ratio } else { err };
+            let old_key = row.max_ratio.unwrap_or(row.max_error);
+            if worse(old_key, key) && old_key.is_finite() {
+                row.t_worst = t;
+            }
+            if worse(row.max_error, err) && row.max_error.is_finite() {
+                row.max_error = if err.is_finite() { err } else { f64::INFINITY };
+            }
+            if let Some(m) = row.max_ratio.as_mut() {
+                if worse(*m, ratio) && m.is_finite() {
+                    *m = if ratio.is_finite() {
+                        ratio
+                    } else {
+                        f64::INFINITY
+                    };
+                }
+                if !(ratio <= 1.0) {
+                    row.steps_over += 1;
+                }
+            }
+            if let Some(r) = ratios.get_mut(i) {
+                *r = ratio;
+            }
+        }
+    }
+
+    /// The rows so far.
+    pub fn rows(&self) -> &[EstimationError] {
+        &self.rows
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn maxima_ratio_and_steps_over() {
+        let labels = vec!["a".to_string(), "b".to_string()];
+        let mut m = ErrorMeter::new(&labels, &[Some(0.5), None], &[true, false]);
+        let mut r = [0.0; 2];
+        // a: error (0.3, 0.4) → 0.5, ratio 1.0 (not over); b: no γ
+        m.observe(
+            0.1,
+            [0.0; 4],
+            &[[0.3, 0.4, 0.0, 0.0], [0.0, 0.0, 0.1, 0.0]],
+            &mut r,
+        );
+        assert!((r[0] - 1.0).abs() < 1e-12);
+        assert!(r[1].is_nan());
+        // a: velocity error 0.6 → ratio 1.2 (over)
+        m.observe(0.2, [0.0; 4], &[[0.0, 0.0, 0.6, 0.0], [0.0; 4]], &mut r);
+        let a = &m.rows()[0];
+        assert_eq!(a.steps_over, 1);
+        assert!((a.max_ratio.unwrap() - 1.2).abs() < 1e-12);
+        assert!((a.max_position_error - 0.5).abs() < 1e-12);
+        assert!((a.max_velocity_error - 0.6).abs() < 1e-12);
+        assert!((a.t_worst - 0.2).abs() < 1e-12);
+        assert!(a.exceeded());
+        let b = &m.rows()[1];
+        assert!(!b.exceeded());
+        assert!((b.max_error - 0.1).abs() < 1e-12);
+        assert!((b.t_worst - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn non_finite_estimate_counts_as_over() {
+        let labels = vec!["a".to_string()];
+        let mut m = ErrorMeter::new(&labels, &[Some(1.0)], &[true]);
+        let mut r = [0.0; 1];
+        m.observe(0.0, [0.0; 4], &[[f64::NAN, 0.0, 0.0, 0.0]], &mut r);
+        m.observe(0.1, [0.0; 4], &[[0.1, 0.0, 0.0, 0.0]], &mut r);
+        let a = &m.rows()[0];
+        assert!(a.max_error.is_infinite());
+        assert_eq!(a.max_ratio, Some(f64::INFINITY));
+        assert_eq!(a.steps_over, 1);
+        assert!(a.exceeded());
+        assert_eq!(a.t_worst, 0.0);
+    }
+}
