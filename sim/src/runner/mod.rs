@@ -32,6 +32,7 @@
 //! ```
 
 mod errors;
+pub mod identify;
 mod monitor;
 mod plant;
 mod scene;

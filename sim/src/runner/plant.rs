@@ -9,7 +9,7 @@ use rand_chacha::ChaCha20Rng;
 use rand_distr::StandardNormal;
 
 use crate::drive::{Drive, DriveConfig};
-use crate::obstacles::ObstacleBarrier;
+use crate::obstacles::{Obstacle, ObstacleBarrier};
 use crate::physics::{PhysicsConfig, PhysicsWorld, Pose2};
 use crate::robot::WheelGeometry;
 use crate::sensors::stream_rng;
@@ -54,43 +54,18 @@ impl Plant {
     pub fn new(world: &World, seed: u64) -> Result<Self, String> {
         match world.file.dynamics {
             Dynamics::Rapier => {
-                let robot = world
-                    .robot
-                    .as_ref()
-                    .ok_or_else(|| "rapier dynamics without a robot".to_string())?;
                 let start = world
                     .file
                     .robot
                     .as_ref()
                     .map(|r| r.start)
                     .unwrap_or_default();
-                let cfg = PhysicsConfig {
-                    dt: world.file.physics.dt,
-                    friction: world.file.physics.friction,
-                    ..PhysicsConfig::default()
+                let start = Pose2 {
+                    x: start.x,
+                    y: start.y,
+                    theta: start.theta,
                 };
-                let physics = PhysicsWorld::new(
-                    robot,
-                    Pose2 {
-                        x: start.x,
-                        y: start.y,
-                        theta: start.theta,
-                    },
-                    &world.obstacles,
-                    &cfg,
-                )
-                .map_err(|e| e.to_string())?;
-                let drive = Drive::new(
-                    &robot.wheels.geometry,
-                    &robot.limits,
-                    drive_config(&world.file.control.drive),
-                )
-                .map_err(|e| e.to_string())?;
-                Ok(Plant::Rapier {
-                    physics,
-                    drive,
-                    contact: vec![false; world.obstacles.len()],
-                })
+                Self::robot(world, start, &world.obstacles)
             }
             Dynamics::Linear => {
                 let lin = world
@@ -119,6 +94,33 @@ impl Plant {
                 })
             }
         }
+    }
+
+    /// The world's robot in rapier at `start` among `obstacles`, with its drive (the
+    /// identification of the drive runs it alone, with no obstacle).
+    pub fn robot(world: &World, start: Pose2, obstacles: &[Obstacle]) -> Result<Self, String> {
+        let robot = world
+            .robot
+            .as_ref()
+            .ok_or_else(|| "rapier dynamics without a robot".to_string())?;
+        let cfg = PhysicsConfig {
+            dt: world.file.physics.dt,
+            friction: world.file.physics.friction,
+            ..PhysicsConfig::default()
+        };
+        let physics =
+            PhysicsWorld::new(robot, start, obstacles, &cfg).map_err(|e| e.to_string())?;
+        let drive = Drive::new(
+            &robot.wheels.geometry,
+            &robot.limits,
+            drive_config(&world.file.control.drive),
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(Plant::Rapier {
+            physics,
+            drive,
+            contact: vec![false; obstacles.len()],
+        })
     }
 
     /// The drive's wheel geometry (None for the linear plant, which has no wheels).

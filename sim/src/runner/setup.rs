@@ -24,9 +24,6 @@ use crate::world::{
 
 use super::RunError;
 
-/// Filter process-noise intensity assumed for the rapier robot when the world does not give one
-/// [(m/s²)²·s]: it covers the unmodelled drive dynamics (motor lag, slip) as white acceleration.
-pub const DEFAULT_RAPIER_PROCESS_NOISE: f64 = 1e-2;
 /// Variance floor for a channel declared noise-free, so R stays invertible [unit²].
 pub const MIN_VARIANCE: f64 = 1e-8;
 /// Readings larger than this are rejected by the controller as absurd [m or m/s].
@@ -273,11 +270,12 @@ impl ControlSetup {
         let file = &world.file;
         let ch = Channels::of(world)?;
         let patterns = model_patterns(world, &ch.channels_of_sensor)?;
+        let (q, _) = process_noise(world)?;
         let model = LinearModel::new(
             LinearModel::double_integrator_f(),
             LinearModel::double_integrator_g(),
             ch.c_rows,
-            filter_process_noise(world),
+            filter_process_noise(world, q),
             ch.r,
         )
         .map_err(|e| setup_err(world, "sensors", e.to_string()))?;
@@ -894,18 +892,46 @@ pub fn process_model(world: &World) -> ProcessModel {
         })
 }
 
-/// The filters' process-noise intensity q [(m/s²)²·s or unit²/s].
-pub fn process_noise_intensity(world: &World) -> f64 {
-    let file = &world.file;
-    file.control.process_noise.unwrap_or(match file.dynamics {
-        Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
-        Dynamics::Rapier => DEFAULT_RAPIER_PROCESS_NOISE,
-    })
+/// Where the filters' process noise q came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NoiseSource {
+    /// `[control] process_noise` in the world file.
+    WorldFile,
+    /// The linear plant's own noise, `[linear] process_noise`.
+    LinearPlant,
+    /// Identified from the robot's drive ([`super::identify`]).
+    Identified(super::identify::DriveIdentification),
 }
 
-/// The filters' Q: diag(0, 0, q, q) (white acceleration) or q·I₄ (the paper's).
-pub fn filter_process_noise(world: &World) -> StateMatrix {
-    let q = process_noise_intensity(world);
+/// The filters' process-noise intensity q [(m/s²)²·s or unit²/s] and where it came from: the
+/// world file's `[control] process_noise`, else the linear plant's own noise, else identified
+/// from the robot's drive (a short run of the robot alone; see [`super::identify`]).
+pub fn process_noise(world: &World) -> Result<(f64, NoiseSource), RunError> {
+    let file = &world.file;
+    if let Some(q) = file.control.process_noise {
+        return Ok((q, NoiseSource::WorldFile));
+    }
+    match file.dynamics {
+        Dynamics::Linear => Ok((
+            file.linear.as_ref().map_or(1e-3, |l| l.process_noise),
+            NoiseSource::LinearPlant,
+        )),
+        Dynamics::Rapier => {
+            let id = super::identify::identify(world).map_err(|e| {
+                setup_err(
+                    world,
+                    "control.process_noise",
+                    format!("identifying the filters' process noise from the robot's drive: {e}"),
+                )
+            })?;
+            Ok((id.q, NoiseSource::Identified(id)))
+        }
+    }
+}
+
+/// The filters' Q for intensity `q`: diag(0, 0, q, q) (white acceleration) or q·I₄ (the
+/// paper's).
+pub fn filter_process_noise(world: &World, q: f64) -> StateMatrix {
     match process_model(world) {
         ProcessModel::Isotropic => StateMatrix::identity() * q,
         ProcessModel::Acceleration => {

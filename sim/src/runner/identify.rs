@@ -1,0 +1,216 @@
+//! The filters' process noise q identified from the robot's own drive (issue #35).
+//!
+//! The filters model the robot as the double integrator (6.2) driven by the acceleration the
+//! drive realised ([`ftcbf_controller::drive::realized_acceleration`]) plus white acceleration
+//! noise of intensity q per axis. What the drive does not realise (the wheel motors' lag, slip,
+//! the chassis' own dynamics) is that noise; Theorem 1's γ holds only if q covers it.
+//!
+//! The identification runs the world's robot (its URDF, physics step, drive settings and control
+//! rate) alone on an empty floor for [`IDENT_SECONDS`], under a seeded excitation: accelerations
+//! drawn uniformly in the world's input box (±[`DEFAULT_EXCITATION`] m/s² per axis without
+//! one), each held for 0.2–1 s: the inputs of the safety-filter form, which change smoothly.
+//! The paper form's QP switches its input at every step (bang-bang); with holds of one step the
+//! same robot reads q ≈ 2.4e-2 and its honest filters still leave γ (paper_turtlebot, 13 of 20
+//! attack-free runs), so `ftcbf check` reports the paper form on a rapier robot as outside the
+//! drive model instead. At every control step it records the velocity change the filters'
+//! prediction misses, w_k = Δv_true − a_realised·Δt (world frame). For white noise of intensity
+//! q per axis, a sum of L consecutive w has E‖Σw‖² = 2·q·L·Δt; the mismatch is not white (motor
+//! lag makes it correlated over a few steps), so q is the largest of those ratios over windows
+//! of L = 1, 2, 5, 10, 25 and 50 control steps: the white noise that covers the mismatch at
+//! every time scale up to one second.
+
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
+use ftcbf_controller::drive::{realized_acceleration, BodyCommand};
+use ftcbf_controller::Input;
+use rand::Rng;
+
+use crate::physics::Pose2;
+use crate::sensors::stream_rng;
+use crate::world::World;
+
+use super::plant::Plant;
+
+/// Length of the identification run [s].
+pub const IDENT_SECONDS: f64 = 30.0;
+/// Excitation amplitude per axis without an input box [m/s²].
+pub const DEFAULT_EXCITATION: f64 = 1.0;
+/// Window lengths [control steps] over which the mismatch's intensity is measured.
+pub const WINDOWS: [usize; 6] = [1, 2, 5, 10, 25, 50];
+
+/// What the identification measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveIdentification {
+    /// The identified intensity q [(m/s²)²·s]: white acceleration noise per axis.
+    pub q: f64,
+    /// The window [s] at which the mismatch was largest (q was read there).
+    pub window: f64,
+    /// RMS of the per-step velocity mismatch ‖w_k‖ [m/s].
+    pub rms_step_mismatch: f64,
+    /// Excitation amplitude per axis [m/s²].
+    pub excitation: f64,
+    /// Length of the run [s].
+    pub seconds: f64,
+}
+
+fn cache() -> &'static Mutex<HashMap<String, DriveIdentification>> {
+    static CACHE: OnceLock<Mutex<HashMap<String, DriveIdentification>>> = OnceLock::new();
+    CACHE.get_or_init(|| Mutex::new(HashMap::new()))
+}
+
+/// q of `world`'s robot and drive, identified once per process for each robot, physics, drive
+/// and rate (a batch of trials computes it once). Deterministic: its excitation has its own
+/// fixed seed, independent of the run's.
+pub fn identify(world: &World) -> Result<DriveIdentification, String> {
+    let f = &world.file;
+    let key = format!(
+        "{:?}|{:?}|{:?}|{:?}|{}|{:?}|{}",
+        world.robot,
+        f.physics.dt,
+        f.physics.friction,
+        f.control.drive,
+        world.control_dt(),
+        f.control.input_limit,
+        world.ticks_per_control
+    );
+    if let Some(hit) = cache().lock().ok().and_then(|c| c.get(&key).copied()) {
+        return Ok(hit);
+    }
+    let found = run(world)?;
+    if let Ok(mut c) = cache().lock() {
+        c.insert(key, found);
+    }
+    Ok(found)
+}
+
+fn run(world: &World) -> Result<DriveIdentification, String> {
+    let dt = world.control_dt();
+    let mut plant = Plant::robot(
+        world,
+        Pose2 {
+            x: 0.0,
+            y: 0.0,
+            theta: 0.0,
+        },
+        &[],
+    )?;
+    let l = world.file.control.input_limit.unwrap_or(DEFAULT_EXCITATION);
+    let mut rng = stream_rng(0, "identify", "excitation");
+    let n = (IDENT_SECONDS / dt).round() as usize;
+    let mut w: Vec<[f64; 2]> = Vec::with_capacity(n);
+    let mut u = Input::zeros();
+    let mut hold = 0usize;
+    let mut before = BodyCommand::default();
+    for _ in 0..n {
+        if hold == 0 {
+            u = Input::new(rng.random_range(-l..=l), rng.random_range(-l..=l));
+            hold = ((rng.random_range(0.2..=1.0) / dt).round() as usize).max(1);
+        }
+        hold -= 1;
+        let t0 = plant.truth();
+        let sent = plant.apply_input(&u, t0.theta, dt);
+        let after = BodyCommand {
+            v: sent[0],
+            omega: sent[1],
+        };
+        let a = realized_acceleration(before, after, t0.theta, dt)
+            .ok_or_else(|| "the drive's command is not finite".to_string())?;
+        before = after;
+        for _ in 0..world.ticks_per_control {
+            plant.tick();
+        }
+        let t1 = plant.truth();
+        let m = [t1.vx - t0.vx - a[0] * dt, t1.vy - t0.vy - a[1] * dt];
+        if !(m[0].is_finite() && m[1].is_finite()) {
+            return Err("the robot's velocity became non-finite".to_string());
+        }
+        w.push(m);
+    }
+    Ok(estimate(&w, dt, l))
+}
+
+/// q from the per-step mismatches `w` (see the module docs).
+fn estimate(w: &[[f64; 2]], dt: f64, excitation: f64) -> DriveIdentification {
+    let mut q = 0.0f64;
+    let mut window = dt;
+    for &len in &WINDOWS {
+        let sums: Vec<f64> = w
+            .chunks_exact(len)
+            .map(|c| {
+                let sx: f64 = c.iter().map(|m| m[0]).sum();
+                let sy: f64 = c.iter().map(|m| m[1]).sum();
+                sx * sx + sy * sy
+            })
+            .collect();
+        if sums.is_empty() {
+            continue;
+        }
+        let qi = sums.iter().sum::<f64>() / sums.len() as f64 / (2.0 * len as f64 * dt);
+        if qi > q {
+            q = qi;
+            window = len as f64 * dt;
+        }
+    }
+    let rms =
+        (w.iter().map(|m| m[0] * m[0] + m[1] * m[1]).sum::<f64>() / w.len().max(1) as f64).sqrt();
+    DriveIdentification {
+        q,
+        window,
+        rms_step_mismatch: rms,
+        excitation,
+        seconds: w.len() as f64 * dt,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_distr::StandardNormal;
+
+    #[test]
+    fn white_mismatch_gives_its_own_intensity() {
+        // w ~ N(0, q·dt) per axis and step: every window reads q (within sampling error).
+        let (q, dt) = (2e-3, 0.02);
+        let mut rng = stream_rng(7, "test", "white");
+        let w: Vec<[f64; 2]> = (0..200_000)
+            .map(|_| {
+                let s = (q * dt).sqrt();
+                [
+                    s * rng.sample::<f64, _>(StandardNormal),
+                    s * rng.sample::<f64, _>(StandardNormal),
+                ]
+            })
+            .collect();
+        let id = estimate(&w, dt, 1.0);
+        // The largest of six estimates, each within a few % of q at these counts.
+        assert!((id.q / q - 1.0).abs() < 0.08, "q = {}", id.q);
+        assert!(
+            (id.rms_step_mismatch - (2.0 * q * dt).sqrt()).abs() < 0.01 * (2.0 * q * dt).sqrt()
+        );
+    }
+
+    #[test]
+    fn correlated_mismatch_is_read_at_its_worst_window() {
+        // A mismatch that repeats for 10 steps (a lag): summed over 10 steps it is 10× larger,
+        // so q is read at the 10-step window, 10× the one-step intensity.
+        let dt = 0.02;
+        let w: Vec<[f64; 2]> = (0..10_000)
+            .map(|k| {
+                if (k / 10) % 2 == 0 {
+                    [0.01, 0.0]
+                } else {
+                    [-0.01, 0.0]
+                }
+            })
+            .collect();
+        let id = estimate(&w, dt, 1.0);
+        let one_step = 1e-4 / (2.0 * dt);
+        assert!(
+            (id.q / (10.0 * one_step) - 1.0).abs() < 1e-9,
+            "q = {}",
+            id.q
+        );
+        assert!((id.window - 10.0 * dt).abs() < 1e-12);
+    }
+}
