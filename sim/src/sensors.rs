@@ -147,7 +147,10 @@ pub struct ChannelSpec {
     pub name: String,
     /// What the channel measures.
     pub measures: Quantity,
-    /// Standard deviation of the additive Gaussian noise, in the unit of the quantity. Required.
+    /// Standard deviation of the additive Gaussian noise, in the unit of the quantity. Required,
+    /// except on a channel derived `from_wheels` (default 0 there: the encoders' noise reaches it
+    /// through the derivation). NaN while absent.
+    #[serde(default = "absent")]
     pub noise_std: f64,
     /// Constant bias (unit of the quantity). Default 0.
     #[serde(default)]
@@ -163,9 +166,18 @@ pub struct ChannelSpec {
     pub dropout_prob: f64,
     /// For a `speed` channel (wheel odometry: the forward speed of the base frame, ROS
     /// `nav_msgs/Odometry` twist.linear.x in `base_footprint`): feed it to the controller's filters
-    /// as the world-frame velocity v·(cos θ̂, sin θ̂), θ̂ from the world's heading channel. Default
-    /// false (the channel is only recorded).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    /// as the world-frame velocity v·(cos θ̂, sin θ̂), θ̂ from the world's heading channel, as the
+    /// file declares it. Absent: true when the world has a heading channel (a speed channel
+    /// without one reaches no filter), see [`ChannelSpec::world_velocity`].
+    #[serde(
+        default,
+        rename = "world_velocity",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub world_velocity_declared: Option<bool>,
+    /// Whether the channel reaches the filters as world-frame velocity (as declared, or the
+    /// default; set by `WorldFile::resolve_defaults`).
+    #[serde(skip)]
     pub world_velocity: bool,
     /// For a `wheel_left`/`wheel_right` channel: the encoder's counts per wheel revolution
     /// (TurtleBot3's Dynamixel XL430: 4096). The reading is then the count difference since the
@@ -189,6 +201,11 @@ pub struct ChannelSpec {
     pub gyro: Option<String>,
 }
 
+/// Serde default of a required number that may be left out in some cases (checked later).
+fn absent() -> f64 {
+    f64::NAN
+}
+
 impl ChannelSpec {
     /// A noiseless, bias-free channel sampled every tick (builder start; set fields afterwards).
     pub fn new(name: impl Into<String>, measures: Quantity, noise_std: f64) -> Self {
@@ -200,6 +217,7 @@ impl ChannelSpec {
             bias_walk_std: 0.0,
             rate_hz: None,
             dropout_prob: 0.0,
+            world_velocity_declared: None,
             world_velocity: false,
             ticks_per_rev: None,
             from_wheels: None,
@@ -217,6 +235,13 @@ impl ChannelSpec {
                 expected,
             })
         };
+        if self.noise_std.is_nan() && self.from_wheels.is_none() {
+            return Err(SensorError::Missing {
+                channel: self.name.clone(),
+                key: "noise_std",
+                expected: "the standard deviation of the channel's noise, in its unit (only a channel derived `from_wheels` may leave it out)",
+            });
+        }
         if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
             return bad("noise_std", self.noise_std, "a finite number >= 0");
         }
@@ -305,6 +330,16 @@ pub enum SensorError {
         first: usize,
         /// Second declaration (0-based).
         second: usize,
+    },
+    /// A required key is absent.
+    #[error("sensor channel \"{channel}\": `{key}` is missing; expected {expected}")]
+    Missing {
+        /// Channel name.
+        channel: String,
+        /// The key.
+        key: &'static str,
+        /// What it must hold.
+        expected: &'static str,
     },
     /// A numeric field out of range.
     #[error("sensor channel \"{channel}\": `{field}` = {value} is invalid; expected {expected}")]

@@ -171,7 +171,7 @@ mod tests {
     #[test]
     fn white_mismatch_gives_its_own_intensity() {
         // w ~ N(0, q·dt) per axis and step: every window reads q (within sampling error).
-        let (q, dt) = (2e-3, 0.02);
+        let (q, dt): (f64, f64) = (2e-3, 0.02);
         let mut rng = stream_rng(7, "test", "white");
         let w: Vec<[f64; 2]> = (0..200_000)
             .map(|_| {

@@ -113,7 +113,7 @@ impl Plant {
         let drive = Drive::new(
             &robot.wheels.geometry,
             &robot.limits,
-            drive_config(&world.file.control.drive),
+            drive_config(world, &robot.limits),
         )
         .map_err(|e| e.to_string())?;
         Ok(Plant::Rapier {
@@ -240,15 +240,27 @@ impl Plant {
     }
 }
 
-/// The compensator settings of `[control.drive]`.
-fn drive_config(d: &crate::world::DriveSection) -> DriveConfig {
+/// The compensator settings of `[control.drive]`, with the defaults of the world's form: the
+/// paper form keeps the thesis' (6.3)–(6.4) (floor law, no rate limits); the safety-filter form
+/// gets the regularised law, v's rate limited to the input box and ω's to ω_max per second —
+/// the settings every catalogue robot world was measured with, taken from the robot's limits.
+pub(crate) fn drive_config(world: &World, limits: &crate::robot::DriveLimits) -> DriveConfig {
+    use crate::world::{FormSpec, LowSpeedSpec};
+    let c = &world.file.control;
+    let d = &c.drive;
     let base = DriveConfig::default();
+    let smooth = c.form == FormSpec::SafetyFilter;
     let scale = d.low_speed_scale.unwrap_or(base.v_floor);
+    let law = d.low_speed.unwrap_or(if smooth {
+        LowSpeedSpec::Regularised
+    } else {
+        LowSpeedSpec::Floor
+    });
     DriveConfig {
         v_floor: scale,
-        v_soft: (d.low_speed == crate::world::LowSpeedSpec::Regularised).then_some(scale),
-        dv_max: d.dv_max,
-        domega_max: d.domega_max,
+        v_soft: (law == LowSpeedSpec::Regularised).then_some(scale),
+        dv_max: d.dv_max.or(smooth.then(|| c.input_limit.unwrap_or(1.0))),
+        domega_max: d.domega_max.or(smooth.then_some(limits.omega_max)),
         wheel_speed_resolution: d.wheel_speed_resolution.unwrap_or(0.0),
         ..base
     }

@@ -122,6 +122,7 @@ impl World {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "world".into())
         });
+        file.resolve_defaults();
         Validator { path }.validate(file, name)
     }
 
