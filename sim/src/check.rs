@@ -18,7 +18,7 @@
 //!    rests on the assumed process noise alone, nothing measured bounds it, and any
 //!    unmodelled actuation (motor lag, slip, clipping) enters it without limit — (4.5) cannot
 //!    be certified, and the verdict says so.
-//! 4b. **γ covers the transient** (`bounds = "paper"` only): §4.3's γ bounds the steady-state
+//!    4b. **γ covers the transient** (`bounds = "paper"` only): §4.3's γ bounds the steady-state
 //!    covariance; a P0 above it makes every filter's error in its first steps larger than γ.
 //! 5. **Condition 1 of Theorem 3** as far as it can be decided statically: Lemma 1 for
 //!    half-planes, Prop. 1 on the position part of lifted ellipses (θ̄ ≤ √(2(1 − h̄)/λ̄(Φ))),
@@ -32,7 +32,7 @@
 //!    stealthy attacker (whose residue sits at its nominal level): the guarantee is void.
 //!    Exact for half-planes and half-space obstacles; for curved boundaries the worst of 360
 //!    normals with the curvature term left out (stated as an assumption).
-//! 6b. **The filters' model is true of the drive** (rapier robots): the safety-filter form's
+//!    6b. **The filters' model is true of the drive** (rapier robots): the safety-filter form's
 //!    inputs are covered by the identified process noise; the paper form's bang-bang inputs are
 //!    not (measured), and the hypothesis fails.
 //! 7. **Attacks inside one fault pattern**: the union of the declared attacks' channels lies in

@@ -116,7 +116,7 @@ impl ErrorMeter {
                         f64::INFINITY
                     };
                 }
-                if !(ratio <= 1.0) {
+                if ratio.is_nan() || ratio > 1.0 {
                     row.steps_over += 1;
                 }
             }
