@@ -11,6 +11,9 @@
 //! `base_footprint`, on the ground between the wheels), REP-103: x forward, y left, z up.
 //!
 //! Loading rules:
+//! - The XML is read as ROS's urdfdom reads it (`robot/urdf.rs`): unknown elements and attributes are
+//!   warnings with their line, missing optional values take the spec's defaults, and what ROS
+//!   refuses is a [`RobotError::Parse`] naming the element, its `name` and the line.
 //! - `package://NAME/rest` is resolved against the caller's search path ([`LoadOptions`]):
 //!   for each directory `d`, `d/NAME/rest`, then `d/rest` when `d` itself is named `NAME`.
 //!   `file://` paths are used as they are; relative paths are relative to the URDF's directory.
@@ -42,6 +45,10 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 
+mod urdf;
+
+pub use urdf::MAX_DEPTH as MAX_URDF_DEPTH;
+
 /// Errors of URDF loading. Every message names the file (when there is one) and what to fix.
 #[derive(Debug, thiserror::Error)]
 pub enum RobotError {
@@ -53,12 +60,15 @@ pub enum RobotError {
         /// Underlying error.
         source: std::io::Error,
     },
-    /// The XML is malformed or does not follow the URDF schema.
-    #[error("{origin}: malformed URDF: {message}")]
+    /// The XML is malformed or does not follow the URDF schema (what ROS's parser would refuse
+    /// too): the message names the element and its `name`.
+    #[error("{origin}: {}malformed URDF: {message}", line_prefix(*.line))]
     Parse {
         /// File path or "<string>".
         origin: String,
-        /// Parser message.
+        /// 1-based line of the offending element, when known.
+        line: Option<usize>,
+        /// What is wrong, naming the element.
         message: String,
     },
     /// Xacro macros or substitutions are still in the file.
@@ -127,6 +137,10 @@ pub enum RobotError {
         /// What went wrong.
         message: String,
     },
+}
+
+fn line_prefix(line: Option<usize>) -> String {
+    line.map(|l| format!("line {l}: ")).unwrap_or_default()
 }
 
 /// Options of [`RobotDescription::from_file`] / [`RobotDescription::from_urdf_str`].
@@ -460,24 +474,8 @@ fn load(
     opts: &LoadOptions,
 ) -> Result<RobotDescription, RobotError> {
     check_xacro(text, origin)?;
-    // urdf-rs (serde-xml-rs) can panic on some malformed inputs; contain that as a parse error.
-    let parsed = std::panic::catch_unwind(|| urdf_rs::read_from_string(text));
-    let robot = match parsed {
-        Ok(Ok(r)) => r,
-        Ok(Err(e)) => {
-            return Err(RobotError::Parse {
-                origin: origin.to_string(),
-                message: e.to_string(),
-            })
-        }
-        Err(_) => {
-            return Err(RobotError::Parse {
-                origin: origin.to_string(),
-                message: "the URDF parser aborted on this input".to_string(),
-            })
-        }
-    };
-    build(&robot, origin, base_dir, opts)
+    let parsed = urdf::parse(text, origin)?;
+    build(&parsed, origin, base_dir, opts)
 }
 
 /// Blanks XML comments, CDATA sections and processing instructions (keeping newlines, so line
@@ -578,10 +576,6 @@ fn iso_from_pose(p: &urdf_rs::Pose) -> Isometry3<f64> {
     )
 }
 
-fn finite3(v: [f64; 3]) -> bool {
-    v.iter().all(|x| x.is_finite())
-}
-
 /// Mass properties accumulated in a body frame: mass, first moment, inertia about the
 /// body-frame origin.
 #[derive(Debug, Clone, Copy)]
@@ -620,11 +614,12 @@ impl MassAcc {
 }
 
 fn build(
-    robot: &urdf_rs::Robot,
+    parsed: &urdf::Parsed,
     origin: &str,
     base_dir: Option<&Path>,
     opts: &LoadOptions,
 ) -> Result<RobotDescription, RobotError> {
+    let robot = &parsed.robot;
     let err_struct = |message: String| RobotError::Structure {
         origin: origin.to_string(),
         message,
@@ -633,44 +628,47 @@ fn build(
         origin: origin.to_string(),
         what,
     };
+    // `joint `x` (line N)` / `link `y` (line M)` for messages.
+    let jname = |ji: usize| {
+        format!(
+            "joint `{}` (line {})",
+            robot.joints[ji].name, parsed.joint_lines[ji]
+        )
+    };
     if robot.links.is_empty() {
         return Err(err_struct("the URDF has no <link>".into()));
     }
+    // Names are unique (the reader refuses duplicates).
     let link_index: HashMap<&str, usize> = robot
         .links
         .iter()
         .enumerate()
         .map(|(i, l)| (l.name.as_str(), i))
         .collect();
-    if link_index.len() != robot.links.len() {
-        return Err(err_struct("two <link> elements share a name".into()));
-    }
     // Parent joint of each link.
     let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
     for (ji, j) in robot.joints.iter().enumerate() {
         let p = *link_index.get(j.parent.link.as_str()).ok_or_else(|| {
             err_struct(format!(
-                "joint `{}` names parent link `{}`, which does not exist",
-                j.name, j.parent.link
+                "{} names parent link `{}`, which does not exist",
+                jname(ji),
+                j.parent.link
             ))
         })?;
         let c = *link_index.get(j.child.link.as_str()).ok_or_else(|| {
             err_struct(format!(
-                "joint `{}` names child link `{}`, which does not exist",
-                j.name, j.child.link
+                "{} names child link `{}`, which does not exist",
+                jname(ji),
+                j.child.link
             ))
         })?;
-        if parent_joint[c].is_some() {
+        if let Some(first) = parent_joint[c] {
             return Err(err_struct(format!(
-                "link `{}` is the child of more than one joint",
-                j.child.link
-            )));
-        }
-        if !finite3(j.origin.xyz.0) || !finite3(j.origin.rpy.0) || !finite3(j.axis.xyz.0) {
-            return Err(invalid(format!(
-                "joint `{}`: non-finite origin or axis",
-                j.name
+                "link `{}` is the child of two joints, {} and {}",
+                j.child.link,
+                jname(first),
+                jname(ji)
             )));
         }
         parent_joint[c] = Some(ji);
@@ -679,13 +677,21 @@ fn build(
     let roots: Vec<usize> = (0..robot.links.len())
         .filter(|&i| parent_joint[i].is_none())
         .collect();
+    if roots.is_empty() {
+        // Every link has a parent joint: following parents from any link must cycle.
+        return Err(err_struct(format!(
+            "no root link: the joints form a cycle ({})",
+            joint_cycle(0, &parent_joint, robot, &jname)
+        )));
+    }
     if roots.len() != 1 {
-        let names: Vec<&str> = roots
+        let names: Vec<String> = roots
             .iter()
-            .map(|&i| robot.links[i].name.as_str())
+            .map(|&i| format!("`{}` (line {})", robot.links[i].name, parsed.link_lines[i]))
             .collect();
         return Err(err_struct(format!(
-            "the links must form one tree with a single root; roots found: {names:?}"
+            "the links must form one tree with a single root; roots found: {}",
+            names.join(", ")
         )));
     }
     let root = roots[0];
@@ -727,10 +733,7 @@ fn build(
             let j = &robot.joints[ji];
             let c = link_index[j.child.link.as_str()];
             if info[c].is_some() {
-                return Err(err_struct(format!(
-                    "joint `{}` closes a kinematic loop",
-                    j.name
-                )));
+                return Err(err_struct(format!("{} closes a kinematic loop", jname(ji))));
             }
             visited += 1;
             let origin_iso = iso_from_pose(&j.origin);
@@ -746,9 +749,8 @@ fn build(
                 | urdf_rs::JointType::Revolute
                 | urdf_rs::JointType::Prismatic => {
                     let axis_v = Vector3::from(j.axis.xyz.0);
-                    let axis = Unit::try_new(axis_v, 1e-9).ok_or_else(|| {
-                        invalid(format!("joint `{}`: <axis xyz> is zero", j.name))
-                    })?;
+                    let axis = Unit::try_new(axis_v, 1e-9)
+                        .ok_or_else(|| invalid(format!("{}: <axis xyz> is zero", jname(ji))))?;
                     let kind = match j.joint_type {
                         urdf_rs::JointType::Continuous => JointKind::Continuous,
                         urdf_rs::JointType::Revolute => JointKind::Revolute {
@@ -790,9 +792,9 @@ fn build(
                 }
                 ref other => {
                     return Err(err_struct(format!(
-                        "joint `{}` has type {other:?}; only fixed, continuous, revolute and \
+                        "{} has type {other:?}; only fixed, continuous, revolute and \
                          prismatic joints are supported",
-                        j.name
+                        jname(ji)
                     )))
                 }
             }
@@ -800,14 +802,21 @@ fn build(
         }
     }
     if visited != robot.links.len() {
-        return Err(err_struct(
-            "some links are not connected to the root".into(),
-        ));
+        // One root and one parent per link: a link the walk missed hangs off a cycle.
+        let missed = (0..robot.links.len())
+            .find(|&i| info[i].is_none())
+            .unwrap_or(0);
+        return Err(err_struct(format!(
+            "link `{}` is not connected to the root `{}`: the joints form a cycle ({})",
+            robot.links[missed].name,
+            robot.links[root].name,
+            joint_cycle(missed, &parent_joint, robot, &jname)
+        )));
     }
 
     // Mass properties and colliders per body.
     let mut acc = vec![MassAcc::zero(); bodies.len()];
-    let mut warnings = Vec::new();
+    let mut warnings = parsed.warnings.clone();
     for (li, link) in robot.links.iter().enumerate() {
         let Some(li_info) = &info[li] else { continue };
         let (b, pose) = (li_info.body, li_info.pose_in_body);
@@ -920,6 +929,38 @@ fn build(
         centre_height: 0.5 * (z_min.max(0.0) + z_max),
         warnings,
     })
+}
+
+/// The joints met following parent joints up from link `start` until a link repeats, as
+/// "joint `a` (line 3) → joint `b` (line 9)" (the cycle itself, in child-to-parent order).
+fn joint_cycle(
+    start: usize,
+    parent_joint: &[Option<usize>],
+    robot: &urdf_rs::Robot,
+    jname: &dyn Fn(usize) -> String,
+) -> String {
+    let index = |name: &str| robot.links.iter().position(|l| l.name == name);
+    let mut seen: Vec<usize> = Vec::new();
+    let mut path: Vec<usize> = Vec::new();
+    let mut link = start;
+    while !seen.contains(&link) {
+        seen.push(link);
+        let Some(ji) = parent_joint[link] else {
+            break;
+        };
+        path.push(ji);
+        match index(&robot.joints[ji].parent.link) {
+            Some(p) => link = p,
+            None => break,
+        }
+    }
+    // Keep the part of the path from the first visit of the repeated link.
+    let from = seen.iter().position(|&l| l == link).unwrap_or(0);
+    path[from.min(path.len())..]
+        .iter()
+        .map(|&ji| jname(ji))
+        .collect::<Vec<_>>()
+        .join(" → ")
 }
 
 fn collision_shape(
@@ -1080,6 +1121,23 @@ pub fn resolve_mesh_path(
 /// of first appearance), so an STL's triangle soup becomes an indexed mesh.
 #[allow(clippy::type_complexity)]
 pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+    // Collada is XML, parsed by a tokenizer that recurses per nesting level: refuse absurd
+    // nesting before it can overflow the stack.
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    if let Ok(text) = std::str::from_utf8(&bytes) {
+        if text
+            .trim_start_matches('\u{feff}')
+            .trim_start()
+            .starts_with('<')
+        {
+            if let Some((line, tag)) = urdf::too_deep(text, MAX_URDF_DEPTH) {
+                return Err(format!(
+                    "line {line}: <{tag}> is nested more than {MAX_URDF_DEPTH} levels deep; \
+                     not a readable Collada mesh"
+                ));
+            }
+        }
+    }
     let scene = mesh_loader::Loader::default()
         .load(path)
         .map_err(|e| format!("not a readable STL, Collada or OBJ mesh: {e}"))?;
