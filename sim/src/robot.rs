@@ -165,6 +165,59 @@ pub struct DriveLimits {
     pub wheel_speed_max: f64,
 }
 
+/// Where the drive limits came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LimitsSource {
+    /// [`LoadOptions::limits`] (a world's `[robot] limits`).
+    Explicit,
+    /// The wheel joints' `<limit velocity>`.
+    WheelJoints,
+    /// The maker's published figures for this robot ([`MAKER_LIMITS`]), because the URDF's
+    /// wheel joints carry no velocity limit.
+    Maker(&'static MakerLimits),
+}
+
+/// A robot maker's published speed limits, applied when a URDF of that robot (matched by its
+/// `<robot name>`) carries no wheel velocity limits.
+#[derive(Debug, PartialEq)]
+pub struct MakerLimits {
+    /// The URDF `<robot name>` the limits apply to.
+    pub robot_name: &'static str,
+    /// Maximum forward speed [m/s].
+    pub v_max: f64,
+    /// Maximum yaw rate [rad/s].
+    pub omega_max: f64,
+    /// Where the figures are published.
+    pub source: &'static str,
+}
+
+/// Published limits of the robots the README names. TurtleBot3: ROBOTIS e-manual,
+/// "TurtleBot3 › Features › Specifications" (burger: maximum translational velocity 0.22 m/s,
+/// maximum rotational velocity 2.84 rad/s; waffle and waffle_pi: 0.26 m/s and 1.82 rad/s).
+pub const MAKER_LIMITS: [MakerLimits; 3] = [
+    MakerLimits {
+        robot_name: "turtlebot3_burger",
+        v_max: 0.22,
+        omega_max: 2.84,
+        source: TURTLEBOT3_SPECS,
+    },
+    MakerLimits {
+        robot_name: "turtlebot3_waffle",
+        v_max: 0.26,
+        omega_max: 1.82,
+        source: TURTLEBOT3_SPECS,
+    },
+    MakerLimits {
+        robot_name: "turtlebot3_waffle_pi",
+        v_max: 0.26,
+        omega_max: 1.82,
+        source: TURTLEBOT3_SPECS,
+    },
+];
+
+const TURTLEBOT3_SPECS: &str =
+    "ROBOTIS e-manual, TurtleBot3 specifications (https://emanual.robotis.com/docs/en/platform/turtlebot3/features/)";
+
 /// Wheel geometry of a differential drive, read from the URDF.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WheelGeometry {
@@ -418,6 +471,8 @@ pub struct RobotDescription {
     pub wheels: DriveWheels,
     /// Drive limits.
     pub limits: DriveLimits,
+    /// Where [`Self::limits`] came from.
+    pub limits_source: LimitsSource,
     /// Circumscribed radius of the robot's collision footprint in the plane, about the root
     /// frame origin [m] (the disc the obstacle barriers keep away from obstacles).
     pub footprint_radius: f64,
@@ -887,7 +942,7 @@ fn build(
             c.is_wheel = true;
         }
     }
-    let limits = match opts.limits {
+    let (limits, limits_source) = match opts.limits {
         Some(l) => {
             let ok = |x: f64| x.is_finite() && x > 0.0;
             if !(ok(l.v_max) && ok(l.omega_max) && ok(l.wheel_speed_max)) {
@@ -895,9 +950,9 @@ fn build(
                     "drive limits override must be positive and finite, got {l:?}"
                 )));
             }
-            l
+            (l, LimitsSource::Explicit)
         }
-        None => derive_limits(robot, origin, &wheels)?,
+        None => derive_limits(parsed, origin, &wheels)?,
     };
 
     // Footprint: circumscribed radius in the plane, and the middle height of the geometry.
@@ -925,6 +980,7 @@ fn build(
         joints,
         wheels,
         limits,
+        limits_source,
         footprint_radius: r_max,
         centre_height: 0.5 * (z_min.max(0.0) + z_max),
         warnings,
@@ -1391,35 +1447,56 @@ fn group_sides(
     Ok((left, right))
 }
 
+/// Limits from the wheel joints' `<limit velocity>`; when a wheel joint has none, the maker's
+/// published limits for a robot of this name ([`MAKER_LIMITS`]); else an error naming the joint
+/// and its line.
 fn derive_limits(
-    robot: &urdf_rs::Robot,
+    parsed: &urdf::Parsed,
     origin: &str,
     wheels: &DriveWheels,
-) -> Result<DriveLimits, RobotError> {
+) -> Result<(DriveLimits, LimitsSource), RobotError> {
+    let robot = &parsed.robot;
+    let g = wheels.geometry;
     let mut w_max = f64::INFINITY;
     for w in wheels.all() {
-        let v = robot
-            .joints
-            .iter()
-            .find(|j| j.name == w.joint_name)
-            .map(|j| j.limit.velocity)
-            .unwrap_or(0.0);
+        let ji = robot.joints.iter().position(|j| j.name == w.joint_name);
+        let v = ji.map(|k| robot.joints[k].limit.velocity).unwrap_or(0.0);
         if !(v.is_finite() && v > 0.0) {
+            if let Some(m) = MAKER_LIMITS.iter().find(|m| m.robot_name == robot.name) {
+                let limits = DriveLimits {
+                    v_max: m.v_max,
+                    omega_max: m.omega_max,
+                    wheel_speed_max: m.v_max / g.radius,
+                };
+                return Ok((limits, LimitsSource::Maker(m)));
+            }
+            let line = ji
+                .map(|k| format!(" (line {})", parsed.joint_lines[k]))
+                .unwrap_or_default();
             return Err(RobotError::InvalidValue {
                 origin: origin.to_string(),
                 what: format!(
-                    "wheel joint `{}` has no <limit velocity> (rad/s) to derive the drive limits \
-                     from; add one or pass explicit limits",
-                    w.joint_name
+                    "wheel joint `{}`{line} has no <limit velocity> (rad/s) to derive the drive \
+                     limits from, and robot `{}` is none of those with published limits ({}); \
+                     add one or give [robot] limits in the world",
+                    w.joint_name,
+                    robot.name,
+                    MAKER_LIMITS
+                        .iter()
+                        .map(|m| m.robot_name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
             });
         }
         w_max = w_max.min(v);
     }
-    let g = wheels.geometry;
-    Ok(DriveLimits {
-        v_max: g.radius * w_max,
-        omega_max: 2.0 * g.radius * w_max / g.separation,
-        wheel_speed_max: w_max,
-    })
+    Ok((
+        DriveLimits {
+            v_max: g.radius * w_max,
+            omega_max: 2.0 * g.radius * w_max / g.separation,
+            wheel_speed_max: w_max,
+        },
+        LimitsSource::WheelJoints,
+    ))
 }
