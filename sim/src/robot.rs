@@ -23,10 +23,12 @@
 //!   error naming the file and the package search path.
 //! - Links without `<inertial>` (mass 0) are allowed only where they are rigidly attached
 //!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error.
-//! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>`) are rejected with the line, the enclosing
-//!   link/joint and the attribute, telling the user to run xacro first. Text inside XML
-//!   comments, CDATA sections and processing instructions is never a leftover (ROS packages
-//!   ship plain URDFs with commented-out `<xacro:include …/>` lines).
+//! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>` outside XML comments, CDATA sections and
+//!   processing instructions: ROS packages ship plain URDFs with commented-out
+//!   `<xacro:include …/>` lines) read from a file are expanded by the real `xacro`
+//!   (`robot/xacro.rs`, with [`LoadOptions::xacro`]'s arguments); without xacro the error says
+//!   how to install it. From a string, or with [`XacroCommand::Disabled`], they are refused with
+//!   the line, the enclosing link/joint and the attribute.
 //! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint whose
 //!   child link has a cylinder collision, grouped by the side of the root frame's x axis its
 //!   joint origin lies on (left = +y). Two such joints make a differential drive; four or more,
@@ -46,8 +48,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 
 mod urdf;
+mod xacro;
 
 pub use urdf::MAX_DEPTH as MAX_URDF_DEPTH;
+pub use xacro::{XacroCommand, XacroOptions, INSTALL_HINT as XACRO_INSTALL_HINT};
 
 /// Errors of URDF loading. Every message names the file (when there is one) and what to fix.
 #[derive(Debug, thiserror::Error)]
@@ -85,6 +89,32 @@ pub enum RobotError {
         snippet: String,
         /// Where it sits (link/joint name and attribute, when found).
         context: String,
+    },
+    /// The file is a xacro source and no xacro could be run.
+    #[error(
+        "{origin}: line {line}: `{snippet}` is xacro markup, so this file must be expanded by \
+         xacro first, and xacro is not available ({tried}); {}",
+        xacro::INSTALL_HINT
+    )]
+    XacroUnavailable {
+        /// File path.
+        origin: String,
+        /// 1-based line of the first markup.
+        line: usize,
+        /// The markup.
+        snippet: String,
+        /// What was tried.
+        tried: String,
+    },
+    /// xacro ran and failed.
+    #[error("{origin}: xacro failed (`{command}`): {message}")]
+    XacroFailed {
+        /// File path.
+        origin: String,
+        /// The command line.
+        command: String,
+        /// xacro's message.
+        message: String,
     },
     /// The URDF's structure is not a tree the loader can use.
     #[error("{origin}: {message}")]
@@ -152,6 +182,8 @@ pub struct LoadOptions {
     pub wheel_joints: Option<(String, String)>,
     /// Explicit drive limits; `None` = derive from the wheel joints' velocity limits.
     pub limits: Option<DriveLimits>,
+    /// How a xacro source is expanded (arguments, which xacro).
+    pub xacro: XacroOptions,
 }
 
 /// Speed limits of the differential drive.
@@ -481,6 +513,9 @@ pub struct RobotDescription {
     pub centre_height: f64,
     /// Non-fatal problems (missing visual meshes, …).
     pub warnings: Vec<String>,
+    /// The expanded URDF when the file was a xacro source (what was read; errors and warnings
+    /// name its lines).
+    pub xacro_output: Option<PathBuf>,
 }
 
 impl RobotDescription {
@@ -493,12 +528,20 @@ impl RobotDescription {
             source,
         })?;
         let base_dir = path.parent().map(Path::to_path_buf);
-        load(
-            &text,
-            &path.display().to_string(),
-            base_dir.as_deref(),
-            opts,
-        )
+        let origin = path.display().to_string();
+        match check_xacro(&text, &origin) {
+            Err(RobotError::Xacro { line, snippet, .. })
+                if opts.xacro.command != XacroCommand::Disabled =>
+            {
+                let expanded = xacro::expand(path, &text, &opts.xacro, (line, &snippet))?;
+                let origin = format!("{} (xacro output of {origin})", expanded.path.display());
+                let mut r = load(&expanded.text, &origin, base_dir.as_deref(), opts)?;
+                r.xacro_output = Some(expanded.path);
+                Ok(r)
+            }
+            Err(e) => Err(e),
+            Ok(()) => load(&text, &origin, base_dir.as_deref(), opts),
+        }
     }
 
     /// Loads a URDF from a string (`origin` is used in messages); relative mesh paths are
@@ -984,6 +1027,7 @@ fn build(
         footprint_radius: r_max,
         centre_height: 0.5 * (z_min.max(0.0) + z_max),
         warnings,
+        xacro_output: None,
     })
 }
 

@@ -514,6 +514,13 @@ fn skid_opts() -> LoadOptions {
 /// The skid-steer fixture's text with `edit` applied, loaded with the workspace search path
 /// (the file keeps its directory, so relative paths still resolve).
 fn load_skid_edited(edit: impl Fn(&str) -> String) -> Result<RobotDescription, RobotError> {
+    load_skid_edited_with(edit, &skid_opts())
+}
+
+fn load_skid_edited_with(
+    edit: impl Fn(&str) -> String,
+    opts: &LoadOptions,
+) -> Result<RobotDescription, RobotError> {
     let text = std::fs::read_to_string(skid_urdf()).unwrap();
     let edited = edit(&text);
     assert_ne!(edited, text, "the edit must change the file");
@@ -522,7 +529,7 @@ fn load_skid_edited(edit: impl Fn(&str) -> String) -> Result<RobotDescription, R
     let dir = scratch(&format!("skid-edit-{n}"));
     let path = dir.join("skid4.urdf");
     std::fs::write(&path, edited).unwrap();
-    let r = RobotDescription::from_file(&path, &skid_opts());
+    let r = RobotDescription::from_file(&path, opts);
     let _ = std::fs::remove_dir_all(&dir);
     r
 }
@@ -696,6 +703,15 @@ fn odd_or_ambiguous_wheel_layouts_are_errors_naming_the_joints() {
 
 #[test]
 fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute() {
+    // With xacro expansion off (a file with markup is otherwise run through xacro, see
+    // sim/tests/robot_xacro.rs), markup outside comments is refused with its line.
+    let no_xacro = LoadOptions {
+        xacro: ftcbf_sim::robot::XacroOptions {
+            command: ftcbf_sim::robot::XacroCommand::Disabled,
+            ..Default::default()
+        },
+        ..skid_opts()
+    };
     // `${namespace}base_link` outside any comment, on the line of `<link name="base_link">`.
     let text = std::fs::read_to_string(skid_urdf()).unwrap();
     let line = text
@@ -703,12 +719,15 @@ fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute(
         .position(|l| l.contains(r#"<link name="base_link">"#))
         .unwrap()
         + 1;
-    let e = load_skid_edited(|t| {
-        t.replace(
-            r#"<link name="base_link">"#,
-            r#"<link name="${namespace}base_link">"#,
-        )
-    })
+    let e = load_skid_edited_with(
+        |t| {
+            t.replace(
+                r#"<link name="base_link">"#,
+                r#"<link name="${namespace}base_link">"#,
+            )
+        },
+        &no_xacro,
+    )
     .unwrap_err();
     assert!(
         matches!(&e, RobotError::Xacro { line: l, .. } if *l == line),
@@ -720,12 +739,15 @@ fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute(
         "{msg}"
     );
     // `<xacro:arg>` as an element, not inside the comment block.
-    let e = load_skid_edited(|t| {
-        t.replace(
-            "  <material name=\"dark_grey\">",
-            "  <xacro:arg name=\"namespace\" default=\"\"/>\n  <material name=\"dark_grey\">",
-        )
-    })
+    let e = load_skid_edited_with(
+        |t| {
+            t.replace(
+                "  <material name=\"dark_grey\">",
+                "  <xacro:arg name=\"namespace\" default=\"\"/>\n  <material name=\"dark_grey\">",
+            )
+        },
+        &no_xacro,
+    )
     .unwrap_err();
     let arg_line = text
         .lines()
