@@ -29,20 +29,26 @@
 //!   (`robot/xacro.rs`, with [`LoadOptions::xacro`]'s arguments); without xacro the error says
 //!   how to install it. From a string, or with [`XacroCommand::Disabled`], they are refused with
 //!   the line, the enclosing link/joint and the attribute.
-//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint whose
-//!   child link has a cylinder collision, grouped by the side of the root frame's x axis its
-//!   joint origin lies on (left = +y). Two such joints make a differential drive; four or more,
-//!   the same number on each side, make a skid-steer drive whose wheels on one side all get the
-//!   same command (as ROS's diff_drive/skid_steer controllers drive them). A wheel on the centre
-//!   line or an unequal number per side is an error naming the joints. Wheel radius = the
-//!   cylinder's radius (all wheels equal within 0.1 mm); separation (the effective track width)
-//!   = planar distance between the centroids of the left and the right wheel joint origins.
+//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint on the
+//!   root body with a lateral axis (±y of the root frame) whose child link has a cylinder or
+//!   mesh collision (a swivel caster's wheel hangs from the swivel, not the root body), grouped
+//!   by the side of the root frame's x axis its joint origin lies on (left = +y). Two such
+//!   joints make a differential drive; four or more, the same number on each side, make a
+//!   skid-steer drive whose wheels on one side all get the same command (as ROS's
+//!   diff_drive/skid_steer controllers drive them). A wheel on the centre line or an unequal
+//!   number per side is an error naming the joints. Wheel radius = the cylinder's radius, or for
+//!   a mesh wheel the largest distance of a mesh vertex from the joint axis (the wheel then
+//!   collides as the cylinder of that radius and of the mesh's width along the axis); all wheels
+//!   equal within 0.1 mm (1 % when measured from meshes); separation (the effective track
+//!   width) = planar distance between the centroids of the left and the right wheel joint
+//!   origins.
 //! - Drive limits: explicit [`LoadOptions::limits`] if given, else derived from the wheel
 //!   joints' `<limit velocity>` (rad/s): `wheel_speed_max = min(velocity)`,
 //!   `v_max = r · wheel_speed_max`, `omega_max = 2 r · wheel_speed_max / separation`.
 //!   A URDF without wheel velocity limits and no override is an error.
 
 use std::collections::HashMap;
+use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -981,7 +987,37 @@ fn build(
 
     let wheels = find_wheels(robot, origin, &bodies, &joints, &joint_of_urdf, opts)?;
     for w in wheels.all() {
-        for c in &mut bodies[w.body].colliders {
+        let axis = joints[w.joint].axis;
+        let body = &mut bodies[w.body];
+        // A wheel measured from its mesh rolls on the cylinder of that extent: the mesh's
+        // convex hull is a polygon and would roll bumpily.
+        if wheel_size(body, axis).is_some_and(|s| s.from_mesh) {
+            if let Some(m) = mesh_extent(body, axis) {
+                let z_to_axis = UnitQuaternion::rotation_between(&Vector3::z(), &axis)
+                    .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI));
+                let link = body
+                    .colliders
+                    .iter()
+                    .find(|c| matches!(c.shape, CollisionShape::Mesh { .. }))
+                    .map(|c| c.link.clone())
+                    .unwrap_or_else(|| body.name.clone());
+                body.colliders
+                    .retain(|c| !matches!(c.shape, CollisionShape::Mesh { .. }));
+                body.colliders.push(RobotCollider {
+                    link,
+                    pose_in_body: Isometry3::from_parts(
+                        Translation3::from(axis.into_inner() * m.mid),
+                        z_to_axis,
+                    ),
+                    shape: CollisionShape::Cylinder {
+                        radius: m.radius,
+                        half_length: m.width / 2.0,
+                    },
+                    is_wheel: true,
+                });
+            }
+        }
+        for c in &mut body.colliders {
             c.is_wheel = true;
         }
     }
@@ -1274,6 +1310,66 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
     Ok((vertices, indices))
 }
 
+/// Size of a wheel body about its joint axis.
+#[derive(Debug, Clone, Copy)]
+struct WheelSize {
+    radius: f64,
+    from_mesh: bool,
+}
+
+/// Extent of a body's collision meshes about an axis through the body origin.
+#[derive(Debug, Clone, Copy)]
+struct MeshExtent {
+    /// Largest distance of a vertex from the axis [m].
+    radius: f64,
+    /// Extent along the axis [m].
+    width: f64,
+    /// Middle of that extent, along the axis [m].
+    mid: f64,
+}
+
+/// The extent of every collision mesh of `body` about `axis` (body frame; for a wheel body the
+/// body frame is the joint frame, so the axis passes through its origin).
+fn mesh_extent(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<MeshExtent> {
+    let (mut r2, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+    for c in &body.colliders {
+        let CollisionShape::Mesh { vertices, .. } = &c.shape else {
+            continue;
+        };
+        for v in vertices {
+            let p = c.pose_in_body * Point3::new(v[0], v[1], v[2]);
+            let a = p.coords.dot(&axis);
+            r2 = r2.max((p.coords - axis.into_inner() * a).norm_squared());
+            lo = lo.min(a);
+            hi = hi.max(a);
+        }
+    }
+    (lo <= hi && r2 > 0.0).then(|| MeshExtent {
+        radius: r2.sqrt(),
+        width: hi - lo,
+        mid: 0.5 * (lo + hi),
+    })
+}
+
+/// A wheel's radius: its `<cylinder>` collision's, else the extent of its collision meshes
+/// about the joint axis.
+fn wheel_size(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<WheelSize> {
+    if let Some(radius) = body.colliders.iter().find_map(|c| match c.shape {
+        CollisionShape::Cylinder { radius, .. } => Some(radius),
+        _ => None,
+    }) {
+        return Some(WheelSize {
+            radius,
+            from_mesh: false,
+        });
+    }
+    let m = mesh_extent(body, axis)?;
+    (m.width > 0.0).then_some(WheelSize {
+        radius: m.radius,
+        from_mesh: true,
+    })
+}
+
 /// Distance from the root frame's x axis below which a wheel cannot be assigned to a side [m].
 const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 
@@ -1282,6 +1378,7 @@ const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 struct WheelCandidate {
     joint: usize,
     radius: f64,
+    from_mesh: bool,
     position: Vector3<f64>,
     forward_sign: f64,
     effort: Option<f64>,
@@ -1299,11 +1396,12 @@ fn find_wheels(
         origin: origin.to_string(),
         message,
     };
-    let cylinder_radius = |body: usize| {
-        bodies[body].colliders.iter().find_map(|c| match c.shape {
-            CollisionShape::Cylinder { radius, .. } => Some(radius),
-            _ => None,
-        })
+    let size = |k: usize| wheel_size(&bodies[joints[k].child], joints[k].axis);
+    // Lateral in the root frame: a drive wheel's axle, not a swivel's vertical axis.
+    let lateral = |k: usize| {
+        let j = &joints[k];
+        let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
+        (frame_root.rotation * j.axis.into_inner()).y.abs() >= 0.99
     };
     let candidates: Vec<usize> = match &opts.wheel_joints {
         Some((l, r)) => {
@@ -1323,11 +1421,16 @@ fn find_wheels(
             }
             v
         }
+        // Continuous joints on the chassis (the root body) with a lateral axis and a cylinder or
+        // mesh collision; a caster's wheel hangs from its swivel, not from the chassis.
         None => joints
             .iter()
             .enumerate()
-            .filter(|(_, j)| {
-                matches!(j.kind, JointKind::Continuous) && cylinder_radius(j.child).is_some()
+            .filter(|&(k, j)| {
+                matches!(j.kind, JointKind::Continuous)
+                    && j.parent == 0
+                    && lateral(k)
+                    && size(k).is_some()
             })
             .map(|(k, _)| k)
             .collect(),
@@ -1339,9 +1442,9 @@ fn find_wheels(
     };
     if candidates.len() < 2 {
         return Err(werr(format!(
-            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints whose \
-             child link has a <cylinder> collision, found {} [{}]; name the wheel joints \
-             explicitly if the URDF has others",
+            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints on the \
+             chassis with a lateral axis whose child link has a <cylinder> or <mesh> collision, \
+             found {} [{}]; name the wheel joints explicitly if the URDF has others",
             candidates.len(),
             names(&mut candidates.iter().copied())
         )));
@@ -1352,9 +1455,10 @@ fn find_wheels(
         if matches!(j.kind, JointKind::Prismatic { .. }) {
             return Err(werr(format!("joint `{}` is prismatic", j.name)));
         }
-        let radius = cylinder_radius(j.child).ok_or_else(|| {
+        let WheelSize { radius, from_mesh } = size(k).ok_or_else(|| {
             werr(format!(
-                "wheel link of joint `{}` has no <cylinder> collision to read the radius from",
+                "wheel link of joint `{}` has no <cylinder> or <mesh> collision to read the \
+                 radius from",
                 j.name
             ))
         })?;
@@ -1374,6 +1478,7 @@ fn find_wheels(
         wheels.push(WheelCandidate {
             joint: k,
             radius,
+            from_mesh,
             position: frame_root.translation.vector,
             forward_sign: axis_root.y.signum(),
             effort,
@@ -1393,9 +1498,16 @@ fn find_wheels(
         }
         None => group_sides(&wheels, joints, &werr)?,
     };
+    // Cylinders must agree within 0.1 mm; a radius measured from a mesh within 1 % (a mesh is
+    // a polygon, and left and right meshes are often exported separately).
+    let tolerance = if wheels.iter().any(|w| w.from_mesh) {
+        (0.01 * wheels[0].radius).max(1e-4)
+    } else {
+        1e-4
+    };
     if let Some(w) = wheels
         .iter()
-        .find(|w| (w.radius - wheels[0].radius).abs() > 1e-4)
+        .find(|w| (w.radius - wheels[0].radius).abs() > tolerance)
     {
         return Err(werr(format!(
             "the wheels have different radii (`{}` {} m, `{}` {} m)",
