@@ -106,3 +106,31 @@ fn namespaced_xacro_turtlebot_drives_past_a_block_under_attack() {
     );
     assert!(s.min_clearance.expect("an obstacle") > 0.0, "{s:?}");
 }
+
+/// Loads and runs a world of `tests/worlds_ros/`, asserting safe, no collision, goal reached.
+fn drives_safely_to_the_goal(name: &str) -> ftcbf_sim::world::World {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_ros")
+        .join(name);
+    let w = World::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let s = run(&w, &RunOptions::default()).expect("runs");
+    assert!(s.safe && !s.collided, "{name}: {s:?}");
+    assert!(!s.attacks_outside_fault_patterns, "{name}: {s:?}");
+    assert!(s.goal_reached, "{name}: {:?}", s.final_state);
+    assert!(s.min_clearance.expect("obstacles") > 0.0, "{name}: {s:?}");
+    w
+}
+
+#[test]
+fn pioneer_style_robot_with_mesh_wheels_drives_past_a_block_under_attack() {
+    let w = drives_safely_to_the_goal("pioneer_style_block.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert!((r.wheels.geometry.radius - 0.0975).abs() < 1e-6);
+}
+
+#[test]
+fn qbot_style_robot_with_collada_wheels_drives_between_pillars_under_attack() {
+    let w = drives_safely_to_the_goal("qbot_style_pillars.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert!((r.wheels.geometry.radius - 0.035).abs() < 1e-6);
+}
