@@ -199,10 +199,14 @@ impl<'a, 'input> Reader<'a, 'input> {
     fn attrs(&mut self, n: Node, known: &[&str], ctx: &str) {
         for a in n.attributes() {
             if a.namespace().is_some() || !known.contains(&a.name()) {
+                let known = if known.is_empty() {
+                    "it takes none".to_string()
+                } else {
+                    format!("known: {}", attr_list(known))
+                };
                 let msg = format!(
-                    "unknown attribute `{}` on {ctx} ignored (as ROS's urdfdom ignores it; known: {})",
-                    a.name(),
-                    attr_list(known)
+                    "unknown attribute `{}` on {ctx} ignored (as ROS's urdfdom ignores it; {known})",
+                    a.name()
                 );
                 self.warn(n, msg);
             }
