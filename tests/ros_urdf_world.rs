@@ -64,3 +64,73 @@ fn skid_steer_ros_robot_drives_between_pillars_to_the_goal_under_attack() {
     let clearance = s.min_clearance.expect("obstacles");
     assert!(clearance > 0.0, "{clearance}");
 }
+
+/// True when xacro can run; false (after printing why) when it cannot and this is not CI.
+/// Panics when CI=true and xacro is missing (`.ci/run` installs it).
+fn xacro_or_skip(test: &str) -> bool {
+    use std::process::Command;
+    let program = Command::new("xacro").arg("--help").output();
+    let module = Command::new("python3")
+        .args(["-c", "import xacro"])
+        .output();
+    if program.is_ok_and(|o| o.status.success()) || module.is_ok_and(|o| o.status.success()) {
+        return true;
+    }
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{test}: CI=true but xacro is not installed (.ci/run runs `python3 -m pip install xacro`)");
+    }
+    eprintln!("{test}: SKIPPED: xacro is not installed (pip install xacro)");
+    false
+}
+
+#[test]
+fn namespaced_xacro_turtlebot_drives_past_a_block_under_attack() {
+    if !xacro_or_skip("namespaced_xacro_turtlebot_drives_past_a_block_under_attack") {
+        return;
+    }
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_ros/tb3_xacro_ns.toml");
+    let w = World::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let robot = w.robot.as_ref().expect("rapier world");
+    // `[robot] xacro_args = { namespace = "tb3_" }` reached xacro.
+    assert_eq!(robot.wheels.left[0].joint_name, "tb3_wheel_left_joint");
+    assert!(robot.xacro_output.is_some());
+    // Limits: ROBOTIS's published burger figures (the file has none, the world gives none).
+    assert_eq!((robot.limits.v_max, robot.limits.omega_max), (0.22, 2.84));
+    assert!(robot.warnings.is_empty(), "{:?}", robot.warnings);
+    let s = run(&w, &RunOptions::default()).expect("runs");
+    assert!(s.safe && !s.collided, "{s:?}");
+    assert!(
+        s.goal_reached,
+        "reaches (2, 0) within 25 s: {:?}",
+        s.final_state
+    );
+    assert!(s.min_clearance.expect("an obstacle") > 0.0, "{s:?}");
+}
+
+/// Loads and runs a world of `tests/worlds_ros/`, asserting safe, no collision, goal reached.
+fn drives_safely_to_the_goal(name: &str) -> ftcbf_sim::world::World {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_ros")
+        .join(name);
+    let w = World::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let s = run(&w, &RunOptions::default()).expect("runs");
+    assert!(s.safe && !s.collided, "{name}: {s:?}");
+    assert!(!s.attacks_outside_fault_patterns, "{name}: {s:?}");
+    assert!(s.goal_reached, "{name}: {:?}", s.final_state);
+    assert!(s.min_clearance.expect("obstacles") > 0.0, "{name}: {s:?}");
+    w
+}
+
+#[test]
+fn pioneer_style_robot_with_mesh_wheels_drives_past_a_block_under_attack() {
+    let w = drives_safely_to_the_goal("pioneer_style_block.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert!((r.wheels.geometry.radius - 0.0975).abs() < 1e-6);
+}
+
+#[test]
+fn qbot_style_robot_with_collada_wheels_drives_between_pillars_under_attack() {
+    let w = drives_safely_to_the_goal("qbot_style_pillars.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert!((r.wheels.geometry.radius - 0.035).abs() < 1e-6);
+}

@@ -393,6 +393,25 @@ fn context_plant(world: &World, context: &mut Vec<String>) {
                     r.limits.omega_max,
                     r.footprint_radius
                 ));
+                if let Some(x) = &r.xacro_output {
+                    context.push(format!(
+                        "xacro: {} expanded by xacro into {}",
+                        world
+                            .file
+                            .robot
+                            .as_ref()
+                            .map_or_else(String::new, |s| s.urdf.display().to_string()),
+                        x.display()
+                    ));
+                }
+                if let crate::robot::LimitsSource::Maker(m) = r.limits_source {
+                    context.push(format!(
+                        "limits: the URDF's wheel joints carry none; {} as published for {} ({})",
+                        format_args!("|v| ≤ {} m/s, |ω| ≤ {} rad/s", m.v_max, m.omega_max),
+                        m.robot_name,
+                        m.source
+                    ));
+                }
                 for w in &r.warnings {
                     context.push(format!("warning: {w}"));
                 }

@@ -11,6 +11,9 @@
 //! `base_footprint`, on the ground between the wheels), REP-103: x forward, y left, z up.
 //!
 //! Loading rules:
+//! - The XML is read as ROS's urdfdom reads it (`robot/urdf.rs`): unknown elements and attributes are
+//!   warnings with their line, missing optional values take the spec's defaults, and what ROS
+//!   refuses is a [`RobotError::Parse`] naming the element, its `name` and the line.
 //! - `package://NAME/rest` is resolved against the caller's search path ([`LoadOptions`]):
 //!   for each directory `d`, `d/NAME/rest`, then `d/rest` when `d` itself is named `NAME`.
 //!   `file://` paths are used as they are; relative paths are relative to the URDF's directory.
@@ -20,27 +23,41 @@
 //!   error naming the file and the package search path.
 //! - Links without `<inertial>` (mass 0) are allowed only where they are rigidly attached
 //!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error.
-//! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>`) are rejected with the line, the enclosing
-//!   link/joint and the attribute, telling the user to run xacro first. Text inside XML
-//!   comments, CDATA sections and processing instructions is never a leftover (ROS packages
-//!   ship plain URDFs with commented-out `<xacro:include …/>` lines).
-//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint whose
-//!   child link has a cylinder collision, grouped by the side of the root frame's x axis its
-//!   joint origin lies on (left = +y). Two such joints make a differential drive; four or more,
-//!   the same number on each side, make a skid-steer drive whose wheels on one side all get the
-//!   same command (as ROS's diff_drive/skid_steer controllers drive them). A wheel on the centre
-//!   line or an unequal number per side is an error naming the joints. Wheel radius = the
-//!   cylinder's radius (all wheels equal within 0.1 mm); separation (the effective track width)
-//!   = planar distance between the centroids of the left and the right wheel joint origins.
+//! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>` outside XML comments, CDATA sections and
+//!   processing instructions: ROS packages ship plain URDFs with commented-out
+//!   `<xacro:include …/>` lines) read from a file are expanded by the real `xacro`
+//!   (`robot/xacro.rs`, with [`LoadOptions::xacro`]'s arguments); without xacro the error says
+//!   how to install it. From a string, or with [`XacroCommand::Disabled`], they are refused with
+//!   the line, the enclosing link/joint and the attribute.
+//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint on the
+//!   root body with a lateral axis (±y of the root frame) whose child link has a cylinder or
+//!   mesh collision (a swivel caster's wheel hangs from the swivel, not the root body), grouped
+//!   by the side of the root frame's x axis its joint origin lies on (left = +y). Two such
+//!   joints make a differential drive; four or more, the same number on each side, make a
+//!   skid-steer drive whose wheels on one side all get the same command (as ROS's
+//!   diff_drive/skid_steer controllers drive them). A wheel on the centre line or an unequal
+//!   number per side is an error naming the joints. Wheel radius = the cylinder's radius, or for
+//!   a mesh wheel the largest distance of a mesh vertex from the joint axis (the wheel then
+//!   collides as the cylinder of that radius and of the mesh's width along the axis); all wheels
+//!   equal within 0.1 mm (1 % when measured from meshes); separation (the effective track
+//!   width) = planar distance between the centroids of the left and the right wheel joint
+//!   origins.
 //! - Drive limits: explicit [`LoadOptions::limits`] if given, else derived from the wheel
 //!   joints' `<limit velocity>` (rad/s): `wheel_speed_max = min(velocity)`,
 //!   `v_max = r · wheel_speed_max`, `omega_max = 2 r · wheel_speed_max / separation`.
 //!   A URDF without wheel velocity limits and no override is an error.
 
 use std::collections::HashMap;
+use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+
+mod urdf;
+mod xacro;
+
+pub use urdf::MAX_DEPTH as MAX_URDF_DEPTH;
+pub use xacro::{XacroCommand, XacroOptions, INSTALL_HINT as XACRO_INSTALL_HINT};
 
 /// Errors of URDF loading. Every message names the file (when there is one) and what to fix.
 #[derive(Debug, thiserror::Error)]
@@ -53,12 +70,15 @@ pub enum RobotError {
         /// Underlying error.
         source: std::io::Error,
     },
-    /// The XML is malformed or does not follow the URDF schema.
-    #[error("{origin}: malformed URDF: {message}")]
+    /// The XML is malformed or does not follow the URDF schema (what ROS's parser would refuse
+    /// too): the message names the element and its `name`.
+    #[error("{origin}: {}malformed URDF: {message}", line_prefix(*.line))]
     Parse {
         /// File path or "<string>".
         origin: String,
-        /// Parser message.
+        /// 1-based line of the offending element, when known.
+        line: Option<usize>,
+        /// What is wrong, naming the element.
         message: String,
     },
     /// Xacro macros or substitutions are still in the file.
@@ -75,6 +95,32 @@ pub enum RobotError {
         snippet: String,
         /// Where it sits (link/joint name and attribute, when found).
         context: String,
+    },
+    /// The file is a xacro source and no xacro could be run.
+    #[error(
+        "{origin}: line {line}: `{snippet}` is xacro markup, so this file must be expanded by \
+         xacro first, and xacro is not available ({tried}); {}",
+        xacro::INSTALL_HINT
+    )]
+    XacroUnavailable {
+        /// File path.
+        origin: String,
+        /// 1-based line of the first markup.
+        line: usize,
+        /// The markup.
+        snippet: String,
+        /// What was tried.
+        tried: String,
+    },
+    /// xacro ran and failed.
+    #[error("{origin}: xacro failed (`{command}`): {message}")]
+    XacroFailed {
+        /// File path.
+        origin: String,
+        /// The command line.
+        command: String,
+        /// xacro's message.
+        message: String,
     },
     /// The URDF's structure is not a tree the loader can use.
     #[error("{origin}: {message}")]
@@ -129,6 +175,10 @@ pub enum RobotError {
     },
 }
 
+fn line_prefix(line: Option<usize>) -> String {
+    line.map(|l| format!("line {l}: ")).unwrap_or_default()
+}
+
 /// Options of [`RobotDescription::from_file`] / [`RobotDescription::from_urdf_str`].
 #[derive(Debug, Clone, Default)]
 pub struct LoadOptions {
@@ -138,6 +188,8 @@ pub struct LoadOptions {
     pub wheel_joints: Option<(String, String)>,
     /// Explicit drive limits; `None` = derive from the wheel joints' velocity limits.
     pub limits: Option<DriveLimits>,
+    /// How a xacro source is expanded (arguments, which xacro).
+    pub xacro: XacroOptions,
 }
 
 /// Speed limits of the differential drive.
@@ -150,6 +202,59 @@ pub struct DriveLimits {
     /// Maximum wheel angular speed [rad/s].
     pub wheel_speed_max: f64,
 }
+
+/// Where the drive limits came from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LimitsSource {
+    /// [`LoadOptions::limits`] (a world's `[robot] limits`).
+    Explicit,
+    /// The wheel joints' `<limit velocity>`.
+    WheelJoints,
+    /// The maker's published figures for this robot ([`MAKER_LIMITS`]), because the URDF's
+    /// wheel joints carry no velocity limit.
+    Maker(&'static MakerLimits),
+}
+
+/// A robot maker's published speed limits, applied when a URDF of that robot (matched by its
+/// `<robot name>`) carries no wheel velocity limits.
+#[derive(Debug, PartialEq)]
+pub struct MakerLimits {
+    /// The URDF `<robot name>` the limits apply to.
+    pub robot_name: &'static str,
+    /// Maximum forward speed [m/s].
+    pub v_max: f64,
+    /// Maximum yaw rate [rad/s].
+    pub omega_max: f64,
+    /// Where the figures are published.
+    pub source: &'static str,
+}
+
+/// Published limits of the robots the README names. TurtleBot3: ROBOTIS e-manual,
+/// "TurtleBot3 › Features › Specifications" (burger: maximum translational velocity 0.22 m/s,
+/// maximum rotational velocity 2.84 rad/s; waffle and waffle_pi: 0.26 m/s and 1.82 rad/s).
+pub const MAKER_LIMITS: [MakerLimits; 3] = [
+    MakerLimits {
+        robot_name: "turtlebot3_burger",
+        v_max: 0.22,
+        omega_max: 2.84,
+        source: TURTLEBOT3_SPECS,
+    },
+    MakerLimits {
+        robot_name: "turtlebot3_waffle",
+        v_max: 0.26,
+        omega_max: 1.82,
+        source: TURTLEBOT3_SPECS,
+    },
+    MakerLimits {
+        robot_name: "turtlebot3_waffle_pi",
+        v_max: 0.26,
+        omega_max: 1.82,
+        source: TURTLEBOT3_SPECS,
+    },
+];
+
+const TURTLEBOT3_SPECS: &str =
+    "ROBOTIS e-manual, TurtleBot3 specifications (https://emanual.robotis.com/docs/en/platform/turtlebot3/features/)";
 
 /// Wheel geometry of a differential drive, read from the URDF.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -404,6 +509,8 @@ pub struct RobotDescription {
     pub wheels: DriveWheels,
     /// Drive limits.
     pub limits: DriveLimits,
+    /// Where [`Self::limits`] came from.
+    pub limits_source: LimitsSource,
     /// Circumscribed radius of the robot's collision footprint in the plane, about the root
     /// frame origin [m] (the disc the obstacle barriers keep away from obstacles).
     pub footprint_radius: f64,
@@ -412,6 +519,9 @@ pub struct RobotDescription {
     pub centre_height: f64,
     /// Non-fatal problems (missing visual meshes, …).
     pub warnings: Vec<String>,
+    /// The expanded URDF when the file was a xacro source (what was read; errors and warnings
+    /// name its lines).
+    pub xacro_output: Option<PathBuf>,
 }
 
 impl RobotDescription {
@@ -424,12 +534,20 @@ impl RobotDescription {
             source,
         })?;
         let base_dir = path.parent().map(Path::to_path_buf);
-        load(
-            &text,
-            &path.display().to_string(),
-            base_dir.as_deref(),
-            opts,
-        )
+        let origin = path.display().to_string();
+        match check_xacro(&text, &origin) {
+            Err(RobotError::Xacro { line, snippet, .. })
+                if opts.xacro.command != XacroCommand::Disabled =>
+            {
+                let expanded = xacro::expand(path, &text, &opts.xacro, (line, &snippet))?;
+                let origin = format!("{} (xacro output of {origin})", expanded.path.display());
+                let mut r = load(&expanded.text, &origin, base_dir.as_deref(), opts)?;
+                r.xacro_output = Some(expanded.path);
+                Ok(r)
+            }
+            Err(e) => Err(e),
+            Ok(()) => load(&text, &origin, base_dir.as_deref(), opts),
+        }
     }
 
     /// Loads a URDF from a string (`origin` is used in messages); relative mesh paths are
@@ -460,24 +578,8 @@ fn load(
     opts: &LoadOptions,
 ) -> Result<RobotDescription, RobotError> {
     check_xacro(text, origin)?;
-    // urdf-rs (serde-xml-rs) can panic on some malformed inputs; contain that as a parse error.
-    let parsed = std::panic::catch_unwind(|| urdf_rs::read_from_string(text));
-    let robot = match parsed {
-        Ok(Ok(r)) => r,
-        Ok(Err(e)) => {
-            return Err(RobotError::Parse {
-                origin: origin.to_string(),
-                message: e.to_string(),
-            })
-        }
-        Err(_) => {
-            return Err(RobotError::Parse {
-                origin: origin.to_string(),
-                message: "the URDF parser aborted on this input".to_string(),
-            })
-        }
-    };
-    build(&robot, origin, base_dir, opts)
+    let parsed = urdf::parse(text, origin)?;
+    build(&parsed, origin, base_dir, opts)
 }
 
 /// Blanks XML comments, CDATA sections and processing instructions (keeping newlines, so line
@@ -578,10 +680,6 @@ fn iso_from_pose(p: &urdf_rs::Pose) -> Isometry3<f64> {
     )
 }
 
-fn finite3(v: [f64; 3]) -> bool {
-    v.iter().all(|x| x.is_finite())
-}
-
 /// Mass properties accumulated in a body frame: mass, first moment, inertia about the
 /// body-frame origin.
 #[derive(Debug, Clone, Copy)]
@@ -620,11 +718,12 @@ impl MassAcc {
 }
 
 fn build(
-    robot: &urdf_rs::Robot,
+    parsed: &urdf::Parsed,
     origin: &str,
     base_dir: Option<&Path>,
     opts: &LoadOptions,
 ) -> Result<RobotDescription, RobotError> {
+    let robot = &parsed.robot;
     let err_struct = |message: String| RobotError::Structure {
         origin: origin.to_string(),
         message,
@@ -633,44 +732,47 @@ fn build(
         origin: origin.to_string(),
         what,
     };
+    // `joint `x` (line N)` / `link `y` (line M)` for messages.
+    let jname = |ji: usize| {
+        format!(
+            "joint `{}` (line {})",
+            robot.joints[ji].name, parsed.joint_lines[ji]
+        )
+    };
     if robot.links.is_empty() {
         return Err(err_struct("the URDF has no <link>".into()));
     }
+    // Names are unique (the reader refuses duplicates).
     let link_index: HashMap<&str, usize> = robot
         .links
         .iter()
         .enumerate()
         .map(|(i, l)| (l.name.as_str(), i))
         .collect();
-    if link_index.len() != robot.links.len() {
-        return Err(err_struct("two <link> elements share a name".into()));
-    }
     // Parent joint of each link.
     let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
     for (ji, j) in robot.joints.iter().enumerate() {
         let p = *link_index.get(j.parent.link.as_str()).ok_or_else(|| {
             err_struct(format!(
-                "joint `{}` names parent link `{}`, which does not exist",
-                j.name, j.parent.link
+                "{} names parent link `{}`, which does not exist",
+                jname(ji),
+                j.parent.link
             ))
         })?;
         let c = *link_index.get(j.child.link.as_str()).ok_or_else(|| {
             err_struct(format!(
-                "joint `{}` names child link `{}`, which does not exist",
-                j.name, j.child.link
+                "{} names child link `{}`, which does not exist",
+                jname(ji),
+                j.child.link
             ))
         })?;
-        if parent_joint[c].is_some() {
+        if let Some(first) = parent_joint[c] {
             return Err(err_struct(format!(
-                "link `{}` is the child of more than one joint",
-                j.child.link
-            )));
-        }
-        if !finite3(j.origin.xyz.0) || !finite3(j.origin.rpy.0) || !finite3(j.axis.xyz.0) {
-            return Err(invalid(format!(
-                "joint `{}`: non-finite origin or axis",
-                j.name
+                "link `{}` is the child of two joints, {} and {}",
+                j.child.link,
+                jname(first),
+                jname(ji)
             )));
         }
         parent_joint[c] = Some(ji);
@@ -679,13 +781,21 @@ fn build(
     let roots: Vec<usize> = (0..robot.links.len())
         .filter(|&i| parent_joint[i].is_none())
         .collect();
+    if roots.is_empty() {
+        // Every link has a parent joint: following parents from any link must cycle.
+        return Err(err_struct(format!(
+            "no root link: the joints form a cycle ({})",
+            joint_cycle(0, &parent_joint, robot, &jname)
+        )));
+    }
     if roots.len() != 1 {
-        let names: Vec<&str> = roots
+        let names: Vec<String> = roots
             .iter()
-            .map(|&i| robot.links[i].name.as_str())
+            .map(|&i| format!("`{}` (line {})", robot.links[i].name, parsed.link_lines[i]))
             .collect();
         return Err(err_struct(format!(
-            "the links must form one tree with a single root; roots found: {names:?}"
+            "the links must form one tree with a single root; roots found: {}",
+            names.join(", ")
         )));
     }
     let root = roots[0];
@@ -727,10 +837,7 @@ fn build(
             let j = &robot.joints[ji];
             let c = link_index[j.child.link.as_str()];
             if info[c].is_some() {
-                return Err(err_struct(format!(
-                    "joint `{}` closes a kinematic loop",
-                    j.name
-                )));
+                return Err(err_struct(format!("{} closes a kinematic loop", jname(ji))));
             }
             visited += 1;
             let origin_iso = iso_from_pose(&j.origin);
@@ -746,9 +853,8 @@ fn build(
                 | urdf_rs::JointType::Revolute
                 | urdf_rs::JointType::Prismatic => {
                     let axis_v = Vector3::from(j.axis.xyz.0);
-                    let axis = Unit::try_new(axis_v, 1e-9).ok_or_else(|| {
-                        invalid(format!("joint `{}`: <axis xyz> is zero", j.name))
-                    })?;
+                    let axis = Unit::try_new(axis_v, 1e-9)
+                        .ok_or_else(|| invalid(format!("{}: <axis xyz> is zero", jname(ji))))?;
                     let kind = match j.joint_type {
                         urdf_rs::JointType::Continuous => JointKind::Continuous,
                         urdf_rs::JointType::Revolute => JointKind::Revolute {
@@ -790,9 +896,9 @@ fn build(
                 }
                 ref other => {
                     return Err(err_struct(format!(
-                        "joint `{}` has type {other:?}; only fixed, continuous, revolute and \
+                        "{} has type {other:?}; only fixed, continuous, revolute and \
                          prismatic joints are supported",
-                        j.name
+                        jname(ji)
                     )))
                 }
             }
@@ -800,14 +906,21 @@ fn build(
         }
     }
     if visited != robot.links.len() {
-        return Err(err_struct(
-            "some links are not connected to the root".into(),
-        ));
+        // One root and one parent per link: a link the walk missed hangs off a cycle.
+        let missed = (0..robot.links.len())
+            .find(|&i| info[i].is_none())
+            .unwrap_or(0);
+        return Err(err_struct(format!(
+            "link `{}` is not connected to the root `{}`: the joints form a cycle ({})",
+            robot.links[missed].name,
+            robot.links[root].name,
+            joint_cycle(missed, &parent_joint, robot, &jname)
+        )));
     }
 
     // Mass properties and colliders per body.
     let mut acc = vec![MassAcc::zero(); bodies.len()];
-    let mut warnings = Vec::new();
+    let mut warnings = parsed.warnings.clone();
     for (li, link) in robot.links.iter().enumerate() {
         let Some(li_info) = &info[li] else { continue };
         let (b, pose) = (li_info.body, li_info.pose_in_body);
@@ -874,11 +987,41 @@ fn build(
 
     let wheels = find_wheels(robot, origin, &bodies, &joints, &joint_of_urdf, opts)?;
     for w in wheels.all() {
-        for c in &mut bodies[w.body].colliders {
+        let axis = joints[w.joint].axis;
+        let body = &mut bodies[w.body];
+        // A wheel measured from its mesh rolls on the cylinder of that extent: the mesh's
+        // convex hull is a polygon and would roll bumpily.
+        if wheel_size(body, axis).is_some_and(|s| s.from_mesh) {
+            if let Some(m) = mesh_extent(body, axis) {
+                let z_to_axis = UnitQuaternion::rotation_between(&Vector3::z(), &axis)
+                    .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI));
+                let link = body
+                    .colliders
+                    .iter()
+                    .find(|c| matches!(c.shape, CollisionShape::Mesh { .. }))
+                    .map(|c| c.link.clone())
+                    .unwrap_or_else(|| body.name.clone());
+                body.colliders
+                    .retain(|c| !matches!(c.shape, CollisionShape::Mesh { .. }));
+                body.colliders.push(RobotCollider {
+                    link,
+                    pose_in_body: Isometry3::from_parts(
+                        Translation3::from(axis.into_inner() * m.mid),
+                        z_to_axis,
+                    ),
+                    shape: CollisionShape::Cylinder {
+                        radius: m.radius,
+                        half_length: m.width / 2.0,
+                    },
+                    is_wheel: true,
+                });
+            }
+        }
+        for c in &mut body.colliders {
             c.is_wheel = true;
         }
     }
-    let limits = match opts.limits {
+    let (limits, limits_source) = match opts.limits {
         Some(l) => {
             let ok = |x: f64| x.is_finite() && x > 0.0;
             if !(ok(l.v_max) && ok(l.omega_max) && ok(l.wheel_speed_max)) {
@@ -886,9 +1029,9 @@ fn build(
                     "drive limits override must be positive and finite, got {l:?}"
                 )));
             }
-            l
+            (l, LimitsSource::Explicit)
         }
-        None => derive_limits(robot, origin, &wheels)?,
+        None => derive_limits(parsed, origin, &wheels)?,
     };
 
     // Footprint: circumscribed radius in the plane, and the middle height of the geometry.
@@ -916,10 +1059,44 @@ fn build(
         joints,
         wheels,
         limits,
+        limits_source,
         footprint_radius: r_max,
         centre_height: 0.5 * (z_min.max(0.0) + z_max),
         warnings,
+        xacro_output: None,
     })
+}
+
+/// The joints met following parent joints up from link `start` until a link repeats, as
+/// "joint `a` (line 3) → joint `b` (line 9)" (the cycle itself, in child-to-parent order).
+fn joint_cycle(
+    start: usize,
+    parent_joint: &[Option<usize>],
+    robot: &urdf_rs::Robot,
+    jname: &dyn Fn(usize) -> String,
+) -> String {
+    let index = |name: &str| robot.links.iter().position(|l| l.name == name);
+    let mut seen: Vec<usize> = Vec::new();
+    let mut path: Vec<usize> = Vec::new();
+    let mut link = start;
+    while !seen.contains(&link) {
+        seen.push(link);
+        let Some(ji) = parent_joint[link] else {
+            break;
+        };
+        path.push(ji);
+        match index(&robot.joints[ji].parent.link) {
+            Some(p) => link = p,
+            None => break,
+        }
+    }
+    // Keep the part of the path from the first visit of the repeated link.
+    let from = seen.iter().position(|&l| l == link).unwrap_or(0);
+    path[from.min(path.len())..]
+        .iter()
+        .map(|&ji| jname(ji))
+        .collect::<Vec<_>>()
+        .join(" → ")
 }
 
 fn collision_shape(
@@ -1080,6 +1257,23 @@ pub fn resolve_mesh_path(
 /// of first appearance), so an STL's triangle soup becomes an indexed mesh.
 #[allow(clippy::type_complexity)]
 pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+    // Collada is XML, parsed by a tokenizer that recurses per nesting level: refuse absurd
+    // nesting before it can overflow the stack.
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    if let Ok(text) = std::str::from_utf8(&bytes) {
+        if text
+            .trim_start_matches('\u{feff}')
+            .trim_start()
+            .starts_with('<')
+        {
+            if let Some((line, tag)) = urdf::too_deep(text, MAX_URDF_DEPTH) {
+                return Err(format!(
+                    "line {line}: <{tag}> is nested more than {MAX_URDF_DEPTH} levels deep; \
+                     not a readable Collada mesh"
+                ));
+            }
+        }
+    }
     let scene = mesh_loader::Loader::default()
         .load(path)
         .map_err(|e| format!("not a readable STL, Collada or OBJ mesh: {e}"))?;
@@ -1116,6 +1310,66 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
     Ok((vertices, indices))
 }
 
+/// Size of a wheel body about its joint axis.
+#[derive(Debug, Clone, Copy)]
+struct WheelSize {
+    radius: f64,
+    from_mesh: bool,
+}
+
+/// Extent of a body's collision meshes about an axis through the body origin.
+#[derive(Debug, Clone, Copy)]
+struct MeshExtent {
+    /// Largest distance of a vertex from the axis [m].
+    radius: f64,
+    /// Extent along the axis [m].
+    width: f64,
+    /// Middle of that extent, along the axis [m].
+    mid: f64,
+}
+
+/// The extent of every collision mesh of `body` about `axis` (body frame; for a wheel body the
+/// body frame is the joint frame, so the axis passes through its origin).
+fn mesh_extent(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<MeshExtent> {
+    let (mut r2, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+    for c in &body.colliders {
+        let CollisionShape::Mesh { vertices, .. } = &c.shape else {
+            continue;
+        };
+        for v in vertices {
+            let p = c.pose_in_body * Point3::new(v[0], v[1], v[2]);
+            let a = p.coords.dot(&axis);
+            r2 = r2.max((p.coords - axis.into_inner() * a).norm_squared());
+            lo = lo.min(a);
+            hi = hi.max(a);
+        }
+    }
+    (lo <= hi && r2 > 0.0).then(|| MeshExtent {
+        radius: r2.sqrt(),
+        width: hi - lo,
+        mid: 0.5 * (lo + hi),
+    })
+}
+
+/// A wheel's radius: its `<cylinder>` collision's, else the extent of its collision meshes
+/// about the joint axis.
+fn wheel_size(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<WheelSize> {
+    if let Some(radius) = body.colliders.iter().find_map(|c| match c.shape {
+        CollisionShape::Cylinder { radius, .. } => Some(radius),
+        _ => None,
+    }) {
+        return Some(WheelSize {
+            radius,
+            from_mesh: false,
+        });
+    }
+    let m = mesh_extent(body, axis)?;
+    (m.width > 0.0).then_some(WheelSize {
+        radius: m.radius,
+        from_mesh: true,
+    })
+}
+
 /// Distance from the root frame's x axis below which a wheel cannot be assigned to a side [m].
 const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 
@@ -1124,6 +1378,7 @@ const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 struct WheelCandidate {
     joint: usize,
     radius: f64,
+    from_mesh: bool,
     position: Vector3<f64>,
     forward_sign: f64,
     effort: Option<f64>,
@@ -1141,11 +1396,12 @@ fn find_wheels(
         origin: origin.to_string(),
         message,
     };
-    let cylinder_radius = |body: usize| {
-        bodies[body].colliders.iter().find_map(|c| match c.shape {
-            CollisionShape::Cylinder { radius, .. } => Some(radius),
-            _ => None,
-        })
+    let size = |k: usize| wheel_size(&bodies[joints[k].child], joints[k].axis);
+    // Lateral in the root frame: a drive wheel's axle, not a swivel's vertical axis.
+    let lateral = |k: usize| {
+        let j = &joints[k];
+        let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
+        (frame_root.rotation * j.axis.into_inner()).y.abs() >= 0.99
     };
     let candidates: Vec<usize> = match &opts.wheel_joints {
         Some((l, r)) => {
@@ -1165,11 +1421,16 @@ fn find_wheels(
             }
             v
         }
+        // Continuous joints on the chassis (the root body) with a lateral axis and a cylinder or
+        // mesh collision; a caster's wheel hangs from its swivel, not from the chassis.
         None => joints
             .iter()
             .enumerate()
-            .filter(|(_, j)| {
-                matches!(j.kind, JointKind::Continuous) && cylinder_radius(j.child).is_some()
+            .filter(|&(k, j)| {
+                matches!(j.kind, JointKind::Continuous)
+                    && j.parent == 0
+                    && lateral(k)
+                    && size(k).is_some()
             })
             .map(|(k, _)| k)
             .collect(),
@@ -1181,9 +1442,9 @@ fn find_wheels(
     };
     if candidates.len() < 2 {
         return Err(werr(format!(
-            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints whose \
-             child link has a <cylinder> collision, found {} [{}]; name the wheel joints \
-             explicitly if the URDF has others",
+            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints on the \
+             chassis with a lateral axis whose child link has a <cylinder> or <mesh> collision, \
+             found {} [{}]; name the wheel joints explicitly if the URDF has others",
             candidates.len(),
             names(&mut candidates.iter().copied())
         )));
@@ -1194,9 +1455,10 @@ fn find_wheels(
         if matches!(j.kind, JointKind::Prismatic { .. }) {
             return Err(werr(format!("joint `{}` is prismatic", j.name)));
         }
-        let radius = cylinder_radius(j.child).ok_or_else(|| {
+        let WheelSize { radius, from_mesh } = size(k).ok_or_else(|| {
             werr(format!(
-                "wheel link of joint `{}` has no <cylinder> collision to read the radius from",
+                "wheel link of joint `{}` has no <cylinder> or <mesh> collision to read the \
+                 radius from",
                 j.name
             ))
         })?;
@@ -1216,6 +1478,7 @@ fn find_wheels(
         wheels.push(WheelCandidate {
             joint: k,
             radius,
+            from_mesh,
             position: frame_root.translation.vector,
             forward_sign: axis_root.y.signum(),
             effort,
@@ -1235,9 +1498,16 @@ fn find_wheels(
         }
         None => group_sides(&wheels, joints, &werr)?,
     };
+    // Cylinders must agree within 0.1 mm; a radius measured from a mesh within 1 % (a mesh is
+    // a polygon, and left and right meshes are often exported separately).
+    let tolerance = if wheels.iter().any(|w| w.from_mesh) {
+        (0.01 * wheels[0].radius).max(1e-4)
+    } else {
+        1e-4
+    };
     if let Some(w) = wheels
         .iter()
-        .find(|w| (w.radius - wheels[0].radius).abs() > 1e-4)
+        .find(|w| (w.radius - wheels[0].radius).abs() > tolerance)
     {
         return Err(werr(format!(
             "the wheels have different radii (`{}` {} m, `{}` {} m)",
@@ -1333,35 +1603,56 @@ fn group_sides(
     Ok((left, right))
 }
 
+/// Limits from the wheel joints' `<limit velocity>`; when a wheel joint has none, the maker's
+/// published limits for a robot of this name ([`MAKER_LIMITS`]); else an error naming the joint
+/// and its line.
 fn derive_limits(
-    robot: &urdf_rs::Robot,
+    parsed: &urdf::Parsed,
     origin: &str,
     wheels: &DriveWheels,
-) -> Result<DriveLimits, RobotError> {
+) -> Result<(DriveLimits, LimitsSource), RobotError> {
+    let robot = &parsed.robot;
+    let g = wheels.geometry;
     let mut w_max = f64::INFINITY;
     for w in wheels.all() {
-        let v = robot
-            .joints
-            .iter()
-            .find(|j| j.name == w.joint_name)
-            .map(|j| j.limit.velocity)
-            .unwrap_or(0.0);
+        let ji = robot.joints.iter().position(|j| j.name == w.joint_name);
+        let v = ji.map(|k| robot.joints[k].limit.velocity).unwrap_or(0.0);
         if !(v.is_finite() && v > 0.0) {
+            if let Some(m) = MAKER_LIMITS.iter().find(|m| m.robot_name == robot.name) {
+                let limits = DriveLimits {
+                    v_max: m.v_max,
+                    omega_max: m.omega_max,
+                    wheel_speed_max: m.v_max / g.radius,
+                };
+                return Ok((limits, LimitsSource::Maker(m)));
+            }
+            let line = ji
+                .map(|k| format!(" (line {})", parsed.joint_lines[k]))
+                .unwrap_or_default();
             return Err(RobotError::InvalidValue {
                 origin: origin.to_string(),
                 what: format!(
-                    "wheel joint `{}` has no <limit velocity> (rad/s) to derive the drive limits \
-                     from; add one or pass explicit limits",
-                    w.joint_name
+                    "wheel joint `{}`{line} has no <limit velocity> (rad/s) to derive the drive \
+                     limits from, and robot `{}` is none of those with published limits ({}); \
+                     add one or give [robot] limits in the world",
+                    w.joint_name,
+                    robot.name,
+                    MAKER_LIMITS
+                        .iter()
+                        .map(|m| m.robot_name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
             });
         }
         w_max = w_max.min(v);
     }
-    let g = wheels.geometry;
-    Ok(DriveLimits {
-        v_max: g.radius * w_max,
-        omega_max: 2.0 * g.radius * w_max / g.separation,
-        wheel_speed_max: w_max,
-    })
+    Ok((
+        DriveLimits {
+            v_max: g.radius * w_max,
+            omega_max: 2.0 * g.radius * w_max / g.separation,
+            wheel_speed_max: w_max,
+        },
+        LimitsSource::WheelJoints,
+    ))
 }

@@ -145,14 +145,9 @@ fn waffle_geometry_comes_from_its_urdf() {
 #[test]
 fn ros_style_file_loads_with_massless_frames_merged_and_meshes_resolved() {
     let path = fixtures().join("turtlebot3_burger_ros.urdf");
-    // Without wheel velocity limits in the file the caller must give them.
-    let e = RobotDescription::from_file(&path, &LoadOptions::default()).unwrap_err();
-    let msg = e.to_string();
-    assert!(
-        msg.contains("wheel_") && msg.contains("<limit velocity>"),
-        "{msg}"
-    );
-
+    // The file's wheel joints carry no velocity limits: explicit ones here (without them the
+    // maker's published burger limits apply, see
+    // `turtlebot3_files_without_wheel_limits_get_the_makers_published_limits`).
     let limits = DriveLimits {
         v_max: 0.22,
         omega_max: 2.84,
@@ -519,6 +514,13 @@ fn skid_opts() -> LoadOptions {
 /// The skid-steer fixture's text with `edit` applied, loaded with the workspace search path
 /// (the file keeps its directory, so relative paths still resolve).
 fn load_skid_edited(edit: impl Fn(&str) -> String) -> Result<RobotDescription, RobotError> {
+    load_skid_edited_with(edit, &skid_opts())
+}
+
+fn load_skid_edited_with(
+    edit: impl Fn(&str) -> String,
+    opts: &LoadOptions,
+) -> Result<RobotDescription, RobotError> {
     let text = std::fs::read_to_string(skid_urdf()).unwrap();
     let edited = edit(&text);
     assert_ne!(edited, text, "the edit must change the file");
@@ -527,7 +529,7 @@ fn load_skid_edited(edit: impl Fn(&str) -> String) -> Result<RobotDescription, R
     let dir = scratch(&format!("skid-edit-{n}"));
     let path = dir.join("skid4.urdf");
     std::fs::write(&path, edited).unwrap();
-    let r = RobotDescription::from_file(&path, &skid_opts());
+    let r = RobotDescription::from_file(&path, opts);
     let _ = std::fs::remove_dir_all(&dir);
     r
 }
@@ -701,6 +703,15 @@ fn odd_or_ambiguous_wheel_layouts_are_errors_naming_the_joints() {
 
 #[test]
 fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute() {
+    // With xacro expansion off (a file with markup is otherwise run through xacro, see
+    // sim/tests/robot_xacro.rs), markup outside comments is refused with its line.
+    let no_xacro = LoadOptions {
+        xacro: ftcbf_sim::robot::XacroOptions {
+            command: ftcbf_sim::robot::XacroCommand::Disabled,
+            ..Default::default()
+        },
+        ..skid_opts()
+    };
     // `${namespace}base_link` outside any comment, on the line of `<link name="base_link">`.
     let text = std::fs::read_to_string(skid_urdf()).unwrap();
     let line = text
@@ -708,12 +719,15 @@ fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute(
         .position(|l| l.contains(r#"<link name="base_link">"#))
         .unwrap()
         + 1;
-    let e = load_skid_edited(|t| {
-        t.replace(
-            r#"<link name="base_link">"#,
-            r#"<link name="${namespace}base_link">"#,
-        )
-    })
+    let e = load_skid_edited_with(
+        |t| {
+            t.replace(
+                r#"<link name="base_link">"#,
+                r#"<link name="${namespace}base_link">"#,
+            )
+        },
+        &no_xacro,
+    )
     .unwrap_err();
     assert!(
         matches!(&e, RobotError::Xacro { line: l, .. } if *l == line),
@@ -725,12 +739,15 @@ fn real_xacro_leftovers_in_a_ros_file_are_still_refused_with_line_and_attribute(
         "{msg}"
     );
     // `<xacro:arg>` as an element, not inside the comment block.
-    let e = load_skid_edited(|t| {
-        t.replace(
-            "  <material name=\"dark_grey\">",
-            "  <xacro:arg name=\"namespace\" default=\"\"/>\n  <material name=\"dark_grey\">",
-        )
-    })
+    let e = load_skid_edited_with(
+        |t| {
+            t.replace(
+                "  <material name=\"dark_grey\">",
+                "  <xacro:arg name=\"namespace\" default=\"\"/>\n  <material name=\"dark_grey\">",
+            )
+        },
+        &no_xacro,
+    )
     .unwrap_err();
     let arg_line = text
         .lines()
@@ -793,4 +810,74 @@ fn robotis_style_comments_in_a_plain_urdf_are_not_xacro() {
     let r = RobotDescription::from_file(&path, &opts).unwrap();
     assert_eq!(r.name, "turtlebot3_burger");
     assert!(!r.wheels.is_skid_steer());
+}
+
+#[test]
+fn turtlebot3_files_without_wheel_limits_get_the_makers_published_limits() {
+    use ftcbf_sim::robot::LimitsSource;
+    let path = fixtures().join("turtlebot3_burger_ros.urdf");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        !text.contains("velocity="),
+        "the ROS file carries no wheel limits"
+    );
+    let r = RobotDescription::from_file(&path, &LoadOptions::default()).unwrap();
+    let LimitsSource::Maker(m) = r.limits_source else {
+        panic!("{:?}", r.limits_source)
+    };
+    assert_eq!(m.robot_name, "turtlebot3_burger");
+    assert!(m.source.contains("ROBOTIS e-manual"));
+    assert_eq!((r.limits.v_max, r.limits.omega_max), (0.22, 2.84));
+    assert!((r.limits.wheel_speed_max - 0.22 / 0.033).abs() < 1e-9);
+    // The same file named as a waffle or waffle_pi gets those figures.
+    for name in ["turtlebot3_waffle", "turtlebot3_waffle_pi"] {
+        let renamed = text.replace(
+            "<robot name=\"turtlebot3_burger\">",
+            &format!("<robot name=\"{name}\">"),
+        );
+        let r = RobotDescription::from_urdf_str(&renamed, &LoadOptions::default()).unwrap();
+        assert_eq!((r.limits.v_max, r.limits.omega_max), (0.26, 1.82), "{name}");
+    }
+    // Explicit limits (a world's [robot] limits) still win.
+    let explicit = DriveLimits {
+        v_max: 0.1,
+        omega_max: 1.0,
+        wheel_speed_max: 3.0,
+    };
+    let opts = LoadOptions {
+        limits: Some(explicit),
+        ..LoadOptions::default()
+    };
+    let r = RobotDescription::from_file(&path, &opts).unwrap();
+    assert_eq!(
+        (r.limits, r.limits_source),
+        (explicit, LimitsSource::Explicit)
+    );
+    // Another robot without limits is still an error naming the joint and its line.
+    let renamed = text.replace(
+        "<robot name=\"turtlebot3_burger\">",
+        "<robot name=\"my_burger_clone\">",
+    );
+    let line = text
+        .lines()
+        .position(|l| l.contains("<joint name=\"wheel_left_joint\""))
+        .unwrap()
+        + 1;
+    let msg = RobotDescription::from_urdf_str(&renamed, &LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains(&format!(
+            "wheel joint `wheel_left_joint` (line {line}) has no <limit velocity>"
+        )) && msg.contains("my_burger_clone")
+            && msg.contains("[robot] limits"),
+        "{msg}"
+    );
+    // The shipped burger carries wheel limits: they are used, not the maker's.
+    let r = RobotDescription::from_file(
+        repo().join("robots/turtlebot3_burger.urdf"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(r.limits_source, LimitsSource::WheelJoints);
 }

@@ -431,6 +431,10 @@ impl Validator<'_> {
                 omega_max: l.omega_max,
                 wheel_speed_max: l.wheel_speed_max,
             }),
+            xacro: crate::robot::XacroOptions {
+                args: r.xacro_args.clone().unwrap_or_default(),
+                command: crate::robot::XacroCommand::Auto,
+            },
         };
         RobotDescription::from_file(&urdf, &opts).map_err(|e| self.err("robot.urdf", e.to_string()))
     }

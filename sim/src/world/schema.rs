@@ -84,6 +84,9 @@ pub struct RobotSection {
     /// Drive limits, for URDFs whose wheel joints carry no `<limit velocity>` (the ROS
     /// TurtleBot3 files do not). Default: derived from the wheel joints' limits.
     pub limits: Option<LimitsSpec>,
+    /// `$(arg NAME)` values for a xacro source, e.g. `{ namespace = "" }` (the file's
+    /// `<xacro:arg default>` applies to the others).
+    pub xacro_args: Option<std::collections::BTreeMap<String, String>>,
 }
 
 /// `[robot] limits = { v_max, omega_max, wheel_speed_max }`
