@@ -1019,7 +1019,7 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
     goal
 }
 
-/// 9. Theorem 3 starts from x(0) ∈ C: the start state must lie in every safe set and clear of
+/// Item 9: Theorem 3 starts from x(0) ∈ C: the start state must lie in every safe set and clear of
 /// every obstacle (h ≥ 0 for every barrier that runs, at the start estimate, which is the true
 /// start at rest). A goal with no point clear of an obstacle (h(goal centre) + radius < 0) can
 /// never be entered: the world contradicts itself, and the report says so.

@@ -245,6 +245,16 @@ impl Validator<'_> {
         v.map_or(Ok(()), |v| self.range(key, v, r))
     }
 
+    /// A process-noise intensity: 0 (none) or within [`ranges::PROCESS_NOISE`] (a subnormal
+    /// intensity leaves the Riccati recursion crawling towards its steady state).
+    fn noise_intensity(&self, key: &str, q: f64) -> Result<(), WorldError> {
+        if q == 0.0 {
+            Ok(())
+        } else {
+            self.range(key, q, ranges::PROCESS_NOISE)
+        }
+    }
+
     /// At most `max` entries of `key`.
     fn count(&self, key: &str, n: usize, max: usize) -> Result<(), WorldError> {
         if n <= max {
@@ -277,7 +287,7 @@ impl Validator<'_> {
             Dynamics::Linear => {
                 if let Some(l) = &file.linear {
                     self.range("linear.dt", l.dt, r::LINEAR_DT)?;
-                    self.range("linear.process_noise", l.process_noise, r::PROCESS_NOISE)?;
+                    self.noise_intensity("linear.process_noise", l.process_noise)?;
                     self.ranges("linear.x0", &l.x0[..2], r::POSITION)?;
                     for i in 2..4 {
                         self.range(&format!("linear.x0[{i}]"), l.x0[i], r::VELOCITY)?;
@@ -340,7 +350,9 @@ impl Validator<'_> {
         self.opt_range("control.delta", c.delta, r::ERROR_BOUND)?;
         self.range("control.cbf_gain", c.cbf_gain, r::GAIN)?;
         self.range("control.epsilon", c.epsilon, r::EPSILON)?;
-        self.opt_range("control.process_noise", c.process_noise, r::PROCESS_NOISE)?;
+        if let Some(q) = c.process_noise {
+            self.noise_intensity("control.process_noise", q)?;
+        }
         self.ranges("control.initial_std", &c.initial_std, r::INITIAL_STD)?;
         self.opt_range("control.clf.v_bar", c.clf.v_bar, r::CLF_LEVEL)?;
         self.opt_range("control.clf.rho", c.clf.rho, r::GAIN)?;
@@ -599,12 +611,12 @@ impl Validator<'_> {
                     r::ROBOT_EXTENT
                 )));
             }
-            if !(b.mass.is_finite() && b.mass <= r::MAX_LINK_MASS)
-                || !b
-                    .inertia
-                    .iter()
-                    .all(|v| v.is_finite() && v.abs() <= r::MAX_LINK_INERTIA)
-            {
+            let heavy = !(b.mass.is_finite() && b.mass <= r::MAX_LINK_MASS);
+            let wild_inertia = b
+                .inertia
+                .iter()
+                .any(|v| !(v.is_finite() && v.abs() <= r::MAX_LINK_INERTIA));
+            if heavy || wild_inertia {
                 return Err(bad(format!(
                     "link `{}` has mass {} kg or an inertia entry beyond {} kg·m² (at most {} kg)",
                     b.name,

@@ -127,7 +127,8 @@ pub const GAIN: Range = Range::positive(1.0e3, "1/s");
 /// `control.epsilon`.
 pub const EPSILON: Range = Range::closed(1.0e-9, 0.5, "");
 /// A process-noise intensity (`control.process_noise`, `linear.process_noise`).
-pub const PROCESS_NOISE: Range = Range::closed(0.0, 1.0e3, "unit²/s");
+/// (0 is also accepted: no process noise.)
+pub const PROCESS_NOISE: Range = Range::closed(1.0e-9, 1.0e3, "unit²/s");
 /// `control.initial_std` [m, m/s].
 pub const INITIAL_STD: Range = Range::closed(0.0, 100.0, "m or m/s");
 /// `control.clf.v_bar`.
