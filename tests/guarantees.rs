@@ -376,8 +376,7 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
     // `check` used to report it while `run` refused it with an internal message), with the
     // pattern's key named.
     let e = World::from_str(&text, &p, &[])
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(
         e.contains("`fault_patterns[1].channels`")
@@ -402,8 +401,7 @@ fn world_velocity_needs_a_speed_channel() {
     );
     // Refused when the world is loaded, so `check` and `run` refuse it alike (issue 29).
     let e = World::from_str(&on_gnss, &p, &[])
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(
         e.contains("sensors[0].world_velocity") && e.contains("only a `speed` channel"),

@@ -160,7 +160,7 @@ fn invalid_utf8_is_named_once_with_its_byte_offset() {
     let f = dir.join("latin1.toml");
     // "café" in Latin-1: byte 0xE9 at offset 31, line 3, column 6.
     std::fs::write(&f, b"name = \"x\"\nduration = 1.0\n# caf\xe9\n").expect("write");
-    let e = World::load(&f, &[]).err().expect("refused").to_string();
+    let e = World::load(&f, &[]).expect_err("refused").to_string();
     assert!(
         e.contains("invalid byte 0xe9 at byte offset 31 (line 3, column 6)"),
         "{e}"
