@@ -92,8 +92,8 @@ pub struct RunArgs {
     /// Controller to run (overrides the world's `control.controller`).
     #[arg(long, value_enum)]
     pub controller: Option<ControllerArg>,
-    /// Simulated duration in seconds (overrides the world's `duration`).
-    #[arg(long, value_name = "S")]
+    /// Simulated duration in seconds (overrides the world's `duration`; in (0, 3600]).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Override any numeric key of the world, e.g. --set attacks[0].value=0.5 (repeatable).
     #[arg(long = "set", value_name = "KEY=NUMBER")]

@@ -16,9 +16,9 @@ use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
 use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
-use ftcbf_sim::runner::{run, run_observed, RunOptions};
+use ftcbf_sim::runner::{preflight, run, run_observed, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
+use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, Param, World, WorldError};
 
 use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
 
@@ -29,6 +29,13 @@ const EXIT_EXPECTATION: u8 = 3;
 /// Exit code: a verdict failed: `check --strict` and Theorem 3 does not apply to the world, or a
 /// batch verdict matched `ftcbf batch --fail-on`.
 const EXIT_VERDICT: u8 = 4;
+
+/// Exit code: the command line itself is wrong (clap's usage errors, a malformed `--set`, an
+/// option value out of range). Distinct from an invalid world (2); sysexits' EX_USAGE.
+const EXIT_USAGE: u8 = 64;
+/// Exit code: an internal error — a panic inside the simulator or a dependency, contained and
+/// reported instead of aborting with Rust's 101; sysexits' EX_SOFTWARE.
+const EXIT_INTERNAL: u8 = 70;
 
 /// An error with the exit code it maps to.
 struct Failure {
@@ -49,32 +56,108 @@ fn invalid(e: WorldError) -> Failure {
     }
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
+/// Whether a run error says the world does not fit the controller or plant (a world `check`
+/// and `run` both refuse: exit 2), as opposed to a failure while running.
+fn is_invalid_world(e: &RunError) -> bool {
+    matches!(e, RunError::Setup { .. } | RunError::Start { .. })
+}
+
+/// A run error as a failure: an invalid world exits 2, an option out of range 64.
+fn run_failure(e: RunError, what: &'static str) -> Failure {
+    let code = match &e {
+        RunError::Option(_) => EXIT_USAGE,
+        e if is_invalid_world(e) => EXIT_INVALID,
+        _ => 1,
+    };
+    let context = if code == EXIT_INVALID {
+        "invalid world file"
+    } else {
+        what
+    };
+    Failure {
+        code,
+        error: anyhow::Error::new(e).context(context),
+    }
+}
+
+/// The exit code of a command's error chain: an invalid world anywhere in it exits 2.
+fn code_of(e: &anyhow::Error) -> u8 {
+    if e.is::<batch::VerdictFailure>() {
+        EXIT_VERDICT
+    } else if e
+        .chain()
+        .any(|c| c.is::<WorldError>() || c.downcast_ref::<RunError>().is_some_and(is_invalid_world))
+    {
+        EXIT_INVALID
+    } else {
+        1
+    }
+}
+
+fn dispatch(command: Command) -> Result<(), Failure> {
+    match command {
         Command::Run(a) => cmd_run(&a),
         Command::Check(a) => cmd_check(&a),
         Command::Regress(a) => cmd_regress(&a),
-        Command::Batch(a) => batch::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| {
-            let code = if e.is::<batch::VerdictFailure>() {
-                EXIT_VERDICT
-            } else if e.chain().any(|c| c.is::<WorldError>()) {
-                EXIT_INVALID
-            } else {
-                1
-            };
-            Failure { code, error: e }
-        }),
+        Command::Batch(a) => {
+            batch::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| Failure {
+                code: code_of(&e),
+                error: e,
+            })
+        }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
         Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
-            code: if e.chain().any(|c| c.is::<WorldError>()) {
-                EXIT_INVALID
-            } else {
-                1
-            },
+            code: code_of(&e),
             error: e,
         }),
+    }
+}
+
+/// The message and place of the last panic, kept by the hook for the error line.
+static PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // --help and --version print to stdout and succeed; usage errors exit 64.
+            let code = if e.use_stderr() { EXIT_USAGE } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
     };
+    // A panic anywhere below (the simulator, parry, rapier, a worker thread of a batch) is
+    // contained: the hook keeps its message instead of printing Rust's, and the command ends
+    // with a typed internal error and exit 70, never 101 or an abort.
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic payload".to_string());
+        let place = info
+            .location()
+            .map_or(String::new(), |l| format!(" at {}:{}", l.file(), l.line()));
+        if let Ok(mut slot) = PANIC.lock() {
+            slot.get_or_insert(format!("{msg}{place}"));
+        }
+    }));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command)))
+        .unwrap_or_else(|_| {
+            let what = PANIC
+                .lock()
+                .ok()
+                .and_then(|s| s.clone())
+                .unwrap_or_else(|| "unknown panic".to_string());
+            Err(Failure {
+                code: EXIT_INTERNAL,
+                error: anyhow::anyhow!(
+                    "internal error: the simulation stopped on a panic ({what}); this is a bug \
+                     — please report it with the world file and command line"
+                ),
+            })
+        });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
@@ -147,7 +230,22 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         .set
         .iter()
         .map(|s| Override::parse(s).map_err(|e| anyhow::anyhow!("--set {e}")))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<anyhow::Result<Vec<_>>>()
+        .map_err(|error| Failure {
+            code: EXIT_USAGE,
+            error,
+        })?;
+    if let Some(d) = a.duration {
+        if !ranges::DURATION.contains(d) {
+            return Err(Failure {
+                code: EXIT_USAGE,
+                error: anyhow::anyhow!(
+                    "--duration {d}: expected a number of seconds in {}",
+                    ranges::DURATION.describe()
+                ),
+            });
+        }
+    }
     let world = load(&a.world, &overrides)?;
     let kind = a
         .controller
@@ -160,7 +258,7 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         duration: a.duration,
     };
     let summary = if a.no_record {
-        run(&world, &opts).context("run failed")?
+        run(&world, &opts).map_err(|e| run_failure(e, "run failed"))?
     } else {
         run_recorded(a, &world, &opts, kind, seed)?
     };
@@ -222,7 +320,7 @@ fn run_recorded(
             inner: &mut rec,
             bar: bar.clone(),
         };
-        run_observed(world, opts, Some(&mut obs)).context("run failed")?
+        run_observed(world, opts, Some(&mut obs)).map_err(|e| run_failure(e, "run failed"))?
     };
     bar.finish_and_clear();
     rec.finish().context("recording")?;
@@ -279,6 +377,9 @@ fn print_summary(s: &RunSummary) {
     );
     let verdict = if s.safe { "SAFE" } else { "UNSAFE" };
     println!("  safety:    {verdict}");
+    if let Some(n) = &s.non_finite {
+        println!("    invalid: non-finite {n} — a verdict on it would be no verdict, so UNSAFE");
+    }
     if let Some(c) = &s.first_collision {
         println!("    first collision: {} at t = {:.3} s", c.obstacle, c.t);
     }
@@ -386,15 +487,17 @@ fn print_summary(s: &RunSummary) {
 
 fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
     let world = load(&a.world, &[])?;
+    // Whatever `run` would refuse at its start, `check` refuses too, with the same exit code.
+    preflight(&world).map_err(|e| run_failure(e, "controller setup"))?;
     println!("world {} ({})", world.name, world.path.display());
-    let report = check::check_world(&world).context("controller setup")?;
+    let report = check::check_world(&world).map_err(|e| run_failure(e, "controller setup"))?;
     println!("{report}");
     if let Some(r) = &world.robot {
         println!("drive: {}", r.wheels.describe());
     }
     // Condition (4.4) decided exactly on every barrier that runs, at the start estimate.
-    let setup =
-        ControlSetup::new(&world, world.file.control.controller).context("controller setup")?;
+    let setup = ControlSetup::new(&world, world.file.control.controller)
+        .map_err(|e| run_failure(e, "controller setup"))?;
     let start = [setup.config.x0];
     for (b, name) in setup.config.barriers.iter().zip(&setup.barrier_names) {
         println!(

@@ -55,8 +55,9 @@ fn invalid_world_exits_2_naming_file_and_key() {
         t.contains("negative_rate.toml") && t.contains("control.rate_hz"),
         "{t}"
     );
+    // A malformed --set is a usage error (64), not an invalid world.
     let o = ftcbf(&["run", "worlds/paper_linear.toml", "--set", "nonsense"]);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
     assert!(text(&o).contains("KEY=NUMBER"), "{}", text(&o));
 }
 

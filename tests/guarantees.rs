@@ -372,15 +372,18 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
         "channels = [\"gnss2_x\", \"gnss2_y\"]",
         "channels = [\"gnss2_x\", \"gnss2_y\", \"wheel_speed\"]",
     );
-    let w = World::from_str(&text, &p, &[]).expect("world");
-    let r = check_world(&w).expect("check");
-    let h = odo(&r);
-    assert_eq!(h.status, Status::Fails, "{}", h.detail);
-    assert!(!r.verdict.applies);
+    // Two patterns reaching the same controller channel: the world is invalid (issue 29:
+    // `check` used to report it while `run` refused it with an internal message), with the
+    // pattern's key named.
+    let e = World::from_str(&text, &p, &[])
+        .expect_err("refused")
+        .to_string();
     assert!(
-        r.verdict.line().contains("not disjoint in effect"),
-        "{}",
-        r.verdict.line()
+        e.contains("`fault_patterns[1].channels`")
+            && e.contains("disjoint in effect")
+            && e.contains("\"gnss1\"")
+            && e.contains("\"gnss2\""),
+        "{e}"
     );
 }
 
@@ -389,7 +392,6 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
 /// otherwise).
 #[test]
 fn world_velocity_needs_a_speed_channel() {
-    use ftcbf_sim::runner::{RunOptions, Simulation};
     let p = path("turtlebot_realistic.toml");
     let text = std::fs::read_to_string(&p).expect("world");
     let on_gnss = text.replacen(
@@ -397,10 +399,9 @@ fn world_velocity_needs_a_speed_channel() {
         "measures = \"x\"\nnoise_std = 0.02\nworld_velocity = true\n",
         1,
     );
-    let w = World::from_str(&on_gnss, &p, &[]).expect("world parses");
-    let e = Simulation::new(&w, &RunOptions::default())
-        .err()
-        .expect("refused")
+    // Refused when the world is loaded, so `check` and `run` refuse it alike (issue 29).
+    let e = World::from_str(&on_gnss, &p, &[])
+        .expect_err("refused")
         .to_string();
     assert!(
         e.contains("sensors[0].world_velocity") && e.contains("only a `speed` channel"),

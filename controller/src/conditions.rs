@@ -119,11 +119,20 @@ impl fmt::Display for Condition44Verdict {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "condition (4.4): {} — {} estimate(s), angular spread of Λ_i = {:.4} rad (< π needed)",
+            "condition (4.4): {} — {} estimate(s), ",
             if self.holds { "HOLDS" } else { "FAILS" },
             self.lambdas.len(),
-            self.spread
         )?;
+        if self.spread.is_finite() {
+            write!(
+                f,
+                "angular spread of Λ_i = {:.4} rad (< π needed)",
+                self.spread
+            )?;
+        } else {
+            // A degenerate Λ_i has no direction: no spread to report, and (4.4) fails.
+            write!(f, "angular spread of Λ_i undefined")?;
+        }
         if let (Some(u), Some(m)) = (self.witness, self.margin) {
             write!(f, ", u = ({:.4}, {:.4}) with min cos = {m:.4}", u[0], u[1])?;
         }

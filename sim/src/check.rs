@@ -328,7 +328,15 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     }
     check_attacks(world, &names, &mut found); // 7
     let goal = goal_holding(world, &setup, &filters); // 8
-    found.hypotheses.extend(goal.iter().map(goal_hypothesis));
+    for g in &goal {
+        let h = goal_hypothesis(g);
+        if h.status == Status::Fails {
+            found.reasons.push(h.detail.clone());
+        }
+        found.hypotheses.push(h);
+    }
+    check_start_and_goal(world, &setup, &mut found); // 9
+    check_finite_report(&context[usize::from(f.description.is_some())..], &mut found); // fail closed on NaN / ∞
 
     let applies = found.reasons.is_empty();
     Ok(CheckReport {
@@ -1120,11 +1128,136 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
     goal
 }
 
-/// The (reported) hypothesis of one goal-holding check.
+/// Item 9: Theorem 3 starts from x(0) ∈ C: the start state must lie in every safe set and clear of
+/// every obstacle (h ≥ 0 for every barrier that runs, at the start estimate, which is the true
+/// start at rest). A goal with no point clear of an obstacle (h(goal centre) + radius < 0) can
+/// never be entered: the world contradicts itself, and the report says so.
+fn check_start_and_goal(world: &World, setup: &ControlSetup, found: &mut Findings) {
+    let x0 = setup.config.x0;
+    let mut outside = Vec::new();
+    for b in &setup.config.barriers {
+        let h = b.eval(&x0).value;
+        if !(h.is_finite() && h >= 0.0) {
+            outside.push(format!("h({}) = {h:.6}", b.name()));
+        }
+    }
+    let (status, detail) = if outside.is_empty() {
+        (
+            Status::Holds,
+            format!(
+                "x(0) = ({:.4}, {:.4}, {:.4}, {:.4}) has h ≥ 0 for all {} barrier(s)",
+                x0[0],
+                x0[1],
+                x0[2],
+                x0[3],
+                setup.config.barriers.len()
+            ),
+        )
+    } else {
+        (
+            Status::Fails,
+            format!(
+                "the start x(0) = ({:.4}, {:.4}) is outside the safe set: {} (Theorem 3 assumes x(0) ∈ C; the run is unsafe from its first step)",
+                x0[0],
+                x0[1],
+                outside.join(", ")
+            ),
+        )
+    };
+    found.record(
+        "start inside every safe set (x(0) ∈ C)".into(),
+        status,
+        detail,
+    );
+
+    let f = &world.file;
+    let gc = State::new(f.goal.center[0], f.goal.center[1], 0.0, 0.0);
+    let n_safe = setup.safe_sets;
+    let mut blocked = Vec::new();
+    for b in setup.config.barriers.iter().skip(n_safe) {
+        let h = b.eval(&gc).value;
+        if !(h.is_finite() && h + f.goal.radius >= 0.0) {
+            blocked.push(format!("{} (h at the goal's centre = {h:.6})", b.name()));
+        }
+    }
+    if n_safe < setup.config.barriers.len() {
+        let (status, detail) = if blocked.is_empty() {
+            (
+                Status::Holds,
+                "some point of the goal set is clear of every obstacle (h + radius ≥ 0 at its centre)"
+                    .to_string(),
+            )
+        } else {
+            (
+                Status::Fails,
+                format!(
+                    "the goal set (centre ({}, {}), radius {} m) lies inside {}: no safe run can enter it",
+                    f.goal.center[0],
+                    f.goal.center[1],
+                    f.goal.radius,
+                    blocked.join(", ")
+                ),
+            )
+        };
+        found.record("goal clear of the obstacles".into(), status, detail);
+    }
+}
+
+/// Whether `text` shows a non-finite number: a `NaN` or `inf` word (how Rust prints them).
+fn shows_non_finite(text: &str) -> Option<&str> {
+    text.split(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .find(|w| *w == "NaN" || *w == "inf")
+}
+
+/// Fail closed: a hypothesis that computed NaN or ∞ is not verified, whatever its comparison
+/// said (NaN compares false both ways); it FAILS with the number named, so the verdict can
+/// never be "applies" with a non-finite number inside. A NaN in the description (parameters,
+/// h̄_γ, P0; the world's free-text description excluded) fails the report the same way (∞
+/// there is legitimate: δ = inf means always active).
+fn check_finite_report(context: &[String], found: &mut Findings) {
+    for h in &mut found.hypotheses {
+        if h.status == Status::Fails {
+            continue;
+        }
+        if let Some(w) = shows_non_finite(&h.detail) {
+            h.status = Status::Fails;
+            let reason = format!(
+                "{}: computed a non-finite number ({w}): {}",
+                h.name, h.detail
+            );
+            h.detail = format!(
+                "computed a non-finite number ({w}), so not verified: {}",
+                h.detail
+            );
+            found.reasons.push(reason);
+        }
+    }
+    for line in context {
+        if line.starts_with("warning: ") {
+            continue;
+        }
+        let nan = line
+            .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .any(|w| w == "NaN");
+        let h_bar_inf = line.starts_with("h̄_γ(") && shows_non_finite(line).is_some();
+        let p0_inf = line.starts_with("filters:") && shows_non_finite(line).is_some();
+        if nan || h_bar_inf || p0_inf {
+            found.record(
+                "finite derived numbers".into(),
+                Status::Fails,
+                format!("a derived number is not finite: {line}"),
+            );
+        }
+    }
+}
+
+/// The (reported) hypothesis of one goal-holding check: information, unless its numbers are
+/// not finite (then it fails: nothing was verified).
 fn goal_hypothesis(g: &GoalHold) -> Hypothesis {
+    let finite = g.needed_h.is_finite() && g.max_h_in_goal.is_finite();
     Hypothesis {
         name: format!("goal can be held at rest ({}, {})", g.barrier, g.filter),
-        status: Status::Info,
+        status: if finite { Status::Info } else { Status::Fails },
         detail: format!(
             "{}: at rest the CBF row needs h ≥ h̄_γ + γ‖(Kc̄)ᵀa‖/κ = {:.6}; the goal set reaches h ≤ {:.6}{}",
             if g.holds() { "yes" } else { "NO" },
@@ -1314,5 +1447,34 @@ fn check_input_authority(
                 1.0 - ratio
             ));
         }
+    }
+}
+
+#[cfg(test)]
+mod non_finite_tests {
+    use super::*;
+
+    #[test]
+    fn a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply() {
+        assert_eq!(shows_non_finite("λ̄ = NaN"), Some("NaN"));
+        assert_eq!(shows_non_finite("needs inf × the box"), Some("inf"));
+        assert_eq!(shows_non_finite("the infimum is 0.3; info"), None);
+        let mut found = Findings::default();
+        found.record("Prop. 1".into(), Status::Holds, "λ̄ = NaN".into());
+        found.record("Thm. 5".into(), Status::Info, "bound 0.2".into());
+        check_finite_report(&["in force: δ = inf".to_string()], &mut found);
+        assert_eq!(found.hypotheses[0].status, Status::Fails);
+        assert!(found.hypotheses[0]
+            .detail
+            .contains("non-finite number (NaN)"));
+        assert_eq!(found.hypotheses[1].status, Status::Info);
+        // δ = inf is legitimate (always active); only the NaN hypothesis is a reason.
+        assert_eq!(found.reasons.len(), 1, "{:?}", found.reasons);
+        let mut found = Findings::default();
+        check_finite_report(
+            &["h̄_γ(floor) per fault-pattern filter = [inf]".to_string()],
+            &mut found,
+        );
+        assert_eq!(found.reasons.len(), 1);
     }
 }

@@ -216,6 +216,7 @@ mod tests {
             controller: "ft-cbf-clf".into(),
             duration: 20.0,
             safe: !collided,
+            non_finite: None,
             collided,
             first_collision: collided.then(|| CollisionEvent {
                 t: 3.0,

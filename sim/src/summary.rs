@@ -210,8 +210,14 @@ pub struct RunSummary {
     pub controller: String,
     /// Simulated time [s].
     pub duration: f64,
-    /// The true state stayed in every safe set and the robot never touched an obstacle.
+    /// The true state stayed in every safe set, the robot never touched an obstacle, and every
+    /// barrier value and the final state are finite numbers (fail closed: see `non_finite`).
     pub safe: bool,
+    /// The first quantity of the run that was not a finite number (a barrier's smallest value,
+    /// the final state, the clearance), when one was: the run is then reported UNSAFE, since a
+    /// verdict on NaN or ∞ would be no verdict at all. Absent when all were finite.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub non_finite: Option<String>,
     /// The robot touched an obstacle.
     pub collided: bool,
     /// First contact, if any.
@@ -372,5 +378,61 @@ mod tests {
         assert!((s.mean_abs_dv - 0.1).abs() < 1e-12);
         assert!((s.path_length - 4.0).abs() < 1e-12);
         assert_eq!(s.stalls, 1);
+    }
+}
+
+/// The first non-finite quantity among a run's barrier minima, its smallest clearance and its
+/// final state, named for the summary ("min h(floor) = inf", "final_state[1] = NaN").
+pub fn first_non_finite(
+    min_barrier: &[NamedValue],
+    min_clearance: Option<f64>,
+    final_state: &[f64; 4],
+) -> Option<String> {
+    const STATE: [&str; 4] = ["p_x", "p_y", "v_x", "v_y"];
+    min_barrier
+        .iter()
+        .find(|b| !b.value.is_finite())
+        .map(|b| format!("min h({}) = {}", b.name, b.value))
+        .or_else(|| {
+            min_clearance
+                .filter(|c| !c.is_finite())
+                .map(|c| format!("min clearance = {c}"))
+        })
+        .or_else(|| {
+            final_state
+                .iter()
+                .position(|v| !v.is_finite())
+                .map(|i| format!("final state {} = {}", STATE[i], final_state[i]))
+        })
+}
+
+#[cfg(test)]
+mod non_finite_tests {
+    use super::*;
+
+    #[test]
+    fn the_first_non_finite_quantity_is_named() {
+        let b = |name: &str, value: f64| NamedValue {
+            name: name.into(),
+            value,
+        };
+        let fine = [b("floor", 0.1), b("obstacle:wall", 0.02)];
+        assert_eq!(
+            first_non_finite(&fine, Some(0.3), &[1.0, 0.0, 0.0, 0.0]),
+            None
+        );
+        let inf = [b("floor", f64::INFINITY)];
+        assert_eq!(
+            first_non_finite(&inf, None, &[1.0, 0.0, 0.0, 0.0]).as_deref(),
+            Some("min h(floor) = inf")
+        );
+        assert_eq!(
+            first_non_finite(&fine, Some(f64::NAN), &[1.0, 0.0, 0.0, 0.0]).as_deref(),
+            Some("min clearance = NaN")
+        );
+        assert_eq!(
+            first_non_finite(&fine, None, &[1.0, f64::NEG_INFINITY, 0.0, 0.0]).as_deref(),
+            Some("final state p_y = -inf")
+        );
     }
 }

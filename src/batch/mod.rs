@@ -129,6 +129,7 @@ pub(crate) mod testutil {
                 controller: controller.into(),
                 duration: 20.0,
                 safe,
+                non_finite: None,
                 collided,
                 first_collision: collided.then(|| CollisionEvent {
                     t: 3.0 + unit(seed, 4),

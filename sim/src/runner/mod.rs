@@ -99,6 +99,13 @@ pub enum RunError {
     Option(String),
 }
 
+/// Builds everything a run of `world` with its own controller builds at its start (controller
+/// setup, sensors, attacks, the control law, the plant) and drops it: `Ok` exactly when
+/// [`run`] would start. `ftcbf check` calls it so that it refuses what `run` refuses.
+pub fn preflight(world: &World) -> Result<(), RunError> {
+    Simulation::new(world, &RunOptions::default()).map(drop)
+}
+
 /// Runs `world` headlessly and returns its summary.
 pub fn run(world: &World, opts: &RunOptions) -> Result<RunSummary, RunError> {
     let mut sim = Simulation::new(world, opts)?;
@@ -210,9 +217,22 @@ impl<'w> Simulation<'w> {
         let seed = opts.seed.unwrap_or(file.seed);
         let kind = opts.controller.unwrap_or(file.control.controller);
         let duration = opts.duration.unwrap_or(file.duration);
-        if !(duration.is_finite() && duration > 0.0) {
+        let r = crate::world::ranges::DURATION;
+        if !r.contains(duration) {
             return Err(RunError::Option(format!(
-                "--duration: expected a finite number of seconds > 0, found {duration}"
+                "--duration: expected a number of seconds in {}, found {duration}",
+                r.describe()
+            )));
+        }
+        let steps = duration * file.control.rate_hz;
+        let plant_steps = duration / world.plant_dt();
+        if steps > crate::world::ranges::MAX_CONTROL_STEPS
+            || plant_steps > crate::world::ranges::MAX_PLANT_STEPS
+        {
+            return Err(RunError::Option(format!(
+                "--duration {duration}: {steps} control steps and {plant_steps} plant steps at this world's rates; at most {} and {} are supported",
+                crate::world::ranges::MAX_CONTROL_STEPS,
+                crate::world::ranges::MAX_PLANT_STEPS
             )));
         }
         let start_err = |what: &'static str, message: String| RunError::Start {
@@ -476,16 +496,22 @@ impl<'w> Simulation<'w> {
         let end = self.plant.truth();
         let collided = m.first_collision.is_some();
         let (goal_settled, final_goal_distance, final_clf_value) = m.goal_outcome(self.world, &end);
+        let min_barrier = m.min_barrier();
+        let final_state = [end.x, end.y, end.vx, end.vy];
+        let non_finite =
+            crate::summary::first_non_finite(&min_barrier, m.min_clearance, &final_state)
+                .or_else(|| m.non_finite.clone());
         RunSummary {
             world: self.world.name.clone(),
             seed: self.seed,
             controller: self.law.name().to_string(),
             duration: self.k as f64 * self.control_dt,
-            safe: !collided && m.first_violation.is_none(),
+            safe: !collided && m.first_violation.is_none() && non_finite.is_none(),
+            non_finite,
             collided,
             first_collision: m.first_collision.clone(),
             first_violation: m.first_violation.clone(),
-            min_barrier: m.min_barrier(),
+            min_barrier,
             min_clearance: m.min_clearance,
             goal_reached: m.time_to_goal.is_some(),
             time_to_goal: m.time_to_goal,
@@ -503,7 +529,7 @@ impl<'w> Simulation<'w> {
                 || self.attack_windows.iter().any(|w| w.outside_fault_patterns),
             attacks_together_outside_fault_patterns: self.attacks_together_outside,
             attack_windows: self.attack_windows.clone(),
-            final_state: [end.x, end.y, end.vx, end.vy],
+            final_state,
             smoothness: self.smooth.smoothness(),
             estimation_errors: self.errors.rows().to_vec(),
         }

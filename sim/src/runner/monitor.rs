@@ -25,6 +25,9 @@ pub(super) struct Monitor {
     pub(super) min_clearance: Option<f64>,
     pub(super) first_collision: Option<CollisionEvent>,
     pub(super) first_violation: Option<ViolationEvent>,
+    /// The first non-finite quantity seen during the run (a barrier value, the true state, a
+    /// clearance) and when: the run fails closed on it.
+    pub(super) non_finite: Option<String>,
     pub(super) time_to_goal: Option<f64>,
     /// Time of the last plant tick outside the goal set.
     pub(super) last_outside_goal: Option<f64>,
@@ -45,6 +48,7 @@ impl Monitor {
             min_clearance: None,
             first_collision: None,
             first_violation: None,
+            non_finite: None,
             time_to_goal: None,
             last_outside_goal: None,
             clf: QuadraticClf::new(
@@ -79,8 +83,15 @@ impl Monitor {
     pub(super) fn after_tick(&mut self, plant: &Plant, world: &World, events: &mut Vec<String>) {
         let tt = plant.truth();
         let x = tt.planar();
+        if self.non_finite.is_none() && !x.iter().all(|v| v.is_finite()) {
+            self.non_finite = Some(format!(
+                "true state ({}, {}, {}, {}) at t = {:.3} s",
+                x[0], x[1], x[2], x[3], tt.t
+            ));
+        }
         for (j, b) in self.barriers.iter().enumerate().take(self.safe_sets) {
             let h = b.eval(&x).value;
+            note_non_finite(&mut self.non_finite, &self.names[j], h, tt.t);
             if h < self.min_barrier[j] {
                 self.min_barrier[j] = h;
             }
@@ -123,10 +134,12 @@ impl Monitor {
     /// After the control step's last tick: obstacle barriers and clearances on the truth, and
     /// h(x_true) of every barrier into `barrier_truth`.
     pub(super) fn after_step(&mut self, plant: &Plant, world: &World, barrier_truth: &mut [f64]) {
-        let x = plant.truth().planar();
+        let truth = plant.truth();
+        let x = truth.planar();
         for (j, b) in self.barriers.iter().enumerate() {
             let h = b.eval(&x).value;
             barrier_truth[j] = h;
+            note_non_finite(&mut self.non_finite, &self.names[j], h, truth.t);
             if j >= self.safe_sets {
                 self.min_barrier[j] = self.min_barrier[j].min(h);
             }
@@ -138,6 +151,11 @@ impl Monitor {
                 .iter()
                 .copied()
                 .fold(f64::INFINITY, f64::min);
+            if self.non_finite.is_none() {
+                if let Some(c) = self.clearances.iter().find(|c| !c.is_finite()) {
+                    self.non_finite = Some(format!("clearance {c} at t = {:.3} s", truth.t));
+                }
+            }
             self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
         }
     }
@@ -174,4 +192,12 @@ fn goal_distance(world: &World, t: &TruthState) -> f64 {
 
 fn in_goal(world: &World, t: &TruthState) -> bool {
     goal_distance(world, t) <= world.file.goal.radius
+}
+
+/// Records the first non-finite barrier value (NaN never lowers a minimum, so it would
+/// otherwise pass unseen).
+fn note_non_finite(slot: &mut Option<String>, name: &str, h: f64, t: f64) {
+    if slot.is_none() && !h.is_finite() {
+        *slot = Some(format!("h({name}) = {h} at t = {t:.3} s"));
+    }
 }

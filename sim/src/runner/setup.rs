@@ -264,6 +264,17 @@ fn check_h_bar_inputs(world: &World, bcfg: &BarrierConfig) -> Result<(), RunErro
     Ok(())
 }
 
+/// What the controller needs of the world's structure, decided without computing anything
+/// costly (no Riccati, no planning): the channels the linear model observes, the fault patterns
+/// as controller channels — disjoint in effect, a sensor taking along every channel its readings
+/// flow into — and the inputs of the h̄_γ bounds. [`World::load`](crate::world::World::load)
+/// runs it, so `check` and `run` refuse the same worlds, naming the user's key.
+pub fn check_structure(world: &World) -> Result<(), RunError> {
+    let ch = Channels::of(world)?;
+    model_patterns(world, &ch.channels_of_sensor)?;
+    check_h_bar_inputs(world, &obstacle_barrier_config(world))
+}
+
 impl ControlSetup {
     /// Builds the controller configuration for `world` run with `kind`.
     pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
@@ -844,7 +855,7 @@ fn model_patterns(
     channels_of_sensor: &[Vec<usize>],
 ) -> Result<Vec<Vec<usize>>, RunError> {
     let sensors = &world.file.sensors;
-    let mut patterns = Vec::with_capacity(world.patterns.len());
+    let mut patterns: Vec<Vec<usize>> = Vec::with_capacity(world.patterns.len());
     for (pi, p) in world.patterns.iter().enumerate() {
         let mut mapped: Vec<usize> = Vec::with_capacity(p.len());
         for &si in p {
@@ -872,6 +883,35 @@ fn model_patterns(
                         mapped.push(c);
                     }
                 }
+            }
+        }
+        // A sensor takes along every channel its readings flow into, so two patterns that are
+        // disjoint as written can share a controller channel (a wheel channel in one, the
+        // odometry made from it in another): refused here, naming both, as the controller would.
+        for (pj, earlier) in patterns.iter().enumerate() {
+            if let Some(&c) = mapped.iter().find(|c| earlier.contains(c)) {
+                let sensor = channels_of_sensor
+                    .iter()
+                    .position(|cs| cs.contains(&c))
+                    .map_or("?", |s| sensors[s].name.as_str());
+                let pname = |i: usize| {
+                    world
+                        .file
+                        .fault_patterns
+                        .get(i)
+                        .map_or(format!("#{i}"), |p| format!("\"{}\"", p.name))
+                };
+                return Err(setup_err(
+                    world,
+                    &format!("fault_patterns[{pi}].channels"),
+                    format!(
+                        "fault patterns {} (fault_patterns[{pj}]) and {} both reach the controller channel of \"{sensor}\" \
+                         (a sensor in a pattern takes along every channel made from its readings: odometry from wheel \
+                         channels, world velocity from the heading); patterns must be disjoint in effect (§3.1) — put those sensors in one pattern",
+                        pname(pj),
+                        pname(pi)
+                    ),
+                ));
             }
         }
         patterns.push(mapped);

@@ -3,6 +3,7 @@
 
 pub mod expect;
 mod overrides;
+pub mod ranges;
 pub mod schema;
 
 use std::path::{Path, PathBuf};
@@ -14,7 +15,7 @@ pub use overrides::Override;
 pub use schema::*;
 
 use crate::attacks::validate_attacks;
-use crate::obstacles::Obstacle;
+use crate::obstacles::{Obstacle, ShapeSpec};
 use crate::robot::{DriveLimits, LoadOptions, RobotDescription};
 use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 
@@ -22,13 +23,28 @@ use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 /// key path and what was expected.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldError {
-    /// The file cannot be read.
-    #[error("{path}: cannot read the world file: {source}")]
+    /// The file cannot be read. (The cause is in the message, not also a `source`, so that
+    /// a chain printed with `{:#}` says it once.)
+    #[error("{path}: cannot read the world file: {error}")]
     Io {
         /// File.
         path: PathBuf,
         /// Cause.
-        source: std::io::Error,
+        error: std::io::Error,
+    },
+    /// The file is not UTF-8 text (TOML must be).
+    #[error("{path}: not UTF-8 text: invalid byte 0x{byte:02x} at byte offset {offset} (line {line}, column {column}); TOML files must be UTF-8")]
+    Utf8 {
+        /// File.
+        path: PathBuf,
+        /// Offset of the first invalid byte from the start of the file.
+        offset: usize,
+        /// The byte.
+        byte: u8,
+        /// Its line (1-based).
+        line: usize,
+        /// Its column (1-based, in characters of the valid text before it).
+        column: usize,
     },
     /// Not valid TOML, or not the world schema (unknown key, wrong type, missing key).
     #[error("{path}: {message}")]
@@ -81,9 +97,23 @@ pub struct World {
 impl World {
     /// Reads, parses, overrides and validates a world file.
     pub fn load(path: &Path, overrides: &[Override]) -> Result<World, WorldError> {
-        let text = std::fs::read_to_string(path).map_err(|source| WorldError::Io {
+        let bytes = std::fs::read(path).map_err(|error| WorldError::Io {
             path: path.to_path_buf(),
-            source,
+            error,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let offset = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let valid = String::from_utf8_lossy(&bytes[..offset]);
+            let line = valid.matches('\n').count() + 1;
+            let column = valid.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            WorldError::Utf8 {
+                path: path.to_path_buf(),
+                offset,
+                byte: bytes[offset],
+                line,
+                column,
+            }
         })?;
         Self::from_str(&text, path, overrides)
     }
@@ -123,7 +153,20 @@ impl World {
                 .unwrap_or_else(|| "world".into())
         });
         file.resolve_defaults();
-        Validator { path }.validate(file, name)
+        let world = Validator { path }.validate(file, name)?;
+        crate::runner::setup::check_structure(&world).map_err(|e| match e {
+            crate::runner::RunError::Setup { key, message, .. } => WorldError::Invalid {
+                path: path.to_path_buf(),
+                key,
+                message,
+            },
+            other => WorldError::Invalid {
+                path: path.to_path_buf(),
+                key: "control".into(),
+                message: other.to_string(),
+            },
+        })?;
+        Ok(world)
     }
 
     /// Directory that relative paths in the file are resolved against.
@@ -174,6 +217,57 @@ impl Validator<'_> {
         }
     }
 
+    /// `v` within `r` (the physical ranges of [`ranges`]), else an error naming `key`.
+    fn range(&self, key: &str, v: f64, r: ranges::Range) -> Result<(), WorldError> {
+        if r.contains(v) {
+            Ok(())
+        } else {
+            Err(self.err(
+                key,
+                format!(
+                    "expected a number in {}, found {}",
+                    r.describe(),
+                    ranges::fmt_value(v)
+                ),
+            ))
+        }
+    }
+
+    /// Every value of `values` within `r`; the key of an element is `key[i]`.
+    fn ranges(&self, key: &str, values: &[f64], r: ranges::Range) -> Result<(), WorldError> {
+        for (i, v) in values.iter().enumerate() {
+            self.range(&format!("{key}[{i}]"), *v, r)?;
+        }
+        Ok(())
+    }
+
+    /// An optional value within `r`.
+    fn opt_range(&self, key: &str, v: Option<f64>, r: ranges::Range) -> Result<(), WorldError> {
+        v.map_or(Ok(()), |v| self.range(key, v, r))
+    }
+
+    /// A process-noise intensity: 0 (none) or within [`ranges::PROCESS_NOISE`] (a subnormal
+    /// intensity leaves the Riccati recursion crawling towards its steady state).
+    fn noise_intensity(&self, key: &str, q: f64) -> Result<(), WorldError> {
+        if q == 0.0 {
+            Ok(())
+        } else {
+            self.range(key, q, ranges::PROCESS_NOISE)
+        }
+    }
+
+    /// At most `max` entries of `key`.
+    fn count(&self, key: &str, n: usize, max: usize) -> Result<(), WorldError> {
+        if n <= max {
+            Ok(())
+        } else {
+            Err(self.err(
+                key,
+                format!("{n} entries; at most {max} are supported (see the README's world-file reference)"),
+            ))
+        }
+    }
+
     fn finite(&self, key: &str, values: &[f64]) -> Result<(), WorldError> {
         match values.iter().find(|v| !v.is_finite()) {
             Some(v) => Err(self.err(key, format!("expected finite numbers, found {v}"))),
@@ -181,8 +275,415 @@ impl Validator<'_> {
         }
     }
 
+    /// Every number of the file within its physical range ([`ranges`]) and every list within
+    /// its size: run before anything is derived from the file.
+    fn check_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
+        self.range("duration", file.duration, r::DURATION)?;
+        match file.dynamics {
+            Dynamics::Rapier => {
+                self.range("physics.dt", file.physics.dt, r::PHYSICS_DT)?;
+                self.range("physics.friction", file.physics.friction, r::FRICTION)?;
+            }
+            Dynamics::Linear => {
+                if let Some(l) = &file.linear {
+                    self.range("linear.dt", l.dt, r::LINEAR_DT)?;
+                    self.noise_intensity("linear.process_noise", l.process_noise)?;
+                    self.ranges("linear.x0", &l.x0[..2], r::POSITION)?;
+                    for i in 2..4 {
+                        self.range(&format!("linear.x0[{i}]"), l.x0[i], r::VELOCITY)?;
+                    }
+                    self.opt_range("linear.v_max", l.v_max, r::SPEED)?;
+                }
+            }
+        }
+        if let Some(rb) = &file.robot {
+            self.range("robot.start.x", rb.start.x, r::POSITION)?;
+            self.range("robot.start.y", rb.start.y, r::POSITION)?;
+            self.range("robot.start.theta", rb.start.theta, r::ANGLE)?;
+            if let Some(l) = rb.limits {
+                self.range("robot.limits.v_max", l.v_max, r::SPEED)?;
+                self.range("robot.limits.omega_max", l.omega_max, r::YAW_RATE)?;
+                self.range(
+                    "robot.limits.wheel_speed_max",
+                    l.wheel_speed_max,
+                    r::WHEEL_SPEED,
+                )?;
+            }
+        }
+
+        let c = &file.control;
+        self.range("control.rate_hz", c.rate_hz, r::CONTROL_RATE)?;
+        let steps = file.duration * c.rate_hz;
+        if steps > r::MAX_CONTROL_STEPS {
+            return Err(self.err(
+                "duration",
+                format!(
+                    "{} s at control.rate_hz = {} Hz is {steps} control steps; at most {} are supported",
+                    file.duration,
+                    c.rate_hz,
+                    r::MAX_CONTROL_STEPS
+                ),
+            ));
+        }
+        let plant_dt = match file.dynamics {
+            Dynamics::Rapier => file.physics.dt,
+            Dynamics::Linear => file.linear.as_ref().map_or(1e-3, |l| l.dt),
+        };
+        let plant_steps = file.duration / plant_dt;
+        if plant_steps > r::MAX_PLANT_STEPS {
+            return Err(self.err(
+                "duration",
+                format!(
+                    "{} s at a plant step of {plant_dt} s is {plant_steps} plant steps; at most {} are supported",
+                    file.duration,
+                    r::MAX_PLANT_STEPS
+                ),
+            ));
+        }
+        self.opt_range("control.input_limit", c.input_limit, r::ACCELERATION)?;
+        if let Param::Value(g) = c.gamma {
+            self.range("control.gamma", g, r::ERROR_BOUND)?;
+        }
+        if let Param::Value(t) = c.theta {
+            self.range("control.theta", t, r::ERROR_BOUND)?;
+        }
+        self.opt_range("control.delta", c.delta, r::ERROR_BOUND)?;
+        self.range("control.cbf_gain", c.cbf_gain, r::GAIN)?;
+        self.range("control.epsilon", c.epsilon, r::EPSILON)?;
+        if let Some(q) = c.process_noise {
+            self.noise_intensity("control.process_noise", q)?;
+        }
+        self.ranges("control.initial_std", &c.initial_std, r::INITIAL_STD)?;
+        self.opt_range("control.clf.v_bar", c.clf.v_bar, r::CLF_LEVEL)?;
+        self.opt_range("control.clf.rho", c.clf.rho, r::GAIN)?;
+        self.range("control.obstacle_margin", c.obstacle_margin, r::MARGIN)?;
+        self.range("control.obstacle_lift", c.obstacle_lift, r::LIFT)?;
+        let n = &c.nominal;
+        self.opt_range("control.nominal.cruise_speed", n.cruise_speed, r::SPEED)?;
+        self.opt_range("control.nominal.speed_gain", n.speed_gain, r::GAIN)?;
+        self.opt_range(
+            "control.nominal.arrive_accel",
+            n.arrive_accel,
+            r::ACCELERATION,
+        )?;
+        self.opt_range("control.nominal.lookahead", n.lookahead, r::TRACKER_LENGTH)?;
+        self.opt_range("control.nominal.smoothing", n.smoothing, r::SMOOTHING)?;
+        self.opt_range("control.nominal.jerk_limit", n.jerk_limit, r::JERK)?;
+        self.opt_range(
+            "control.nominal.stall_progress",
+            n.stall_progress,
+            r::TRACKER_LENGTH,
+        )?;
+        self.opt_range("control.nominal.stall_time", n.stall_time, r::TRACKER_TIME)?;
+        self.opt_range(
+            "control.nominal.escape_time",
+            n.escape_time,
+            r::TRACKER_TIME,
+        )?;
+        self.opt_range(
+            "control.nominal.escape_angle",
+            n.escape_angle,
+            r::ESCAPE_ANGLE,
+        )?;
+        let d = &c.drive;
+        self.opt_range(
+            "control.drive.low_speed_scale",
+            d.low_speed_scale,
+            r::LOW_SPEED_SCALE,
+        )?;
+        self.opt_range("control.drive.dv_max", d.dv_max, r::ACCELERATION)?;
+        self.opt_range("control.drive.domega_max", d.domega_max, r::ACCELERATION)?;
+        self.opt_range(
+            "control.drive.wheel_speed_resolution",
+            d.wheel_speed_resolution,
+            r::WHEEL_RESOLUTION,
+        )?;
+
+        self.ranges("goal.center", &file.goal.center, r::POSITION)?;
+        self.range("goal.radius", file.goal.radius, r::SIZE)?;
+        self.count(
+            "goal.waypoints",
+            file.goal.waypoints.len(),
+            r::MAX_WAYPOINTS,
+        )?;
+        for (i, w) in file.goal.waypoints.iter().enumerate() {
+            self.ranges(&format!("goal.waypoints[{i}]"), w, r::POSITION)?;
+        }
+
+        self.count("safe_sets", file.safe_sets.len(), r::MAX_SAFE_SETS)?;
+        for (i, s) in file.safe_sets.iter().enumerate() {
+            let key = format!("safe_sets[{i}]");
+            match s {
+                SafeSetSpec::HalfPlane { a, b, .. } => {
+                    self.ranges(&format!("{key}.a"), a, r::NORMAL_COMPONENT)?;
+                    self.range(&format!("{key}.b"), *b, r::OFFSET)?;
+                }
+                SafeSetSpec::EllipseInside {
+                    center,
+                    semi_axes,
+                    angle,
+                    lift,
+                    ..
+                }
+                | SafeSetSpec::EllipseOutside {
+                    center,
+                    semi_axes,
+                    angle,
+                    lift,
+                    ..
+                } => {
+                    self.ranges(&format!("{key}.center"), center, r::POSITION)?;
+                    self.ranges(&format!("{key}.semi_axes"), semi_axes, r::SIZE)?;
+                    self.range(&format!("{key}.angle"), *angle, r::ANGLE)?;
+                    self.range(&format!("{key}.lift"), *lift, r::LIFT)?;
+                }
+            }
+        }
+
+        self.count("obstacles", file.obstacles.len(), r::MAX_OBSTACLES)?;
+        for (i, o) in file.obstacles.iter().enumerate() {
+            let key = format!("obstacles[{i}]");
+            self.ranges(&format!("{key}.position"), &o.position, r::POSITION)?;
+            self.ranges(&format!("{key}.rpy"), &o.rpy, r::ANGLE)?;
+            let shape = format!("{key}.shape");
+            match &o.shape {
+                ShapeSpec::Cuboid { half_extents } => {
+                    self.ranges(&format!("{shape}.half_extents"), half_extents, r::SIZE)?;
+                }
+                ShapeSpec::Ball { radius } => {
+                    self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
+                }
+                ShapeSpec::Cylinder {
+                    radius,
+                    half_height,
+                }
+                | ShapeSpec::Capsule {
+                    radius,
+                    half_height,
+                }
+                | ShapeSpec::Cone {
+                    radius,
+                    half_height,
+                } => {
+                    self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
+                    self.range(&format!("{shape}.half_height"), *half_height, r::SIZE)?;
+                }
+                ShapeSpec::ConvexHull { points } => {
+                    self.count(
+                        &format!("{shape}.points"),
+                        points.len(),
+                        r::MAX_SHAPE_POINTS,
+                    )?;
+                    for (k, p) in points.iter().enumerate() {
+                        self.ranges(&format!("{shape}.points[{k}]"), p, r::POSITION)?;
+                    }
+                }
+                ShapeSpec::HalfSpace { normal } => {
+                    self.ranges(&format!("{shape}.normal"), normal, r::NORMAL_COMPONENT)?;
+                }
+                ShapeSpec::TriMesh {
+                    vertices,
+                    indices,
+                    scale,
+                    ..
+                } => {
+                    self.count(
+                        &format!("{shape}.vertices"),
+                        vertices.len(),
+                        r::MAX_SHAPE_POINTS,
+                    )?;
+                    self.count(
+                        &format!("{shape}.indices"),
+                        indices.len(),
+                        r::MAX_SHAPE_POINTS,
+                    )?;
+                    for (k, p) in vertices.iter().enumerate() {
+                        self.ranges(&format!("{shape}.vertices[{k}]"), p, r::POSITION)?;
+                    }
+                    if let Some(s) = scale {
+                        self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
+                    }
+                }
+            }
+        }
+
+        self.count("sensors", file.sensors.len(), r::MAX_SENSORS)?;
+        for (i, s) in file.sensors.iter().enumerate() {
+            let key = format!("sensors[{i}]");
+            self.range(&format!("{key}.noise_std"), s.noise_std, r::NOISE_STD)?;
+            self.range(&format!("{key}.bias"), s.bias, r::BIAS)?;
+            self.range(
+                &format!("{key}.bias_walk_std"),
+                s.bias_walk_std,
+                r::NOISE_STD,
+            )?;
+            self.opt_range(&format!("{key}.rate_hz"), s.rate_hz, r::SENSOR_RATE)?;
+            if let Some(n) = s.ticks_per_rev {
+                self.range(
+                    &format!("{key}.ticks_per_rev"),
+                    f64::from(n),
+                    r::TICKS_PER_REV,
+                )?;
+            }
+        }
+        self.count(
+            "fault_patterns",
+            file.fault_patterns.len(),
+            r::MAX_FAULT_PATTERNS,
+        )?;
+        self.count("attacks", file.attacks.len(), r::MAX_ATTACKS)?;
+        Ok(())
+    }
+
+    /// The robot the URDF describes within the ranges of a ground robot: link origins,
+    /// collider extents and mesh vertices within [`ranges::ROBOT_EXTENT`] of the root, wheel
+    /// radius, separation and footprint within [`ranges::ROBOT_SIZE`], limits within theirs.
+    fn check_robot(&self, robot: &RobotDescription) -> Result<(), WorldError> {
+        use crate::robot::CollisionShape;
+        use ranges as r;
+        let bad = |what: String| {
+            self.err(
+                "robot.urdf",
+                format!(
+                    "robot `{}`: {what} (see the README's world-file reference for the ranges)",
+                    robot.name
+                ),
+            )
+        };
+        let g = &robot.wheels.geometry;
+        for (what, v) in [
+            ("wheel radius", g.radius),
+            ("wheel separation", g.separation),
+            ("footprint radius", robot.footprint_radius),
+        ] {
+            if !r::ROBOT_SIZE.contains(v) {
+                return Err(bad(format!(
+                    "{what} {} m is outside {}",
+                    r::fmt_value(v),
+                    r::ROBOT_SIZE.describe()
+                )));
+            }
+        }
+        if !(robot.centre_height.is_finite() && robot.centre_height.abs() <= r::ROBOT_EXTENT) {
+            return Err(bad(format!(
+                "centre height {} m is outside [-{e}, {e}] m",
+                robot.centre_height,
+                e = r::ROBOT_EXTENT
+            )));
+        }
+        for (what, v, range) in [
+            ("v_max", robot.limits.v_max, r::SPEED),
+            ("omega_max", robot.limits.omega_max, r::YAW_RATE),
+            (
+                "wheel_speed_max",
+                robot.limits.wheel_speed_max,
+                r::WHEEL_SPEED,
+            ),
+        ] {
+            if !range.contains(v) {
+                return Err(bad(format!(
+                    "drive limit {what} = {v} is outside {}",
+                    range.describe()
+                )));
+            }
+        }
+        let within = |v: &nalgebra::Vector3<f64>| {
+            v.iter()
+                .all(|c| c.is_finite() && c.abs() <= r::ROBOT_EXTENT)
+        };
+        for j in &robot.joints {
+            if !within(&j.frame_in_parent.translation.vector) {
+                return Err(bad(format!(
+                    "joint `{}` has its origin at {:?} m, beyond {} m of its parent",
+                    j.name,
+                    j.frame_in_parent.translation.vector.as_slice(),
+                    r::ROBOT_EXTENT
+                )));
+            }
+        }
+        for b in &robot.bodies {
+            if !within(&b.pose_in_root.translation.vector) || !within(&b.com) {
+                return Err(bad(format!(
+                    "link `{}` lies at {:?} m (centre of mass {:?}), beyond {} m of the root",
+                    b.name,
+                    b.pose_in_root.translation.vector.as_slice(),
+                    b.com.as_slice(),
+                    r::ROBOT_EXTENT
+                )));
+            }
+            let heavy = !(b.mass.is_finite() && b.mass <= r::MAX_LINK_MASS);
+            let wild_inertia = b
+                .inertia
+                .iter()
+                .any(|v| !(v.is_finite() && v.abs() <= r::MAX_LINK_INERTIA));
+            if heavy || wild_inertia {
+                return Err(bad(format!(
+                    "link `{}` has mass {} kg or an inertia entry beyond {} kg·m² (at most {} kg)",
+                    b.name,
+                    b.mass,
+                    r::MAX_LINK_INERTIA,
+                    r::MAX_LINK_MASS
+                )));
+            }
+            for c in &b.colliders {
+                let extent = match &c.shape {
+                    CollisionShape::Box { half_extents } => {
+                        let min = half_extents.iter().copied().fold(f64::INFINITY, f64::min);
+                        let max = half_extents.iter().copied().fold(0.0, f64::max);
+                        Some((min, max))
+                    }
+                    CollisionShape::Cylinder {
+                        radius,
+                        half_length,
+                    }
+                    | CollisionShape::Capsule {
+                        radius,
+                        half_length,
+                    } => Some((radius.min(*half_length), radius.max(*half_length))),
+                    CollisionShape::Sphere { radius } => Some((*radius, *radius)),
+                    CollisionShape::Mesh { vertices, .. } => {
+                        if vertices.iter().any(|v| {
+                            !v.iter()
+                                .all(|c| c.is_finite() && c.abs() <= r::ROBOT_EXTENT)
+                        }) {
+                            return Err(bad(format!(
+                                "a collision mesh of link `{}` has a vertex beyond {} m",
+                                c.link,
+                                r::ROBOT_EXTENT
+                            )));
+                        }
+                        None
+                    }
+                };
+                if let Some((min, max)) = extent {
+                    if !(min.is_finite() && max.is_finite())
+                        || min < r::ROBOT_SHAPE.min
+                        || max > r::ROBOT_SHAPE.max
+                    {
+                        return Err(bad(format!(
+                            "a collision shape of link `{}` has a size outside {} (smallest {min} m, largest {max} m)",
+                            c.link,
+                            r::ROBOT_SHAPE.describe()
+                        )));
+                    }
+                }
+                if !within(&c.pose_in_body.translation.vector) {
+                    return Err(bad(format!(
+                        "a collision shape of link `{}` lies at {:?} m, beyond {} m of its body",
+                        c.link,
+                        c.pose_in_body.translation.vector.as_slice(),
+                        r::ROBOT_EXTENT
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
     fn validate(&self, file: WorldFile, name: String) -> Result<World, WorldError> {
         self.positive("duration", file.duration)?;
+        self.check_ranges(&file)?;
         let base = self.path.parent().unwrap_or_else(|| Path::new("."));
 
         // Plant.
@@ -342,7 +843,11 @@ impl Validator<'_> {
 
         // Robot and obstacles.
         let robot = match (&file.dynamics, &file.robot) {
-            (Dynamics::Rapier, Some(r)) => Some(self.load_robot(base, r)?),
+            (Dynamics::Rapier, Some(r)) => {
+                let robot = self.load_robot(base, r)?;
+                self.check_robot(&robot)?;
+                Some(robot)
+            }
             _ => None,
         };
         let mut obstacles = Vec::with_capacity(file.obstacles.len());

@@ -1,0 +1,191 @@
+//! Issue #29: never report SAFE on a number that is not one. `check` and `run` refuse the same
+//! worlds with exit 2 naming the user's key; `check` fails the start outside the safe set and
+//! a goal inside an obstacle; usage errors have their own exit code; messages have a place.
+
+use std::path::{Path, PathBuf};
+
+use ftcbf_sim::check::{check_world, Status};
+use ftcbf_sim::world::World;
+
+mod common;
+use common::{ftcbf, root, text};
+
+fn world_with(file: &str, from: &str, to: &str) -> World {
+    let p = root().join("worlds").join(file);
+    let t = std::fs::read_to_string(&p).expect("catalogue world");
+    assert!(t.contains(from), "{file} has no `{from}`");
+    World::from_str(&t.replacen(from, to, 1), &p, &[]).expect("a valid world")
+}
+
+fn hypothesis(w: &World, prefix: &str) -> (Status, String, bool) {
+    let r = check_world(w).expect("check runs");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no hypothesis `{prefix}`"));
+    (h.status, h.detail.clone(), r.verdict.applies)
+}
+
+#[test]
+fn a_start_outside_the_safe_set_fails_theorem_3() {
+    // The floor is y + 0.2·ẏ + 0.05 ≥ 0: a start at y = −0.5 has h = −0.45.
+    let w = world_with("paper_turtlebot_receivers.toml", "y = 0.0,", "y = -0.5,");
+    let (status, detail, applies) = hypothesis(&w, "start inside every safe set");
+    assert_eq!(status, Status::Fails, "{detail}");
+    assert!(detail.contains("h(floor) = -0.45"), "{detail}");
+    assert!(!applies);
+    // The catalogue's own start holds.
+    let p = root().join("worlds/paper_turtlebot_receivers.toml");
+    let w = World::load(&p, &[]).expect("catalogue");
+    let (status, detail, applies) = hypothesis(&w, "start inside every safe set");
+    assert_eq!(status, Status::Holds, "{detail}");
+    assert!(applies);
+}
+
+#[test]
+fn a_start_inside_an_obstacle_fails_and_the_run_is_unsafe_at_once() {
+    // doorway_clutter's pillar stands at (1.9, 0) with radius 0.15.
+    let w = world_with(
+        "doorway_clutter.toml",
+        "start = { x = 0.0, y = 0.0, theta = 0.0 }",
+        "start = { x = 1.9, y = 0.0, theta = 0.0 }",
+    );
+    let (status, detail, applies) = hypothesis(&w, "start inside every safe set");
+    assert_eq!(status, Status::Fails, "{detail}");
+    assert!(detail.contains("obstacle:pillar"), "{detail}");
+    assert!(!applies);
+    let o = ftcbf(&["check", "worlds/doorway_clutter.toml"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(!text(&o).contains("NaN"), "{}", text(&o));
+}
+
+#[test]
+fn a_goal_inside_an_obstacle_fails() {
+    let w = world_with(
+        "doorway_clutter.toml",
+        "center = [3.0, 0.0]",
+        "center = [1.9, 0.0]",
+    );
+    let (status, detail, applies) = hypothesis(&w, "goal clear of the obstacles");
+    assert_eq!(status, Status::Fails, "{detail}");
+    assert!(detail.contains("obstacle:pillar"), "{detail}");
+    assert!(!applies);
+}
+
+/// Every invalid world is refused by `check` and by `run` alike: exit 2, the file named.
+#[test]
+fn check_and_run_refuse_every_invalid_world_with_exit_2() {
+    let dir = root().join("tests/invalid_worlds");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("tests/invalid_worlds")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    let mut problems = Vec::new();
+    for f in &files {
+        let rel = f.strip_prefix(root()).unwrap_or(f).display().to_string();
+        let name = f.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        for cmd in [vec!["check", &rel], vec!["run", &rel, "--no-record"]] {
+            let o = ftcbf(&cmd);
+            let t = text(&o);
+            if o.status.code() != Some(2) || !t.contains(name) || t.contains("panicked") {
+                problems.push(format!("{} {rel}: exit {:?}: {t}", cmd[0], o.status.code()));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn the_issues_run_reproducers_are_refused_naming_the_key() {
+    for (set, key) in [
+        ("robot.start.y=-1e308", "robot.start.y"),
+        ("control.rate_hz=1e-9", "control.rate_hz"),
+        ("goal.radius=1e-300", "goal.radius"),
+        ("control.epsilon=5e-324", "control.epsilon"),
+        ("control.initial_std[0]=1e308", "control.initial_std[0]"),
+    ] {
+        let o = ftcbf(&[
+            "run",
+            "worlds/paper_turtlebot.toml",
+            "--no-record",
+            "--duration",
+            "2",
+            "--set",
+            set,
+        ]);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{set}: {t}");
+        assert!(t.contains(&format!("`{key}`")), "{set}: {t}");
+        assert!(!t.contains("SAFE"), "{set}: {t}");
+    }
+    let o = ftcbf(&[
+        "run",
+        "worlds/doorway_clutter.toml",
+        "--no-record",
+        "--set",
+        "obstacles[0].position[2]=1e308",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains("`obstacles[0].position[2]`"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn usage_errors_exit_64_and_a_negative_duration_is_a_range_error() {
+    let o = ftcbf(&["run", "worlds/paper_linear.toml", "--duration", "-1"]);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
+    assert!(
+        text(&o).contains("--duration -1: expected a number of seconds in (0, 3600] s"),
+        "{}",
+        text(&o)
+    );
+    let o = ftcbf(&["run", "worlds/paper_linear.toml", "--duration", "1e5"]);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
+    let o = ftcbf(&["run", "worlds/paper_linear.toml", "--no-such-flag"]);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
+    let o = ftcbf(&["--help"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+}
+
+#[test]
+fn invalid_utf8_is_named_once_with_its_byte_offset() {
+    let dir = common::tmp_in("reliability", "utf8");
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let f = dir.join("latin1.toml");
+    // "café" in Latin-1: byte 0xE9 at offset 31, line 3, column 6.
+    std::fs::write(&f, b"name = \"x\"\nduration = 1.0\n# caf\xe9\n").expect("write");
+    let e = World::load(&f, &[]).expect_err("refused").to_string();
+    assert!(
+        e.contains("invalid byte 0xe9 at byte offset 31 (line 3, column 6)"),
+        "{e}"
+    );
+    let o = ftcbf(&["check", f.to_str().expect("utf-8 path")]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{t}");
+    assert_eq!(t.matches("byte offset").count(), 1, "{t}");
+    // A missing file's cause is said once, not twice.
+    let o = ftcbf(&["check", "worlds/no_such_world.toml"]);
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{t}");
+    assert_eq!(t.matches("No such file").count(), 1, "{t}");
+}
+
+#[test]
+fn check_agrees_with_run_on_the_catalogue() {
+    // Every catalogue world passes validation, check and the run's preflight alike.
+    for e in std::fs::read_dir(root().join("worlds")).expect("worlds/") {
+        let p = e.expect("entry").path();
+        if p.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let w = World::load(Path::new(&p), &[]).expect("catalogue world is valid");
+        assert!(check_world(&w).is_ok(), "{}", p.display());
+        assert!(ftcbf_sim::runner::preflight(&w).is_ok(), "{}", p.display());
+    }
+}
