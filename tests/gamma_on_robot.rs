@@ -41,6 +41,30 @@ fn attack_free(path: &Path) -> World {
     world
 }
 
+/// FT-CBF-CLF on `world` (its attacks already removed) for `n` trials from `base_seed`, through
+/// the batch engine.
+fn batch(world: World, path: &Path, n: u64, base_seed: u64) -> ftcbf::batch::BatchResult {
+    let plan = BatchPlan {
+        world: world.name.clone(),
+        world_file: path.display().to_string(),
+        world_digest: String::new(),
+        overrides: Vec::new(),
+        trials: n,
+        base_seed,
+        controllers: vec!["ft-cbf-clf".into()],
+        shard: None,
+        epsilon: Some(world.file.control.epsilon),
+        confidence: CONFIDENCE,
+        theorem3: None,
+    };
+    let exec = Execution {
+        jobs: None,
+        progress: false,
+    };
+    run_batch(&AttackFree { world }, &plan, exec)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 fn trials() -> u64 {
     std::env::var("FTCBF_GAMMA_TRIALS")
         .ok()
@@ -58,6 +82,7 @@ fn honest_filters_stay_within_gamma_on_every_catalogue_world() {
     for path in &files {
         let world = attack_free(path);
         let epsilon = world.file.control.epsilon;
+        let base_seed = world.file.seed;
         // A world whose `check` already says its filters' model is not true of the drive (the
         // paper form's bang-bang inputs on the robot) was warned about before it ran: its γ
         // may be refuted, and is printed, but the user was told.
@@ -65,44 +90,23 @@ fn honest_filters_stay_within_gamma_on_every_catalogue_world() {
         let warned = report.hypotheses.iter().any(|h| {
             h.name == "the filters' model is true of the drive" && h.status == check::Status::Fails
         });
-        let plan = BatchPlan {
-            world: world.name.clone(),
-            world_file: path.display().to_string(),
-            world_digest: String::new(),
-            overrides: Vec::new(),
-            trials: n,
-            base_seed: world.file.seed,
-            controllers: vec!["ft-cbf-clf".into()],
-            shard: None,
-            epsilon: Some(epsilon),
-            confidence: CONFIDENCE,
-            theorem3: None,
-        };
-        let runner = AttackFree { world };
-        let res = run_batch(
-            &runner,
-            &plan,
-            Execution {
-                jobs: None,
-                progress: false,
-            },
-        )
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let name = world.name.clone();
+        let res = batch(world, path, n, base_seed);
         let s = &res.summaries[0];
         assert!(
             !s.estimation.is_empty(),
             "{}: the bank's filters are measured",
-            plan.world
+            name
         );
         for g in &s.estimation {
             assert_eq!(
                 g.honest_trials, n,
                 "{}: without attacks every filter is honest",
-                plan.world
+                name
             );
             println!(
                 "{:<26} {:<24} over γ {:>3}/{:<3} worst ‖x − x̂‖/γ {}",
-                plan.world,
+                name,
                 g.filter,
                 g.exceeded,
                 g.honest_trials,
@@ -111,7 +115,7 @@ fn honest_filters_stay_within_gamma_on_every_catalogue_world() {
             if g.refuted && !warned {
                 refuted.push(format!(
                     "{} {}: {}/{} trials over γ, interval {:?} above ε = {epsilon}",
-                    plan.world, g.filter, g.exceeded, g.honest_trials, g.exceeded_ci
+                    name, g.filter, g.exceeded, g.honest_trials, g.exceeded_ci
                 ));
             }
         }
@@ -131,29 +135,7 @@ fn a_transient_above_gamma_is_refuted() {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds/paper_linear.toml");
     let mut world = attack_free(&path);
     world.file.control.initial_std = [0.1, 0.1];
-    let n = 20;
-    let plan = BatchPlan {
-        world: world.name.clone(),
-        world_file: path.display().to_string(),
-        world_digest: String::new(),
-        overrides: Vec::new(),
-        trials: n,
-        base_seed: 1,
-        controllers: vec!["ft-cbf-clf".into()],
-        shard: None,
-        epsilon: Some(world.file.control.epsilon),
-        confidence: CONFIDENCE,
-        theorem3: None,
-    };
-    let res = run_batch(
-        &AttackFree { world },
-        &plan,
-        Execution {
-            jobs: None,
-            progress: false,
-        },
-    )
-    .expect("batch");
+    let res = batch(world, &path, 20, 1);
     let single = res.summaries[0]
         .estimation
         .iter()
