@@ -511,6 +511,16 @@ impl Validator<'_> {
         self.count("sensors", file.sensors.len(), r::MAX_SENSORS)?;
         for (i, s) in file.sensors.iter().enumerate() {
             let key = format!("sensors[{i}]");
+            if s.noise_std.is_nan() {
+                // Left out (a from_wheels channel has had it set to 0 by resolve_defaults).
+                return Err(self.err(
+                    &format!("{key}.noise_std"),
+                    &format!(
+                        "missing on channel \"{}\": the standard deviation of its noise, in its unit (only a channel derived `from_wheels` may leave it out)",
+                        s.name
+                    ),
+                ));
+            }
             self.range(&format!("{key}.noise_std"), s.noise_std, r::NOISE_STD)?;
             self.range(&format!("{key}.bias"), s.bias, r::BIAS)?;
             self.range(
