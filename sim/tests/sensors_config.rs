@@ -156,8 +156,12 @@ fn validation_messages_name_channel_field_and_expectation() {
             && msg.contains(">= 0"),
         "{msg}"
     );
+    // NaN is how an absent noise_std reads (only a `from_wheels` channel may leave it out).
     let msg = err_of(&[ChannelSpec::new("n", Quantity::X, f64::NAN)]);
-    assert!(msg.contains("noise_std") && msg.contains("NaN"), "{msg}");
+    assert!(
+        msg.contains("noise_std") && msg.contains("missing"),
+        "{msg}"
+    );
     // Rates.
     for bad in [0.0, -10.0, f64::INFINITY] {
         let mut s = ok.clone();
@@ -246,10 +250,11 @@ fn toml_schema_rejects_unknown_keys_and_quantities() {
         .to_string();
     println!("{e}");
     assert!(e.contains("\"z\"") && e.contains("yaw_rate"), "{e}");
-    let e = parse("[[sensors]]\nname = \"a\"\nmeasures = \"x\"\n")
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("noise_std"), "{e}");
+    // A missing noise_std parses (a `from_wheels` channel may leave it out) and is refused by
+    // the channel's validation, naming the key.
+    let doc = parse("[[sensors]]\nname = \"a\"\nmeasures = \"x\"\n").expect("parses");
+    let e = doc.sensors[0].validate().unwrap_err().to_string();
+    assert!(e.contains("noise_std") && e.contains("missing"), "{e}");
 }
 
 #[test]
