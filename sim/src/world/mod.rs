@@ -514,8 +514,8 @@ impl Validator<'_> {
             if s.noise_std.is_nan() {
                 // Left out (a from_wheels channel has had it set to 0 by resolve_defaults).
                 return Err(self.err(
-                    &format!("{key}.noise_std"),
-                    &format!(
+                    format!("{key}.noise_std"),
+                    format!(
                         "missing on channel \"{}\": the standard deviation of its noise, in its unit (only a channel derived `from_wheels` may leave it out)",
                         s.name
                     ),
