@@ -56,6 +56,17 @@ pub fn honest_filters(bank: &EstimatorBank, attacks: &AttackStack, world: &World
         .collect()
 }
 
+/// Raises the running maximum `max` to `v`. A non-finite `v` is the worst there is (NaN never
+/// wins a `>`), so it pins the maximum at ∞. Returns whether the maximum rose.
+fn raise(max: &mut f64, v: f64) -> bool {
+    let v = if v.is_finite() { v } else { f64::INFINITY };
+    let rose = v > *max;
+    if rose {
+        *max = v;
+    }
+    rose
+}
+
 /// Running maxima of ‖x − x̂_i‖ per filter (allocated once per run).
 #[derive(Debug, Clone, Default)]
 pub struct ErrorMeter {
@@ -83,47 +94,34 @@ impl ErrorMeter {
         Self { rows }
     }
 
-    /// Compares each estimate with the truth `x` = (p_x, p_y, v_x, v_y) at time `t`, and
-    /// returns each filter's ‖x − x̂‖ / γ (NaN without γ) through `ratios`.
-    pub fn observe(&mut self, t: f64, x: [f64; 4], estimates: &[[f64; 4]], ratios: &mut [f64]) {
-        for (i, (row, xh)) in self.rows.iter_mut().zip(estimates).enumerate() {
-            let d = [x[0] - xh[0], x[1] - xh[1], x[2] - xh[2], x[3] - xh[3]];
-            let pos = d[0].hypot(d[1]);
-            let vel = d[2].hypot(d[3]);
-            let err = pos.hypot(vel);
-            // A non-finite error is the worst there is: NaN never wins a `>` comparison.
-            let worse = |old: f64, new: f64| !new.is_finite() || new > old;
-            if worse(row.max_position_error, pos) && row.max_position_error.is_finite() {
-                row.max_position_error = if pos.is_finite() { pos } else { f64::INFINITY };
-            }
-            if worse(row.max_velocity_error, vel) && row.max_velocity_error.is_finite() {
-                row.max_velocity_error = if vel.is_finite() { vel } else { f64::INFINITY };
-            }
-            let ratio = row.gamma.map_or(f64::NAN, |g| err / g);
-            let key = if row.gamma.is_some() { ratio } else { err };
-            let old_key = row.max_ratio.unwrap_or(row.max_error);
-            if worse(old_key, key) && old_key.is_finite() {
-                row.t_worst = t;
-            }
-            if worse(row.max_error, err) && row.max_error.is_finite() {
-                row.max_error = if err.is_finite() { err } else { f64::INFINITY };
-            }
-            if let Some(m) = row.max_ratio.as_mut() {
-                if worse(*m, ratio) && m.is_finite() {
-                    *m = if ratio.is_finite() {
-                        ratio
-                    } else {
-                        f64::INFINITY
-                    };
-                }
+    /// Compares filter `i`'s estimate `xh` with the truth `x` = (p_x, p_y, v_x, v_y) at time
+    /// `t`; returns its ‖x − x̂‖ / γ (NaN without γ, or for an unknown filter).
+    pub fn observe(&mut self, i: usize, t: f64, x: [f64; 4], xh: [f64; 4]) -> f64 {
+        let Some(row) = self.rows.get_mut(i) else {
+            return f64::NAN;
+        };
+        let d = [x[0] - xh[0], x[1] - xh[1], x[2] - xh[2], x[3] - xh[3]];
+        let pos = d[0].hypot(d[1]);
+        let vel = d[2].hypot(d[3]);
+        let err = pos.hypot(vel);
+        raise(&mut row.max_position_error, pos);
+        raise(&mut row.max_velocity_error, vel);
+        let err_rose = raise(&mut row.max_error, err);
+        let ratio = row.gamma.map_or(f64::NAN, |g| err / g);
+        // The worst step is the largest ratio, or the largest error without γ.
+        let worst_rose = match row.max_ratio.as_mut() {
+            Some(m) => {
                 if ratio.is_nan() || ratio > 1.0 {
                     row.steps_over += 1;
                 }
+                raise(m, ratio)
             }
-            if let Some(r) = ratios.get_mut(i) {
-                *r = ratio;
-            }
+            None => err_rose,
+        };
+        if worst_rose {
+            row.t_worst = t;
         }
+        ratio
     }
 
     /// The rows so far.
@@ -140,18 +138,17 @@ mod tests {
     fn maxima_ratio_and_steps_over() {
         let labels = vec!["a".to_string(), "b".to_string()];
         let mut m = ErrorMeter::new(&labels, &[Some(0.5), None], &[true, false]);
-        let mut r = [0.0; 2];
         // a: error (0.3, 0.4) → 0.5, ratio 1.0 (not over); b: no γ
-        m.observe(
-            0.1,
-            [0.0; 4],
-            &[[0.3, 0.4, 0.0, 0.0], [0.0, 0.0, 0.1, 0.0]],
-            &mut r,
-        );
-        assert!((r[0] - 1.0).abs() < 1e-12);
-        assert!(r[1].is_nan());
+        let r = m.observe(0, 0.1, [0.0; 4], [0.3, 0.4, 0.0, 0.0]);
+        assert!((r - 1.0).abs() < 1e-12);
+        assert!(m.observe(1, 0.1, [0.0; 4], [0.0, 0.0, 0.1, 0.0]).is_nan());
         // a: velocity error 0.6 → ratio 1.2 (over)
-        m.observe(0.2, [0.0; 4], &[[0.0, 0.0, 0.6, 0.0], [0.0; 4]], &mut r);
+        m.observe(0, 0.2, [0.0; 4], [0.0, 0.0, 0.6, 0.0]);
+        m.observe(1, 0.2, [0.0; 4], [0.0; 4]);
+        assert!(
+            m.observe(2, 0.2, [0.0; 4], [0.0; 4]).is_nan(),
+            "no such filter"
+        );
         let a = &m.rows()[0];
         assert_eq!(a.steps_over, 1);
         assert!((a.max_ratio.unwrap() - 1.2).abs() < 1e-12);
@@ -169,9 +166,8 @@ mod tests {
     fn non_finite_estimate_counts_as_over() {
         let labels = vec!["a".to_string()];
         let mut m = ErrorMeter::new(&labels, &[Some(1.0)], &[true]);
-        let mut r = [0.0; 1];
-        m.observe(0.0, [0.0; 4], &[[f64::NAN, 0.0, 0.0, 0.0]], &mut r);
-        m.observe(0.1, [0.0; 4], &[[0.1, 0.0, 0.0, 0.0]], &mut r);
+        m.observe(0, 0.0, [0.0; 4], [f64::NAN, 0.0, 0.0, 0.0]);
+        m.observe(0, 0.1, [0.0; 4], [0.1, 0.0, 0.0, 0.0]);
         let a = &m.rows()[0];
         assert!(a.max_error.is_infinite());
         assert_eq!(a.max_ratio, Some(f64::INFINITY));

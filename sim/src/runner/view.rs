@@ -28,8 +28,6 @@ pub(super) struct StepView {
     pub(super) attacks_active: Vec<bool>,
     pub(super) link_poses: Vec<(String, [f32; 3], [f32; 4])>,
     pub(super) events: Vec<String>,
-    estimate_buf: Vec<[f64; 4]>,
-    ratio_buf: Vec<f64>,
 }
 
 impl StepView {
@@ -62,8 +60,6 @@ impl StepView {
             attacks_active: vec![false; attacks],
             link_poses: Vec::new(),
             events: Vec::new(),
-            estimate_buf: Vec::with_capacity(filters),
-            ratio_buf: vec![f64::NAN; filters],
         }
     }
 
@@ -104,23 +100,17 @@ impl StepView {
     /// The estimators after the step (left as they were for a law without a bank).
     pub(super) fn estimates(&mut self, bank: Option<&EstimatorBank>, errors: &mut ErrorMeter) {
         let Some(bank) = bank else { return };
+        let t = &self.truth;
+        let truth = [t.x, t.y, t.vx, t.vy];
         for (i, f) in bank.filters().iter().enumerate() {
             let x = f.estimate();
+            let x = [x[0], x[1], x[2], x[3]];
             self.estimates[i] = EstimateView {
-                x: [x[0], x[1], x[2], x[3]],
+                x,
                 residue: f.residue_norm(),
                 clf: self.v_values.get(i).copied().unwrap_or(f64::NAN),
-                error_ratio: self.estimates[i].error_ratio,
+                error_ratio: errors.observe(i, t.t, truth, x),
             };
-        }
-        let t = &self.truth;
-        let x = [t.x, t.y, t.vx, t.vy];
-        self.estimate_buf.clear();
-        self.estimate_buf.extend(self.estimates.iter().map(|e| e.x));
-        self.ratio_buf.resize(self.estimates.len(), f64::NAN);
-        errors.observe(t.t, x, &self.estimate_buf, &mut self.ratio_buf);
-        for (e, r) in self.estimates.iter_mut().zip(&self.ratio_buf) {
-            e.error_ratio = *r;
         }
     }
 }
