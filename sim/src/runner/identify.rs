@@ -30,7 +30,7 @@ use crate::physics::Pose2;
 use crate::sensors::stream_rng;
 use crate::world::World;
 
-use super::plant::Plant;
+use super::plant::{drive_config, Plant};
 
 /// Length of the identification run [s].
 pub const IDENT_SECONDS: f64 = 30.0;
@@ -63,17 +63,7 @@ fn cache() -> &'static Mutex<HashMap<String, DriveIdentification>> {
 /// and rate (a batch of trials computes it once). Deterministic: its excitation has its own
 /// fixed seed, independent of the run's.
 pub fn identify(world: &World) -> Result<DriveIdentification, String> {
-    let f = &world.file;
-    let key = format!(
-        "{:?}|{:?}|{:?}|{:?}|{}|{:?}|{}",
-        world.robot,
-        f.physics.dt,
-        f.physics.friction,
-        f.control.drive,
-        world.control_dt(),
-        f.control.input_limit,
-        world.ticks_per_control
-    );
+    let key = cache_key(world)?;
     if let Some(hit) = cache().lock().ok().and_then(|c| c.get(&key).copied()) {
         return Ok(hit);
     }
@@ -82,6 +72,35 @@ pub fn identify(world: &World) -> Result<DriveIdentification, String> {
         c.insert(key, found);
     }
     Ok(found)
+}
+
+/// What the identification depends on: the robot's dynamics (bodies' mass, inertia and
+/// colliders, joints, wheels, limits; not its visual meshes, which can hold thousands of
+/// vertices and would be formatted for every run of a batch), the drive as configured for the
+/// world's form, the physics step and friction, the control rate and the excitation amplitude.
+fn cache_key(world: &World) -> Result<String, String> {
+    let robot = world
+        .robot
+        .as_ref()
+        .ok_or_else(|| "rapier dynamics without a robot".to_string())?;
+    let dynamics: Vec<_> = robot
+        .bodies
+        .iter()
+        .map(|b| (b.pose_in_root, b.mass, b.com, b.inertia, &b.colliders))
+        .collect();
+    let f = &world.file;
+    Ok(format!(
+        "{dynamics:?}|{:?}|{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}",
+        robot.joints,
+        robot.wheels,
+        robot.limits,
+        drive_config(world, &robot.limits),
+        f.physics.dt,
+        f.physics.friction,
+        world.control_dt(),
+        world.ticks_per_control,
+        f.control.input_limit,
+    ))
 }
 
 fn run(world: &World) -> Result<DriveIdentification, String> {
