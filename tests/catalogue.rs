@@ -2,6 +2,8 @@
 //! table must meet it over its regression seeds, through the same library call as
 //! `ftcbf regress`.
 
+mod common;
+
 use std::path::PathBuf;
 
 use ftcbf::regress::Plan;
@@ -61,16 +63,5 @@ fn every_world_meets_its_expectations() {
         );
     }
     assert!(plan.cases.len() >= 17, "only {} cases", plan.cases.len());
-    let results = plan.run(|| {}).unwrap_or_else(|e| panic!("{e}"));
-    let failures: Vec<String> = results
-        .iter()
-        .filter(|r| !r.passed())
-        .map(|r| format!("{} / {}: {}", r.world, r.controller, r.failures.join("; ")))
-        .collect();
-    assert!(
-        failures.is_empty(),
-        "{} failed:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    common::assert_plan_passes(&plan);
 }

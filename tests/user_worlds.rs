@@ -3,6 +3,8 @@
 //! default. They must be as safe, smooth and live as the catalogue, judged by their `[expect]`
 //! over 8 seeds through the same library call as `ftcbf regress`.
 
+mod common;
+
 use std::path::PathBuf;
 
 use ftcbf::regress::Plan;
@@ -36,13 +38,7 @@ fn user_worlds_with_defaults_only_are_safe_and_reach_their_goals() {
             c.world.name
         );
     }
-    let results = plan.run(|| {}).unwrap_or_else(|e| panic!("{e}"));
-    let failures: Vec<String> = results
-        .iter()
-        .filter(|r| !r.passed())
-        .map(|r| format!("{} / {}: {}", r.world, r.controller, r.failures.join("; ")))
-        .collect();
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    common::assert_plan_passes(&plan);
 }
 
 fn parse(text: &str) -> Result<World, String> {

@@ -33,3 +33,20 @@ pub fn tmp_in(tag: &str, name: &str) -> PathBuf {
     std::fs::create_dir_all(&d).expect("temp dir");
     d.join(name)
 }
+
+/// Runs every case of a regression `plan` (the library call behind `ftcbf regress`) and fails
+/// with each failing case's world, controller and failures.
+pub fn assert_plan_passes(plan: &ftcbf::regress::Plan) {
+    let results = plan.run(|| {}).unwrap_or_else(|e| panic!("{e}"));
+    let failures: Vec<String> = results
+        .iter()
+        .filter(|r| !r.passed())
+        .map(|r| format!("{} / {}: {}", r.world, r.controller, r.failures.join("; ")))
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
