@@ -150,6 +150,7 @@ fn main() -> anyhow::Result<()> {
         world_file: path.display().to_string(),
         world_digest: String::new(),
         theorem3: None,
+        liveness: None,
         overrides: Vec::new(),
         trials,
         base_seed: world.file.seed,

@@ -274,6 +274,11 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         println!("{text}");
     } else {
         print_summary(&summary);
+        if let Ok(setup) = ControlSetup::new(&world, kind) {
+            if let Some(why) = ftcbf_sim::liveness::explain_run(&world, &setup, &summary) {
+                println!("  {why}");
+            }
+        }
         let judgement = match (&expected, judged) {
             (None, _) => Judgement::NoExpectations,
             (Some(_), None) => Judgement::NotJudged,
@@ -579,11 +584,13 @@ fn prepare_batch(
         let world = World::load(path, &overrides)?;
         let c = &world.file.control;
         let auto = matches!(c.gamma, Param::Auto) || matches!(c.theta, Param::Auto);
+        let report = check::check_world(&world).ok();
         let info = batch::WorldInfo {
             name: world.name.clone(),
             seed: world.file.seed,
             epsilon: auto.then_some(c.epsilon),
-            theorem3: check::check_world(&world).ok().map(|r| r.verdict.line()),
+            theorem3: report.as_ref().map(|r| r.verdict.line()),
+            liveness: report.as_ref().map(|r| r.liveness.line()),
         };
         Ok(batch::PreparedWorld {
             info,

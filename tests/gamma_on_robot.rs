@@ -56,6 +56,7 @@ fn batch(world: World, path: &Path, n: u64, base_seed: u64) -> ftcbf::batch::Bat
         epsilon: Some(world.file.control.epsilon),
         confidence: CONFIDENCE,
         theorem3: None,
+        liveness: None,
     };
     let exec = Execution {
         jobs: None,

@@ -49,6 +49,7 @@ use ftcbf_controller::params::{
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
+use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
     channel_mask, controller_name, heading_fusion, heading_sensor, initial_covariance,
     process_model, process_noise, rest_hold, sensor_dependents, ControlSetup, Conversion,
@@ -204,6 +205,8 @@ pub struct CheckReport {
     pub goal: Vec<GoalHold>,
     /// The verdict.
     pub verdict: Verdict,
+    /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
+    pub liveness: LivenessReport,
 }
 
 fn fmt_list(v: &[f64]) -> String {
@@ -339,6 +342,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     check_finite_report(&context[usize::from(f.description.is_some())..], &mut found); // fail closed on NaN / ∞
 
     let applies = found.reasons.is_empty();
+    let liveness = liveness::predict(world, &setup);
     Ok(CheckReport {
         world: world.name.clone(),
         context,
@@ -352,6 +356,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             assumptions: found.assumptions,
             horizon: (applies && found.finite_horizon).then_some(f.duration),
         },
+        liveness,
     })
 }
 
@@ -486,6 +491,7 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         fmt_list(&p.theta),
         p.delta
     ));
+    context.push(format!("CBF gain: {}", setup.gain));
     for b in &setup.config.barriers {
         let hb: Vec<f64> = p.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
@@ -1115,6 +1121,7 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                     i,
                     &*setup.config.barriers[bi],
                     &av,
+                    setup.config.cbf_gain,
                 );
                 goal.push(GoalHold {
                     barrier: name.clone(),
@@ -1287,6 +1294,7 @@ impl fmt::Display for CheckReport {
                 writeln!(f, "  - {a}")?;
             }
         }
+        writeln!(f, "{}", self.liveness)?;
         write!(f, "verdict: {}", self.verdict.line())
     }
 }

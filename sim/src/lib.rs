@@ -10,6 +10,7 @@
 pub mod attacks;
 pub mod check;
 pub mod drive;
+pub mod liveness;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;

@@ -207,6 +207,7 @@ pub(crate) fn run_batch_args(
                 epsilon: info.epsilon,
                 confidence: CONFIDENCE,
                 theorem3: info.theorem3.clone(),
+                liveness: info.liveness.clone(),
             };
             plan.validate()
                 .with_context(|| format!("world `{world_file}`"))?;
@@ -367,6 +368,7 @@ mod tests {
                 seed: 42,
                 epsilon: Some(0.1),
                 theorem3: None,
+                liveness: None,
             },
             runner: Box::new(Synthetic {
                 p_safe: o.first().map_or(p_default, |o| o.value),

@@ -66,6 +66,8 @@ pub struct WorldInfo {
     pub epsilon: Option<f64>,
     /// `ftcbf check`'s verdict line on Theorem 3 for the world, if it was checked.
     pub theorem3: Option<String>,
+    /// `ftcbf check`'s liveness verdict for the world, if it was checked.
+    pub liveness: Option<String>,
 }
 
 /// A loaded world (with any overrides applied) ready to run trials.
@@ -206,6 +208,7 @@ pub(crate) mod testutil {
             epsilon: Some(0.1),
             confidence: CONFIDENCE,
             theorem3: None,
+            liveness: None,
         }
     }
 

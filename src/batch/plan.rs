@@ -161,6 +161,9 @@ pub struct BatchPlan {
     /// `ftcbf check`'s verdict line on Theorem 3 for the world (absent in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub theorem3: Option<String>,
+    /// `ftcbf check`'s liveness verdict for the world (absent in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub liveness: Option<String>,
 }
 
 impl BatchPlan {

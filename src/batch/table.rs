@@ -134,6 +134,9 @@ fn plan_header(res: &BatchResult, out: &mut String) {
     if let Some(v) = &p.theorem3 {
         let _ = writeln!(out, "check: {v}");
     }
+    if let Some(v) = &p.liveness {
+        let _ = writeln!(out, "liveness: {v}");
+    }
     out.push('\n');
 }
 

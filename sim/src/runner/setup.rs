@@ -64,6 +64,164 @@ pub struct ControlSetup {
     pub safe_sets: usize,
     /// The parameters used, and how they were obtained (for `check` and logs).
     pub params: ParamReport,
+    /// κ in force and how it was chosen.
+    pub gain: GainChoice,
+}
+
+/// The planner's default corridor beyond the obstacle margin [m] ([`PlannerConfig`]), and the
+/// band beyond h̄_γ within which `cbf_gain = "auto"` makes every obstacle row hold the robot at
+/// rest (ĥ ≥ band ⇒ u = 0 meets the row): the rate-tunable rule κ ≥ R/band at rest.
+pub const HOLD_BAND: f64 = 0.10;
+
+/// How κ was chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GainSource {
+    /// The world file gives it.
+    Declared,
+    /// `"auto"`: the smallest κ ≥ the floor with which every single-drop filter's obstacle rows
+    /// hold the robot at rest once ĥ = h − h̄_γ ≥ [`HOLD_BAND`], κ ≥ R / band, capped at
+    /// κ·dt ≤ 1/2. The planned path then keeps h̄_γ + R/κ from the obstacles where it can.
+    Auto {
+        /// The largest robust term γ_i‖(K_i c̄_i)ᵀ∂H‖ at rest over the filters and directions [m/s²].
+        robust: f64,
+        /// R/band before the floor and the cap.
+        needed: f64,
+        /// The floor.
+        floor: f64,
+        /// The cap 1/(2 dt).
+        cap: f64,
+    },
+}
+
+/// κ in force, how it was chosen, and the clearance at which its rows hold the robot at rest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GainChoice {
+    /// κ.
+    pub kappa: f64,
+    /// Why.
+    pub source: GainSource,
+    /// h̄ + R/κ: the clearance beyond the margin where u = 0 meets every obstacle row at rest [m]
+    /// (0 without obstacles).
+    pub hold_clearance: f64,
+}
+
+impl std::fmt::Display for GainChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.source {
+            GainSource::Declared => write!(f, "κ = {} (declared)", self.kappa)?,
+            GainSource::Auto {
+                robust,
+                needed,
+                floor,
+                cap,
+            } => write!(
+                f,
+                "κ = {} (auto: every obstacle row holds the robot at rest once ĥ ≥ {HOLD_BAND} m when κ ≥ R/{HOLD_BAND} = {robust:.4}/{HOLD_BAND} = {needed:.4}; floor {floor}, cap 1/(2·dt) = {cap})",
+                self.kappa
+            )?,
+        }
+        write!(
+            f,
+            "; at rest the obstacle rows hold u = 0 from h̄_γ + R/κ = {:.4} m beyond the margin",
+            self.hold_clearance
+        )
+    }
+}
+
+/// The largest robust term at rest of the obstacle rows, γ_i‖(K_i c̄_i)ᵀ(n, k n)‖ over the
+/// single-drop filters (the all-channel filter when the world has no fault pattern) and 72
+/// directions n, and the largest h̄_γ of an obstacle. Filters without a finite steady-state gain
+/// are left out (their bounds are finite-horizon; `check` reports them).
+fn obstacle_rest_terms(
+    world: &World,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    gamma: &[f64],
+    gamma_all: f64,
+    obstacles: &[Arc<dyn Barrier>],
+) -> (f64, f64) {
+    let dt = world.control_dt();
+    let k = world.file.control.obstacle_lift;
+    let q = model.channels();
+    let filters: Vec<(Vec<bool>, f64)> = if patterns.is_empty() {
+        vec![(vec![true; q], gamma_all)]
+    } else {
+        (0..patterns.len())
+            .map(|i| (channel_mask(q, patterns, &[i]), gamma[i]))
+            .collect()
+    };
+    let mut robust: f64 = 0.0;
+    let mut h_bar: f64 = 0.0;
+    for (mask, g) in filters {
+        let kc = ftcbf_controller::params::steady_state_gain_product(model, &mask, dt);
+        if !kc.iter().all(|v| v.is_finite()) || !g.is_finite() {
+            continue;
+        }
+        for d in 0..72 {
+            let a = f64::from(d) * 5f64.to_radians();
+            let grad = State::new(a.cos(), a.sin(), k * a.cos(), k * a.sin());
+            robust = robust.max(g * (kc.transpose() * grad).norm());
+        }
+        for b in obstacles {
+            h_bar = h_bar.max(b.h_bar(g));
+        }
+    }
+    (robust, h_bar)
+}
+
+/// κ in force (see [`GainSource`]).
+pub fn choose_gain(
+    world: &World,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    params: &ParamReport,
+    obstacles: &[Arc<dyn Barrier>],
+) -> GainChoice {
+    let c = &world.file.control;
+    let (robust, h_bar) = if obstacles.is_empty() {
+        (0.0, 0.0)
+    } else {
+        obstacle_rest_terms(
+            world,
+            model,
+            patterns,
+            &params.gamma,
+            params.gamma_baseline,
+            obstacles,
+        )
+    };
+    let hold = |kappa: f64| {
+        if obstacles.is_empty() {
+            0.0
+        } else {
+            h_bar + robust / kappa
+        }
+    };
+    if !c.cbf_gain_auto {
+        return GainChoice {
+            kappa: c.cbf_gain,
+            source: GainSource::Declared,
+            hold_clearance: hold(c.cbf_gain),
+        };
+    }
+    let floor = c.cbf_gain;
+    let cap = crate::liveness::kappa_max(world).max(floor);
+    let needed = robust / HOLD_BAND;
+    let kappa = if needed.is_finite() {
+        needed.clamp(floor, cap)
+    } else {
+        cap
+    };
+    GainChoice {
+        kappa,
+        source: GainSource::Auto {
+            robust,
+            needed,
+            floor,
+            cap,
+        },
+        hold_clearance: hold(kappa),
+    }
 }
 
 /// The parameters in force, for reports.
@@ -301,6 +459,7 @@ impl ControlSetup {
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let params = parameters(world, &model, &patterns);
+        let gain = choose_gain(world, &model, &patterns, &params, &barriers[safe_sets..]);
         let form = problem_form(
             world,
             &bcfg,
@@ -308,6 +467,7 @@ impl ControlSetup {
             &patterns,
             &params.gamma,
             &barriers[..safe_sets],
+            &gain,
         )?;
 
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
@@ -326,7 +486,7 @@ impl ControlSetup {
             increment_metric: params.increment_metric.clone(),
             theta_schedule: params.theta_schedule.clone(),
             delta: params.delta,
-            cbf_gain: file.control.cbf_gain,
+            cbf_gain: gain.kappa,
             clf,
             input_cost: Matrix2::identity(),
             input_limit: file.control.input_limit.map(|l| Input::new(l, l)),
@@ -347,6 +507,7 @@ impl ControlSetup {
             barrier_names,
             safe_sets,
             params,
+            gain,
         })
     }
 }
@@ -360,6 +521,7 @@ fn problem_form(
     patterns: &[Vec<usize>],
     gamma: &[f64],
     safe_set_barriers: &[Arc<dyn Barrier>],
+    gain: &GainChoice,
 ) -> Result<ProblemForm, RunError> {
     let file = &world.file;
     if file.control.form == FormSpec::Paper {
@@ -390,10 +552,16 @@ fn problem_form(
         t.jerk_limit = n.jerk_limit;
     }
     let start = initial_estimate(world);
-    t.waypoints = planned_path(world, bcfg, [start[0], start[1]]);
+    // With κ chosen from the world, the path keeps where its rows hold the robot at rest; a
+    // declared κ keeps the planner's default corridor (the catalogue's tuned worlds).
+    let hold = match gain.source {
+        GainSource::Auto { .. } => gain.hold_clearance,
+        GainSource::Declared => HOLD_BAND,
+    };
+    t.waypoints = planned_path(world, bcfg, [start[0], start[1]], hold);
     // the tracker appends the goal itself
     t.waypoints.pop();
-    let rest = rest_targets(world, model, patterns, gamma, safe_set_barriers);
+    let rest = rest_targets(world, model, patterns, gamma, safe_set_barriers, gain.kappa);
     for w in &mut t.waypoints {
         *w = viable_point(&rest, *w, None);
     }
@@ -408,8 +576,15 @@ fn problem_form(
 }
 
 /// The points from the start to the goal (the goal last): `[goal] waypoints`, with legs
-/// planned around the obstacles when `[goal] plan`.
-pub fn planned_path(world: &World, bcfg: &BarrierConfig, start: [f64; 2]) -> Vec<[f64; 2]> {
+/// planned around the obstacles when `[goal] plan`, keeping [`HOLD_BAND`] beyond the margin, or
+/// `hold` where the rows need more to hold the robot at rest (see [`GainChoice`]) and such a
+/// path exists (else the [`HOLD_BAND`] path: `check`'s liveness prediction then judges it).
+pub fn planned_path(
+    world: &World,
+    bcfg: &BarrierConfig,
+    start: [f64; 2],
+    hold: f64,
+) -> Vec<[f64; 2]> {
     let goal = &world.file.goal;
     if !goal.plan || world.obstacles.is_empty() {
         let mut pts = goal.waypoints.clone();
@@ -423,11 +598,24 @@ pub fn planned_path(world: &World, bcfg: &BarrierConfig, start: [f64; 2]) -> Vec
             .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
             .fold(f64::INFINITY, f64::min)
     };
-    let cfg = PlannerConfig {
-        inflate: bcfg.margin + PlannerConfig::default().inflate,
+    let with = |band: f64| PlannerConfig {
+        inflate: bcfg.margin + band,
         ..PlannerConfig::default()
     };
-    plan(start, &goal.waypoints, goal.center, &clear, &cfg).points
+    if hold > HOLD_BAND {
+        let p = plan(start, &goal.waypoints, goal.center, &clear, &with(hold));
+        if p.unplanned_legs == 0 {
+            return p.points;
+        }
+    }
+    plan(
+        start,
+        &goal.waypoints,
+        goal.center,
+        &clear,
+        &with(HOLD_BAND),
+    )
+    .points
 }
 
 /// Which channels a filter that drops the fault patterns `drop` keeps.
@@ -455,6 +643,7 @@ pub struct RestHold {
 }
 
 /// [`RestHold`] of half-plane `a` (barrier `barrier`) for the filter dropping pattern `i`.
+#[allow(clippy::too_many_arguments)]
 pub fn rest_hold(
     world: &World,
     model: &LinearModel,
@@ -463,14 +652,14 @@ pub fn rest_hold(
     i: usize,
     barrier: &dyn Barrier,
     a: &State,
+    kappa: f64,
 ) -> RestHold {
     let dt = world.control_dt();
     let mask = channel_mask(model.channels(), patterns, &[i]);
     let p = steady_state_riccati(model, &mask, dt).posterior;
     let kc = gain_product(model, &mask, &p, dt);
     RestHold {
-        needed_h: barrier.h_bar(gamma)
-            + gamma * (kc.transpose() * a).norm() / world.file.control.cbf_gain,
+        needed_h: barrier.h_bar(gamma) + gamma * (kc.transpose() * a).norm() / kappa,
         sigma_h: (a.transpose() * p * a)[0].max(0.0).sqrt(),
     }
 }
@@ -485,6 +674,7 @@ fn rest_targets(
     patterns: &[Vec<usize>],
     gamma: &[f64],
     barriers: &[Arc<dyn Barrier>],
+    kappa: f64,
 ) -> Vec<([f64; 2], f64, f64)> {
     let mut out = Vec::new();
     for (bi, s) in world.file.safe_sets.iter().enumerate() {
@@ -492,7 +682,16 @@ fn rest_targets(
             let av = State::new(a[0], a[1], a[2], a[3]);
             let target = (0..patterns.len().min(gamma.len()))
                 .map(|i| {
-                    let r = rest_hold(world, model, patterns, gamma[i], i, &*barriers[bi], &av);
+                    let r = rest_hold(
+                        world,
+                        model,
+                        patterns,
+                        gamma[i],
+                        i,
+                        &*barriers[bi],
+                        &av,
+                        kappa,
+                    );
                     r.needed_h + 3.0 * r.sigma_h
                 })
                 .filter(|h| h.is_finite())

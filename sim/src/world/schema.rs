@@ -235,16 +235,21 @@ pub struct ControlSection {
     pub theta: Param,
     /// δ of Step 1: constraints are active when ĥ(x̂) < δ (default: always active).
     pub delta: Option<f64>,
-    /// Gain κ of the CBF condition `… ≥ −κ·ĥ(x̂)` as the file declares it. Absent: see
-    /// [`ControlSection::cbf_gain`].
+    /// Gain κ of the CBF condition `… ≥ −κ·ĥ(x̂)` as the file declares it: a number, or
+    /// `"auto"`. Absent: see [`ControlSection::cbf_gain`].
     #[serde(default, rename = "cbf_gain")]
-    pub cbf_gain_declared: Option<f64>,
-    /// κ in force: as declared, else 10 in the safety-filter form and 1 (eq. 4.3) in the paper
-    /// form. A larger κ lets the estimate settle closer to the boundary: at rest the robust term
-    /// holds ĥ ≥ γ‖∂h/∂x K c̄‖/κ; with κ = 1 a room's rows need more than the box within ~1 m of
-    /// every obstacle and the robot stalls (issue #36). Set by [`WorldFile::resolve_defaults`].
+    pub cbf_gain_declared: Option<Param>,
+    /// κ as declared, else the form's base value: 10 in the safety-filter form (the floor of
+    /// `"auto"`) and 1 (eq. 4.3) in the paper form. A larger κ lets the estimate settle closer to
+    /// the boundary: at rest the robust term holds ĥ ≥ γ‖∂h/∂x K c̄‖/κ; with κ = 1 a room's rows
+    /// need more than the box within ~1 m of every obstacle and the robot stalls (issue #36).
+    /// Set by [`WorldFile::resolve_defaults`]; with [`ControlSection::cbf_gain_auto`] the
+    /// controller's κ is chosen from the world at setup (`runner::setup::choose_gain`).
     #[serde(skip)]
     pub cbf_gain: f64,
+    /// κ is chosen from the world (`cbf_gain = "auto"`, the default of the safety-filter form).
+    #[serde(skip)]
+    pub cbf_gain_auto: bool,
     /// ε for `"auto"` parameters: the run should be safe with probability ≥ 1 − ε (default 0.05).
     #[serde(default = "default_epsilon")]
     pub epsilon: f64,
@@ -307,6 +312,7 @@ impl Default for ControlSection {
             delta: None,
             cbf_gain_declared: None,
             cbf_gain: default_cbf_gain(),
+            cbf_gain_auto: false,
             epsilon: default_epsilon(),
             process_noise: None,
             process_model: None,
@@ -333,13 +339,15 @@ impl WorldFile {
             Dynamics::Rapier => FormSpec::SafetyFilter,
             Dynamics::Linear => FormSpec::Paper,
         });
-        self.control.cbf_gain = self
-            .control
-            .cbf_gain_declared
-            .unwrap_or(match self.control.form {
-                FormSpec::SafetyFilter => SAFETY_FILTER_CBF_GAIN,
-                FormSpec::Paper => default_cbf_gain(),
-            });
+        let base = match self.control.form {
+            FormSpec::SafetyFilter => SAFETY_FILTER_CBF_GAIN,
+            FormSpec::Paper => default_cbf_gain(),
+        };
+        (self.control.cbf_gain, self.control.cbf_gain_auto) = match self.control.cbf_gain_declared {
+            Some(Param::Value(k)) => (k, false),
+            Some(Param::Auto) => (base, true),
+            None => (base, self.control.form == FormSpec::SafetyFilter),
+        };
         let has_heading = self
             .sensors
             .iter()
@@ -489,8 +497,8 @@ fn default_initial_std() -> [f64; 2] {
 fn default_rate() -> f64 {
     50.0
 }
-/// κ of the safety-filter form when the file gives none: the value every catalogue robot world
-/// was measured with (13 worlds, 200-1000 trials each; README, "Results").
+/// The floor of `cbf_gain = "auto"` (and κ of the paper form's `"auto"` base): the value every
+/// catalogue robot world was measured with (13 worlds, 200-1000 trials each; README, "Results").
 pub const SAFETY_FILTER_CBF_GAIN: f64 = 10.0;
 
 fn default_cbf_gain() -> f64 {

@@ -1,0 +1,145 @@
+//! `check`'s liveness prediction (issue #36): before any run it says whether the robot will move
+//! along its path and settle, and why not; `run` repeats the reason when a run ends outside its
+//! goal. The outcomes these predictions are held to are the `[expect]` tables of the same worlds
+//! (`tests/user_worlds.rs`: the clutter field settles, the crate corridor never reaches its goal).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use ftcbf_sim::check::check_world;
+use ftcbf_sim::liveness::{Blocked, LivenessReport};
+use ftcbf_sim::runner::setup::{ControlSetup, GainSource, HOLD_BAND};
+use ftcbf_sim::world::World;
+
+fn world(rel: &str) -> World {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel);
+    World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn liveness(rel: &str) -> LivenessReport {
+    check_world(&world(rel))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .liveness
+}
+
+#[test]
+fn a_live_world_is_predicted_live_with_and_without_its_attack() {
+    for rel in [
+        "tests/worlds_user/user_clutter_waffle.toml",
+        "tests/worlds_user/user_living_room.toml",
+        "tests/worlds_user/user_l_corridor.toml",
+        "worlds/corridor_spoof.toml",
+        "worlds/doorway_clutter.toml",
+    ] {
+        let l = liveness(rel);
+        assert!(l.live(), "{rel}: {}", l.line());
+        assert_eq!(l.cases.len(), 2, "{rel}: without attack and under it");
+        assert!(l.line().starts_with("live:"), "{rel}: {}", l.line());
+    }
+}
+
+#[test]
+fn two_receivers_without_odometry_stall_under_a_bias_and_check_says_why() {
+    let l = liveness("tests/worlds_user/user_crate_corridor.toml");
+    assert!(!l.live());
+    // Without the attack the path is live; under it the spoofed estimate (0.3 m off on y, never
+    // isolated: θ = 11.7 m) closes the gap beside the crate.
+    assert!(l.cases[0].live(), "{}", l.line());
+    let stall = l.cases[1].stall.as_ref().expect("a stall under attack");
+    assert!((stall.offset[1].abs() - 0.3).abs() < 1e-9, "{stall:?}");
+    assert!(
+        (1.0..2.2).contains(&stall.at[0]),
+        "stalls before the crate (x = 1.8–2.2): {stall:?}"
+    );
+    assert!(matches!(
+        stall.blocked,
+        Blocked::Infeasible | Blocked::NoProgress(_)
+    ));
+    // No gain or box fixes it; the note names the structural cause and the remedy.
+    assert!(l.fix.is_none(), "{:?}", l.fix);
+    let text = l.line();
+    assert!(text.contains("θ = 11.74"), "{text}");
+    assert!(text.contains("odometry"), "{text}");
+}
+
+#[test]
+fn the_paper_worlds_cannot_hold_their_goal_as_the_results_table_shows() {
+    // README, Results: paper_linear settles 0/1000 and paper_turtlebot 63/1000.
+    for rel in ["worlds/paper_linear.toml", "worlds/paper_turtlebot.toml"] {
+        let l = liveness(rel);
+        assert!(l.cases.iter().all(|c| c.stall.is_none()), "{rel}");
+        assert!(l.cases.iter().all(|c| !c.goal_holds), "{rel}");
+        assert!(
+            l.line().contains("NOT hold its goal"),
+            "{rel}: {}",
+            l.line()
+        );
+    }
+}
+
+#[test]
+fn auto_gain_is_the_floor_or_the_rate_tunable_rule_and_a_declared_gain_wins() {
+    let w = world("tests/worlds_user/user_clutter_waffle.toml");
+    let s = ControlSetup::new(&w, w.file.control.controller).unwrap();
+    let GainSource::Auto {
+        robust,
+        needed,
+        floor,
+        cap,
+    } = s.gain.source
+    else {
+        panic!("{:?}", s.gain.source)
+    };
+    assert!((needed - robust / HOLD_BAND).abs() < 1e-12);
+    assert_eq!(s.gain.kappa, needed.clamp(floor, cap));
+    assert_eq!(s.config.cbf_gain, s.gain.kappa);
+    assert_eq!(cap, 25.0, "κ·dt ≤ 1/2 at 50 Hz");
+    // The clearance where u = 0 meets every obstacle row at rest is beyond the default corridor
+    // here, so the path keeps it.
+    assert!(s.gain.hold_clearance > HOLD_BAND, "{}", s.gain);
+
+    let c = world("worlds/corridor_spoof.toml");
+    let s = ControlSetup::new(&c, c.file.control.controller).unwrap();
+    assert_eq!(s.gain.source, GainSource::Declared);
+    assert_eq!(s.gain.kappa, 10.0);
+}
+
+#[test]
+fn run_ends_with_why_the_goal_was_not_reached() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+        .args([
+            "run",
+            "tests/worlds_user/user_crate_corridor.toml",
+            "--no-record",
+            "--duration",
+            "12",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let why = text
+        .lines()
+        .find(|l| {
+            l.trim_start()
+                .starts_with("why: the robot did not reach its goal")
+        })
+        .unwrap_or_else(|| panic!("no why line in:\n{text}"));
+    assert!(
+        why.contains("check predicted: the robot will NOT reach its goal"),
+        "{why}"
+    );
+
+    let out = Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+        .args(["check", "tests/worlds_user/user_clutter_waffle.toml"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("liveness verdict: live:")),
+        "{text}"
+    );
+    assert!(text.contains("CBF gain: κ = 10 (auto"), "{text}");
+}
