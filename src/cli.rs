@@ -114,6 +114,11 @@ pub struct CheckArgs {
     /// Exit with status 4 when Theorem 3 does not apply to the world (for CI).
     #[arg(long)]
     pub strict: bool,
+    /// Also search for the smallest change of `[control] cbf_gain` and `input_limit` (one key,
+    /// then both) that makes Theorem 3 apply and the path live, and print it as TOML (or say
+    /// that none exists in the searched ranges, and why).
+    #[arg(long)]
+    pub suggest: bool,
 }
 
 /// `ftcbf regress`

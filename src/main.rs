@@ -510,6 +510,10 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
             condition_4_4(b.as_ref(), &setup.config.model.g, &start)
         );
     }
+    if a.suggest {
+        let s = check::suggest(&world).map_err(|e| run_failure(e, "controller setup"))?;
+        println!("{s}");
+    }
     if a.strict && !report.verdict.applies {
         return Err(Failure {
             code: EXIT_VERDICT,

@@ -143,3 +143,33 @@ fn run_ends_with_why_the_goal_was_not_reached() {
     );
     assert!(text.contains("CBF gain: κ = 10 (auto"), "{text}");
 }
+
+#[test]
+fn suggest_finds_the_smallest_box_or_says_none_exists() {
+    // turtlebot_encoders: Theorem 3 fails only on the input limit (README, Results); the search
+    // raises the box, one key, and re-checks the world with it.
+    let s = ftcbf_sim::check::suggest(&world("worlds/turtlebot_encoders.toml")).unwrap();
+    assert!(!s.already);
+    assert_eq!(s.changes.len(), 1, "{s}");
+    assert_eq!(s.changes[0].0, "control.input_limit");
+    assert!(s.changes[0].1 > 1.0 && s.changes[0].1 <= 2.5, "{s}");
+    assert!(s.verdict.starts_with("Theorem 3 applies"), "{s}");
+    let w = world("worlds/turtlebot_encoders.toml");
+    let smaller = ftcbf_sim::liveness::LIMIT_CANDIDATES
+        .iter()
+        .copied()
+        .filter(|&l| l > 1.0 && l < s.changes[0].1);
+    for l in smaller {
+        let ov = ftcbf_sim::world::Override {
+            key: "control.input_limit".into(),
+            value: l,
+        };
+        let r = check_world(&World::load(&w.path, &[ov]).unwrap()).unwrap();
+        assert!(!r.verdict.applies, "a smaller box {l} already works");
+    }
+    // Two receivers without odometry: no key of [control] makes the pair filter observable.
+    let s =
+        ftcbf_sim::check::suggest(&world("tests/worlds_user/user_crate_corridor.toml")).unwrap();
+    assert!(s.changes.is_empty() && !s.already);
+    assert!(s.to_string().starts_with("suggest: no change"), "{s}");
+}
