@@ -173,3 +173,26 @@ fn suggest_finds_the_smallest_box_or_says_none_exists() {
     assert!(s.changes.is_empty() && !s.already);
     assert!(s.to_string().starts_with("suggest: no change"), "{s}");
 }
+
+#[test]
+fn a_sensor_that_reaches_nothing_is_named_with_the_key_that_routes_it() {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_user/user_crate_corridor.toml");
+    let text = std::fs::read_to_string(&p).unwrap();
+    let extra = "\n[[sensors]]\nname = \"odom\"\nmeasures = \"speed\"\nnoise_std = 0.01\nworld_velocity = false\n\n[[sensors]]\nname = \"gyro_z\"\nmeasures = \"yaw_rate\"\nnoise_std = 0.01\n";
+    let at = text.find("[[fault_patterns]]").unwrap();
+    let text = format!("{}{extra}\n{}", &text[..at], &text[at..]);
+    let w = World::from_str(&text, &p, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let r = check_world(&w).unwrap();
+    let warn: Vec<&String> = r
+        .context
+        .iter()
+        .filter(|l| l.contains("reaches neither a filter nor the drive"))
+        .collect();
+    assert_eq!(warn.len(), 2, "{:#?}", r.context);
+    assert!(warn[0].contains("`odom`") && warn[0].contains("world_velocity = true"));
+    assert!(warn[1].contains("`gyro_z`") && warn[1].contains("gyro ="));
+    // The world as written has no such sensor.
+    let r = check_world(&world("tests/worlds_user/user_crate_corridor.toml")).unwrap();
+    assert!(!r.context.iter().any(|l| l.contains("reaches neither")));
+}

@@ -387,7 +387,46 @@ fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
     }
     context.push(context_filters(world).unwrap_or_else(|e| format!("filters: {e}")));
     context_parameters(world, setup, &mut context);
+    lint_unused_sensors(world, setup, &mut context);
     context
+}
+
+/// Lint (issue #36): a sensor whose readings reach neither a filter (directly, or through the
+/// odometry derived from it or turned with it) nor the drive's heading is only recorded; say so,
+/// with the key that would route it.
+fn lint_unused_sensors(world: &World, setup: &ControlSetup, context: &mut Vec<String>) {
+    let f = &world.file;
+    let heading = heading_sensor(world);
+    let gyro = heading_fusion(world).map(|(g, _)| g);
+    for (si, s) in f.sensors.iter().enumerate() {
+        let to_filter = sensor_dependents(world, si)
+            .iter()
+            .any(|&d| setup.channel_of_sensor.get(d).is_some_and(Option::is_some));
+        let to_drive = Some(si) == heading || Some(si) == gyro;
+        if to_filter || to_drive {
+            continue;
+        }
+        let hint = match s.measures {
+            crate::sensors::Quantity::Speed if heading.is_none() => {
+                "a body-frame speed needs a heading sensor to become world-frame velocity: add a `measures = \"heading\"` sensor"
+            }
+            crate::sensors::Quantity::Speed => {
+                "set `world_velocity = true` (or leave it out: the default with a heading)"
+            }
+            crate::sensors::Quantity::YawRate => {
+                "name it as the heading's gyro (`gyro = …` on the heading sensor) to fuse it"
+            }
+            crate::sensors::Quantity::WheelLeft | crate::sensors::Quantity::WheelRight => {
+                "derive odometry from it (`from_wheels` on a `speed` sensor)"
+            }
+            _ => "it is recorded only",
+        };
+        context.push(format!(
+            "warning: sensor `{}` ({}) reaches neither a filter nor the drive: {hint}",
+            s.name,
+            s.measures.as_str()
+        ));
+    }
 }
 
 /// The plant line (and the robot's warnings).
