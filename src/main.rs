@@ -20,7 +20,10 @@ use ftcbf_sim::runner::{preflight, run, run_observed, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, Param, World, WorldError};
 
-use cli::{CheckArgs, Cli, Command, ControllerArg, RegressArgs, RunArgs};
+use cli::{
+    CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, RobotArg, RunArgs,
+    SuiteArg,
+};
 
 /// Exit code: a world file is invalid.
 const EXIT_INVALID: u8 = 2;
@@ -110,6 +113,7 @@ fn dispatch(command: Command) -> Result<(), Failure> {
             code: code_of(&e),
             error: e,
         }),
+        Command::Gen(a) => cmd_gen(&a).map_err(Failure::from),
     }
 }
 
@@ -523,6 +527,59 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
                 report.verdict.line()
             ),
         });
+    }
+    Ok(())
+}
+
+/// `ftcbf gen`: the library generates (`ftcbf_sim::worldgen`); this writes and lists.
+fn cmd_gen(a: &GenArgs) -> anyhow::Result<()> {
+    use ftcbf_sim::worldgen::{write_worlds, GenConfig, Generator, Kind, RobotModel, Suite};
+    let kind = match a.kind {
+        KindArg::Room => Some(Kind::Room),
+        KindArg::Corridor => Some(Kind::Corridor),
+        KindArg::Doorway => Some(Kind::Doorway),
+        KindArg::Clutter => Some(Kind::Clutter),
+        KindArg::LTurn => Some(Kind::LTurn),
+        KindArg::All => None,
+    };
+    let robot = match a.robot {
+        RobotArg::Burger => Some(RobotModel::Burger),
+        RobotArg::Waffle => Some(RobotModel::Waffle),
+        RobotArg::Any => None,
+    };
+    let suite = match a.suite {
+        SuiteArg::TwoReceivers => Some(Suite::TwoReceivers),
+        SuiteArg::ThreeReceivers => Some(Suite::ThreeReceivers),
+        SuiteArg::Odometry => Some(Suite::Odometry),
+        SuiteArg::Encoders => Some(Suite::Encoders),
+        SuiteArg::ReceiverVelocity => Some(Suite::ReceiverVelocity),
+        SuiteArg::Any => None,
+    };
+    let generator = Generator::new(GenConfig {
+        seed: a.seed,
+        kind,
+        robot,
+        suite,
+        robots_dir: a.robots.clone(),
+        out_dir: a.out.clone(),
+    })?;
+    let count = usize::try_from(a.count).context("--count")?;
+    let worlds = generator.worlds(count)?;
+    let paths = write_worlds(&a.out, &worlds)?;
+    let width = paths
+        .iter()
+        .map(|p| p.display().to_string().chars().count())
+        .max()
+        .unwrap_or(0);
+    for (w, p) in worlds.iter().zip(&paths) {
+        println!(
+            "{:<width$}  {:<8}  {:<6}  {:<17}  {}",
+            p.display().to_string(),
+            w.kind.name(),
+            w.robot.name(),
+            w.suite.name(),
+            w.attack_label()
+        );
     }
     Ok(())
 }

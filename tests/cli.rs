@@ -187,7 +187,7 @@ fn regress_runs_paired_cases() {
 
 #[test]
 fn every_command_has_help_with_an_example() {
-    for cmd in ["run", "check", "regress", "batch", "merge"] {
+    for cmd in ["run", "check", "regress", "batch", "merge", "gen"] {
         let o = ftcbf(&[cmd, "--help"]);
         assert_eq!(o.status.code(), Some(0), "{cmd}");
         assert!(

@@ -25,5 +25,6 @@ pub mod sensors;
 pub mod state;
 pub mod summary;
 pub mod world;
+pub mod worldgen;
 
 pub use ftcbf_controller;
