@@ -361,23 +361,40 @@ fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
 /// factor's excess over the largest coordinate of the path; a frozen or replayed fix as far as
 /// the robot has driven since (at `speed`). Attacks that only remove readings (dropout,
 /// non-finite or absurd values the controller rejects, spikes a filter averages) move no fix:
-/// 0. An attack on a velocity or heading channel moves the position the filters integrate
-/// without a bound of its own: ∞ (θ then decides). Outside an attack's window: 0.
-pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> (f64, [bool; 2]) {
+/// 0. An offset on a velocity or speed channel moves the position the filters integrate by the
+/// offset times the attacked time, one on a heading by `speed`·sin(offset) times it (θ then
+/// decides whether Step 2 drops it). Outside an attack's window: 0.
+pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> Reach {
     let f = &world.file;
     let mut reach: f64 = 0.0;
     let mut axes = [false, false];
+    let mut exact = true;
     for a in &f.attacks {
         let mut kinds = [false; 2];
-        let mut unbounded = false;
+        // How a reading's offset becomes a position offset: directly (x, y), integrated over the
+        // attacked time (velocity, speed), or turned into a cross-track velocity (heading).
+        let mut integrated = false;
+        let mut turned = false;
         for c in &a.channels {
             if let Some(s) = f.sensors.iter().find(|s| &s.name == c) {
                 match s.measures {
                     Quantity::X => kinds[0] = true,
                     Quantity::Y => kinds[1] = true,
+                    Quantity::Vx => {
+                        kinds[0] = true;
+                        integrated = true;
+                    }
+                    Quantity::Vy => {
+                        kinds[1] = true;
+                        integrated = true;
+                    }
+                    Quantity::Heading => {
+                        kinds = [true, true];
+                        turned = true;
+                    }
                     _ => {
                         kinds = [true, true];
-                        unbounded = true;
+                        integrated = true;
                     }
                 }
             }
@@ -413,18 +430,39 @@ pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> (f64
             | AttackKind::Absurd { .. }
             | AttackKind::Spikes { .. } => 0.0,
         };
-        let r = if unbounded {
-            f64::INFINITY
-        } else if matches!(a.kind, AttackKind::Coordinated { .. }) {
+        let r = if matches!(a.kind, AttackKind::Coordinated { .. }) {
             per_axis
         } else {
             per_axis * f64::from(u8::from(kinds[0]) + u8::from(kinds[1])).sqrt()
         };
+        let r = if turned {
+            speed * r.min(std::f64::consts::PI).sin().abs().max(r.min(1.0)) * span
+        } else if integrated {
+            r * span
+        } else {
+            r
+        };
+        if (turned || integrated) && r > 0.0 {
+            exact = false;
+        }
         if r > 0.0 {
             reach = reach.max(r);
         }
     }
-    (reach, axes)
+    Reach { reach, axes, exact }
+}
+
+/// What [`declared_reach`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    /// The largest offset of a position fix [m].
+    pub reach: f64,
+    /// The axes it can move (x, y).
+    pub axes: [bool; 2],
+    /// The offset is the fix's own (a position channel): the spoofed estimate sits there. Not
+    /// exact when it is integrated from a velocity or heading: the filters then place the
+    /// estimate anywhere up to it, so the worst one Step 2 keeps sits just inside θ.
+    pub exact: bool,
 }
 
 impl<'a> Model<'a> {
@@ -478,7 +516,7 @@ impl<'a> Model<'a> {
             .fold(0.0, f64::max);
         // The declared attack: which pattern, which units it moves (those that read it).
         let attacked = attacked_pattern_of(world, setup);
-        let (_, axes) = declared_reach(world, 0.0, 0.0, max_coord);
+        let axes = declared_reach(world, 0.0, 0.0, max_coord).axes;
         let speed = match &cfg.form {
             ProblemForm::SafetyFilter { tracker, .. } => tracker.cruise_speed,
             ProblemForm::Paper => crate::runner::setup::speed_bound(world).unwrap_or(0.2),
@@ -618,9 +656,18 @@ impl Model<'_> {
         START_DELAY + along / self.speed.max(1e-3)
     }
 
-    /// The spoofed estimates' offset at time `t` [m].
+    /// The spoofed estimates' offset at time `t` [m] (see [`Reach::exact`]).
     fn reach_at(&self, t: f64) -> f64 {
-        declared_reach(self.world, t, self.speed, self.max_coord).0
+        let r = declared_reach(self.world, t, self.speed, self.max_coord);
+        if r.exact {
+            return r.reach;
+        }
+        let theta = self
+            .spoofed
+            .iter()
+            .map(|&(i, a)| theta_at(self.setup, self.patterns, i, a, t))
+            .fold(0.0, f64::max);
+        r.reach.min(theta * (1.0 - 1e-9))
     }
 }
 
