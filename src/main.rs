@@ -94,7 +94,30 @@ fn code_of(e: &anyhow::Error) -> u8 {
     }
 }
 
+/// The test hook of the exit-70 path: `FTCBF_TEST_PANIC=main` panics on the main thread inside
+/// the command, `FTCBF_TEST_PANIC=worker` in a worker thread of the pool that `batch`,
+/// `regress` and `falsify` run their trials on (rayon carries the panic back to the command). It
+/// lets `tests/reliability.rs` check what a user sees on a real bug, since no input is known to
+/// panic any more. Documented in the README (Development); unset, it does nothing.
+const TEST_PANIC_VAR: &str = "FTCBF_TEST_PANIC";
+
+fn test_panic_hook() {
+    match std::env::var(TEST_PANIC_VAR).as_deref() {
+        Ok("main") => panic!("{TEST_PANIC_VAR}=main: a panic injected to test the exit-70 path"),
+        Ok("worker") => {
+            use rayon::prelude::*;
+            (0..4u32).into_par_iter().for_each(|i| {
+                if i == 3 {
+                    panic!("{TEST_PANIC_VAR}=worker: a panic injected to test the exit-70 path");
+                }
+            });
+        }
+        _ => {}
+    }
+}
+
 fn dispatch(command: Command) -> Result<(), Failure> {
+    test_panic_hook();
     match command {
         Command::Run(a) => cmd_run(&a),
         Command::Check(a) => cmd_check(&a),

@@ -3,6 +3,7 @@
 //! a goal inside an obstacle; usage errors have their own exit code; messages have a place.
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use ftcbf_sim::check::{check_world, Status};
 use ftcbf_sim::world::World;
@@ -188,4 +189,47 @@ fn check_agrees_with_run_on_the_catalogue() {
         assert!(check_world(&w).is_ok(), "{}", p.display());
         assert!(ftcbf_sim::runner::preflight(&w).is_ok(), "{}", p.display());
     }
+}
+
+/// The exit-70 path: a panic inside a command, on the main thread or in a worker thread of the
+/// trial pool, ends with exit 70 and one error line naming the panic and its place, instead of
+/// Rust's exit 101 and its panic text. No input is known to panic any more, so the binary's test
+/// hook `FTCBF_TEST_PANIC` (README, "Development") injects one.
+#[test]
+fn a_contained_panic_exits_70_with_its_message_and_place() {
+    let ftcbf_with = |hook: &str, args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+            .args(args)
+            .env("FTCBF_TEST_PANIC", hook)
+            .current_dir(root())
+            .output()
+            .expect("the binary runs")
+    };
+    for (hook, args) in [
+        ("main", ["run", "worlds/paper_linear.toml", "--no-record"]),
+        ("worker", ["check", "worlds/paper_linear.toml", "--strict"]),
+    ] {
+        let o = ftcbf_with(hook, &args);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(70), "{hook}: {t}");
+        assert!(o.stdout.is_empty(), "{hook}: {t}");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(stderr.lines().count(), 1, "{hook}: {stderr}");
+        assert!(
+            stderr.starts_with(&format!(
+                "error: internal error: the simulation stopped on a panic (FTCBF_TEST_PANIC={hook}: \
+                 a panic injected to test the exit-70 path at src/main.rs:"
+            )),
+            "{hook}: {stderr}"
+        );
+        assert!(
+            stderr
+                .contains("this is a bug — please report it with the world file and command line"),
+            "{stderr}"
+        );
+        assert!(!stderr.contains("panicked at"), "{stderr}");
+    }
+    // Any other value leaves the command alone.
+    let o = ftcbf_with("", &["check", "worlds/paper_linear.toml"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
 }
