@@ -139,7 +139,21 @@ fn dispatch(command: Command) -> Result<(), Failure> {
 /// The message and place of the last panic, kept by the hook for the error line.
 static PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
 
+/// Restores the default action of SIGPIPE, which Rust's runtime ignores: when the reader of
+/// `ftcbf`'s output goes away (`ftcbf check W | head -1`), the process ends as `cat` or `grep`
+/// do, killed by the signal (the shell's status 141), instead of `println!` panicking on the
+/// broken pipe and the panic being reported as an internal error (exit 70).
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: `signal` with SIG_DFL installs no handler code; called once, first thing in main,
+    // before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    default_sigpipe();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
