@@ -314,6 +314,20 @@ impl Validator<'_> {
                         self.range(&format!("linear.x0[{i}]"), l.x0[i], r::VELOCITY)?;
                     }
                     self.opt_range("linear.v_max", l.v_max, r::SPEED)?;
+                    // The filters' q is the plant's unless the file gives its own. A filter
+                    // without process noise has no steady state it reaches: its covariance
+                    // shrinks as 1/t, and every Riccati recursion of `check` and of the run's
+                    // setup runs to its limit of 10⁶ iterations (seconds per filter; the fuzz
+                    // found it as a hang). A noiseless plant is fine; the filters need q > 0.
+                    if l.process_noise == 0.0 && file.control.process_noise.is_none() {
+                        return Err(self.err(
+                            "linear.process_noise",
+                            format!(
+                                "0 (a noiseless plant) would also be the filters' process noise, since control.process_noise is not set, and a filter without process noise has no steady state within reach (its covariance shrinks as 1/t); set control.process_noise to a number in {}",
+                                r::PROCESS_NOISE.describe()
+                            ),
+                        ));
+                    }
                 }
             }
         }
