@@ -478,3 +478,27 @@ fn a_noiseless_linear_plant_needs_the_filters_own_process_noise() {
         started.elapsed()
     );
 }
+
+/// Validation runs before any work in every command: `batch`, `falsify` and `regress` refuse an
+/// invalid world with exit 2 and the key named, as `check` and `run` do (the batch message had
+/// an empty "with :" where a sweep point goes).
+#[test]
+fn every_command_refuses_an_invalid_world_with_exit_2_naming_the_key() {
+    let w = "tests/invalid_worlds/goal_radius_tiny.toml";
+    for args in [
+        vec!["check", w],
+        vec!["run", w, "--no-record"],
+        vec!["batch", w, "--trials", "2"],
+        vec!["falsify", w, "--budget", "24", "--no-record"],
+        vec!["regress", w],
+    ] {
+        let o = ftcbf(&args);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {t}");
+        assert!(
+            t.contains("goal_radius_tiny.toml: `goal.radius`: expected a number in [1e-4, 1000] m, found 1e-300"),
+            "{args:?}: {t}"
+        );
+        assert!(!t.contains("with :"), "{args:?}: {t}");
+    }
+}
