@@ -97,7 +97,30 @@ fn code_of(e: &anyhow::Error) -> u8 {
     }
 }
 
+/// The test hook of the exit-70 path: `FTCBF_TEST_PANIC=main` panics on the main thread inside
+/// the command, `FTCBF_TEST_PANIC=worker` in a worker thread of the pool that `batch`,
+/// `regress` and `falsify` run their trials on (rayon carries the panic back to the command). It
+/// lets `tests/reliability.rs` check what a user sees on a real bug, since no input is known to
+/// panic any more. Documented in the README (Development); unset, it does nothing.
+const TEST_PANIC_VAR: &str = "FTCBF_TEST_PANIC";
+
+fn test_panic_hook() {
+    match std::env::var(TEST_PANIC_VAR).as_deref() {
+        Ok("main") => panic!("{TEST_PANIC_VAR}=main: a panic injected to test the exit-70 path"),
+        Ok("worker") => {
+            use rayon::prelude::*;
+            (0..4u32).into_par_iter().for_each(|i| {
+                if i == 3 {
+                    panic!("{TEST_PANIC_VAR}=worker: a panic injected to test the exit-70 path");
+                }
+            });
+        }
+        _ => {}
+    }
+}
+
 fn dispatch(command: Command) -> Result<(), Failure> {
+    test_panic_hook();
     match command {
         Command::Run(a) => cmd_run(&a),
         Command::Check(a) => cmd_check(&a),
@@ -120,7 +143,21 @@ fn dispatch(command: Command) -> Result<(), Failure> {
 /// The message and place of the last panic, kept by the hook for the error line.
 static PANIC: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
 
+/// Restores the default action of SIGPIPE, which Rust's runtime ignores: when the reader of
+/// `ftcbf`'s output goes away (`ftcbf check W | head -1`), the process ends as `cat` or `grep`
+/// do, killed by the signal (the shell's status 141), instead of `println!` panicking on the
+/// broken pipe and the panic being reported as an internal error (exit 70).
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: `signal` with SIG_DFL installs no handler code; called once, first thing in main,
+    // before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    default_sigpipe();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

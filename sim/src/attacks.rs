@@ -168,19 +168,22 @@ macro_rules! attack_kinds {
             $( $(#[$vmeta])* $Variant { $( $(#[$fmeta])* $field: $ty ),* } ),*
         }
 
-        #[derive(Debug, Clone, Serialize, Deserialize)]
-        #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-        enum RawAttack {
-            $( $(#[$vmeta])* $Variant {
-                #[serde(default, skip_serializing_if = "Option::is_none")]
-                label: Option<String>,
-                channels: Vec<String>,
-                #[serde(default)]
-                start: f64,
-                #[serde(default, skip_serializing_if = "Option::is_none")]
-                end: Option<f64>,
-                $( $(#[$fmeta])* $field: $ty ),*
-            } ),*
+        // Read through `world::tagged`, so that an error names the key inside the table.
+        $crate::world::tagged::kind_tagged! {
+            #[derive(Debug, Clone, Serialize)]
+            #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+            enum RawAttack via RawAttackByKind {
+                $( $(#[$vmeta])* $Variant {
+                    #[serde(default, skip_serializing_if = "Option::is_none")]
+                    label: Option<String>,
+                    channels: Vec<String>,
+                    #[serde(default)]
+                    start: f64,
+                    #[serde(default, skip_serializing_if = "Option::is_none")]
+                    end: Option<f64>,
+                    $( $(#[$fmeta])* $field: $ty ),*
+                } ),*
+            }
         }
 
         impl From<RawAttack> for AttackSpec {

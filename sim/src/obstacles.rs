@@ -125,10 +125,13 @@ pub struct ObstacleSpec {
     pub shape: ShapeSpec,
 }
 
+crate::world::tagged::kind_tagged! {
 /// Obstacle shapes. Cylinders, capsules and cones stand along the obstacle frame's z axis.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Written as a table tagged by `kind`, read through `world::tagged` so that an error names
+/// the key inside the table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum ShapeSpec {
+pub enum ShapeSpec via ShapeByKind {
     /// Box.
     Cuboid {
         /// Half extents along x, y, z [m].
@@ -185,6 +188,7 @@ pub enum ShapeSpec {
         #[serde(default)]
         scale: Option<f64>,
     },
+}
 }
 
 impl ShapeSpec {

@@ -149,8 +149,13 @@ pub fn run_sweep(
             .map(|o| format!("{}={}", o.key, o.value))
             .collect::<Vec<_>>()
             .join(", ");
-        let prepared = prepare(&overrides)
-            .with_context(|| format!("could not prepare the world with {label}"))?;
+        let prepared = prepare(&overrides).with_context(|| {
+            if label.is_empty() {
+                "could not prepare the world".to_string()
+            } else {
+                format!("could not prepare the world with {label}")
+            }
+        })?;
         let plan = plan_for(&prepared.info, overrides)?;
         let result = run_batch(prepared.runner.as_ref(), &plan, exec).with_context(|| {
             if label.is_empty() {

@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
-# Issue #16: each fail-closed fix has a test that fails without it. This script puts each fix's
-# old behaviour back, one at a time, in a scratch copy of the tree, runs the controller's tests,
-# and checks that the named test fails. It exits 1 if any old behaviour passes the tests.
+# Issues #16 and #29: each fail-closed fix has a test that fails without it. This script puts each
+# fix's old behaviour back, one at a time, in a scratch copy of the tree, runs the tests that
+# guard it, and checks that the named test fails. It exits 1 if any old behaviour passes the
+# tests (or no longer compiles, or fails only other tests).
 #
-#   bash tests/mutants/fail_closed.sh   # a first build of the test dependencies, then about
-#                                       # 1–2 min per mutant on 2 cores
+#   bash tests/mutants/fail_closed.sh            # every mutant
+#   MUTANTS='exit|range' bash tests/mutants/...  # only those whose name matches the regex
 #
-# Not part of CI (five extra builds); run it after touching the policy, the feasibility test,
-# the estimator's update or the controller's X_t(δ).
+# The first mutant builds the workspace in the scratch copy (CARGO_TARGET_DIR, default
+# target/mutants: a copy of target/release there saves the dependencies' cold build); each
+# one after it rebuilds the crate it changes and runs its tests: about 1–3 min per mutant on 2
+# cores. Not part of CI; run it after touching the policy, the feasibility test, the estimator's
+# update, the controller's X_t(δ), the run summary's verdict, check's hypotheses, world
+# validation or the binary's exit codes.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 work=$(mktemp -d)
@@ -17,9 +22,16 @@ tar -C "$root" --exclude=./target --exclude=./.git --exclude=./runs -cf - . | ta
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target/mutants}"
 cd "$work/tree"
 survivors=0
-# name | file | the fixed code | the old behaviour | a test that must fail
+# name | file | the fixed code | the old behaviour | a test that must fail | cargo test arguments
+# (default: the controller's tests)
 mutant() {
   local name=$1 file=$2 new=$3 old=$4 test=$5
+  shift 5
+  local args=("$@")
+  [ ${#args[@]} -eq 0 ] && args=(-p ftcbf-controller)
+  if [ -n "${MUTANTS:-}" ] && ! [[ $name =~ $MUTANTS ]]; then
+    return
+  fi
   cp "$file" "$work/orig"
   python3 - "$file" "$new" "$old" <<'PY'
 import sys
@@ -29,8 +41,8 @@ if s.count(new) != 1:
     sys.exit(f"{f}: the fixed code is not there exactly once: {new!r}")
 open(f, "w").write(s.replace(new, old))
 PY
-  if cargo test --release -p ftcbf-controller --no-fail-fast >"$work/log" 2>&1; then
-    echo "SURVIVED $name: every controller test passes with the old behaviour"
+  if cargo test --release "${args[@]}" --no-fail-fast >"$work/log" 2>&1; then
+    echo "SURVIVED $name: every test of \`cargo test ${args[*]}\` passes with the old behaviour"
     survivors=$((survivors + 1))
   elif grep -q "^test .*$test .*FAILED" "$work/log"; then
     echo "killed   $name by $(grep -E '^test .* FAILED$' "$work/log" | sed 's/^test //; s/ \.\.\. FAILED//' | tr '\n' ' ')"
@@ -56,5 +68,53 @@ mutant "a non-finite innovation variance is skipped silently" controller/src/est
 mutant "a NaN barrier value is left out of X_t(delta)" controller/src/controller.rs \
   'row.h_hat < self.delta || row.h_hat.is_nan();' 'row.h_hat < self.delta;' \
   a_nan_barrier_is_imposed_and_fails_closed_in_the_controller
+# Issue #29: fail closed on non-finite results, validation by physical range, exit codes.
+mutant "a run is SAFE with a non-finite barrier value" sim/src/runner/mod.rs \
+  'safe: !collided && m.first_violation.is_none() && non_finite.is_none(),' \
+  'safe: !collided && m.first_violation.is_none(),' \
+  a_run_with_a_non_finite_barrier_value_is_unsafe_and_names_it --test reliability
+mutant "the summary names NaN but not an infinite barrier minimum" sim/src/summary.rs \
+  '.find(|b| !b.value.is_finite())' '.find(|b| b.value.is_nan())' \
+  the_first_non_finite_quantity_is_named -p ftcbf-sim --lib
+mutant "a check hypothesis that computed NaN or inf keeps its status" sim/src/check.rs \
+  'if let Some(w) = shows_non_finite(&h.detail) {' 'if let Some(w) = None::<&str> {' \
+  a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply -p ftcbf-sim --lib
+mutant "check does not test the start against the safe sets and obstacles" sim/src/check.rs \
+  'if !(h.is_finite() && h >= 0.0) {' 'if false {' \
+  a_start_outside_the_safe_set_fails_theorem_3 --test reliability
+mutant "check is silent about a goal inside an obstacle" sim/src/check.rs \
+  'if !(h.is_finite() && h + f.goal.radius >= 0.0) {' 'if false {' \
+  a_goal_inside_an_obstacle_fails --test reliability
+mutant "no validation by physical range" sim/src/world/mod.rs \
+  '        if r.contains(v) {' '        if true || r.contains(v) {' \
+  the_issues_run_reproducers_are_refused_naming_the_key --test reliability
+mutant "no caps on the sizes of lists" sim/src/world/mod.rs \
+  'if n <= max {' 'if true {' \
+  every_size_cap_is_a_clean_error_one_past_it --test reliability
+mutant "no cap on a run's control steps" sim/src/world/mod.rs \
+  'if steps > r::MAX_CONTROL_STEPS {' 'if false {' \
+  every_size_cap_is_a_clean_error_one_past_it --test reliability
+mutant "a noiseless linear plant gives its filters q = 0 (the fuzz's hang)" sim/src/world/mod.rs \
+  'if l.process_noise == 0.0 && file.control.process_noise.is_none() {' 'if false {' \
+  a_noiseless_linear_plant_needs_the_filters_own_process_noise --test reliability
+mutant "loading skips the controller's structural check (check accepts what run refuses)" \
+  sim/src/world/mod.rs \
+  'crate::runner::setup::check_structure(&world).map_err(' \
+  'Ok::<(), crate::runner::RunError>(()).map_err(' \
+  every_invalid_world_is_rejected_with_a_helpful_message --test invalid_worlds
+mutant "an error inside a kind-tagged table does not name its key" sim/src/world/tagged.rs \
+  'D::Error::custom(format!("`{key}`: {message}"))' 'D::Error::custom(message)' \
+  errors_in_nested_tables_name_the_key_path_line_and_column --test invalid_worlds
+mutant "a panic is not contained (Rust's exit 101)" src/main.rs \
+  'std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command)))' \
+  'Ok::<_, Box<dyn std::any::Any + Send>>(dispatch(cli.command))' \
+  a_contained_panic_exits_70_with_its_message_and_place --test reliability
+mutant "usage errors exit 2, like an invalid world" src/main.rs \
+  'let code = if e.use_stderr() { EXIT_USAGE } else { 0 };' \
+  'let code = if e.use_stderr() { EXIT_INVALID } else { 0 };' \
+  usage_errors_exit_64_and_a_negative_duration_is_a_range_error --test reliability
+mutant "a closed output pipe is reported as an internal error (exit 70)" src/main.rs \
+  '    default_sigpipe();' '' \
+  a_closed_output_pipe_ends_the_command_like_any_unix_tool --test reliability
 echo "$survivors mutant(s) survived"
 [ "$survivors" -eq 0 ]

@@ -3,12 +3,12 @@
 
 pub mod expect;
 mod overrides;
+mod parse_error;
 pub mod ranges;
 pub mod schema;
+pub(crate) mod tagged;
 
 use std::path::{Path, PathBuf};
-
-use serde::Deserialize;
 
 pub use expect::{Count, Expect, ExpectOutcome, Margin};
 pub use overrides::Override;
@@ -46,13 +46,28 @@ pub enum WorldError {
         /// Its column (1-based, in characters of the valid text before it).
         column: usize,
     },
-    /// Not valid TOML, or not the world schema (unknown key, wrong type, missing key).
+    /// Not valid TOML (a syntax error).
     #[error("{path}: {message}")]
     Parse {
         /// File.
         path: PathBuf,
         /// The parser's message, with line and column.
         message: String,
+    },
+    /// Valid TOML that does not fit the world schema (unknown key, wrong type, missing key).
+    #[error("{path}{}: `{key}`: {message}{excerpt}", fmt_place(.place))]
+    Schema {
+        /// File.
+        path: PathBuf,
+        /// Dotted key path, array indices included, e.g. `obstacles[2].shape.half_extents`.
+        key: String,
+        /// Line and column of the key in the file (1-based, the column in characters): those of
+        /// the deepest part of the path the file contains, for a missing key.
+        place: Option<(usize, usize)>,
+        /// What was found and what was expected.
+        message: String,
+        /// The line of the file with a caret under the column (empty without a place).
+        excerpt: String,
     },
     /// A value is out of its range or inconsistent with another.
     #[error("{path}: `{key}`: {message}")]
@@ -72,6 +87,11 @@ pub enum WorldError {
         /// What is wrong.
         message: String,
     },
+}
+
+/// `:LINE:COLUMN` after a file name, or nothing.
+fn fmt_place(p: &Option<(usize, usize)>) -> String {
+    p.map_or(String::new(), |(l, c)| format!(":{l}:{c}"))
 }
 
 /// A validated world: the file plus everything derived from it once (robot, obstacles, channel
@@ -125,7 +145,7 @@ impl World {
             message,
         };
         // First the file as written, so errors carry its own line numbers.
-        let mut file: WorldFile = toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
+        let mut file: WorldFile = parse_error::from_text(text, path)?;
         if !overrides.is_empty() {
             let mut doc: toml::Value =
                 toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
@@ -135,10 +155,10 @@ impl World {
                     message,
                 })?;
             }
-            file = WorldFile::deserialize(doc).map_err(|e| WorldError::Override {
+            file = parse_error::from_value(doc).map_err(|(key, e)| WorldError::Override {
                 path: path.to_path_buf(),
                 message: format!(
-                    "{}: the overridden file no longer fits the schema: {e}",
+                    "{}: the overridden file no longer fits the schema: `{key}`: {e}",
                     overrides
                         .iter()
                         .map(|o| o.to_string())
@@ -294,6 +314,20 @@ impl Validator<'_> {
                         self.range(&format!("linear.x0[{i}]"), l.x0[i], r::VELOCITY)?;
                     }
                     self.opt_range("linear.v_max", l.v_max, r::SPEED)?;
+                    // The filters' q is the plant's unless the file gives its own. A filter
+                    // without process noise has no steady state it reaches: its covariance
+                    // shrinks as 1/t, and every Riccati recursion of `check` and of the run's
+                    // setup runs to its limit of 10⁶ iterations (seconds per filter; the fuzz
+                    // found it as a hang). A noiseless plant is fine; the filters need q > 0.
+                    if l.process_noise == 0.0 && file.control.process_noise.is_none() {
+                        return Err(self.err(
+                            "linear.process_noise",
+                            format!(
+                                "0 (a noiseless plant) would also be the filters' process noise, since control.process_noise is not set, and a filter without process noise has no steady state within reach (its covariance shrinks as 1/t); set control.process_noise to a number in {}",
+                                r::PROCESS_NOISE.describe()
+                            ),
+                        ));
+                    }
                 }
             }
         }

@@ -559,10 +559,12 @@ pub enum GoalMetric {
     State,
 }
 
-/// A closed-form safe set over the planar state.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SafeSetSpec {
+super::tagged::kind_tagged! {
+/// A closed-form safe set over the planar state: a `[[safe_sets]]` table tagged by `kind`
+/// (read through [`super::tagged`], so an error names the key inside the table).
+#[derive(Debug, Clone, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SafeSetSpec via SafeSetByKind {
     /// h(x) = a·x − b over x = (p_x, p_y, v_x, v_y).
     HalfPlane {
         /// Name in logs.
@@ -602,6 +604,7 @@ pub enum SafeSetSpec {
         #[serde(default = "default_lift")]
         lift: f64,
     },
+}
 }
 
 impl SafeSetSpec {
