@@ -146,3 +146,41 @@ fn batch_fail_on_exits_4_after_writing_its_outputs() {
     let o = ftcbf(&["batch", bad.to_str().expect("utf-8"), "--trials", "1"]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
 }
+
+#[test]
+fn check_names_the_fixed_wheel_promotion_and_falsify_rebases_package_folders() {
+    // `check` says which fixed joints are driven as wheels and what mass their hubs got.
+    let o = ftcbf(&["check", "tests/worlds_ros/pioneer_fixed_wheels_block.toml"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let t = text(&o);
+    assert!(
+        t.contains("joint `left_hub_joint` (line 98) is `fixed` in the URDF; [robot] wheels names it")
+            && t.contains("wheel link `left_hub` has no <inertial>")
+            && t.contains("drive: differential, left `left_hub_joint`, right `right_hub_joint`; track width 0.3200 m"),
+        "{t}"
+    );
+    // A world written elsewhere by `falsify` keeps `[robot] packages` pointing at the folder.
+    let out = tmp("qbot2e-worst.toml");
+    let o = ftcbf(&[
+        "falsify",
+        "tests/worlds_ros/qbot2e_style_pillars.toml",
+        "--budget",
+        "24",
+        "--jobs",
+        "1",
+        "--no-random",
+        "--no-record",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let written = std::fs::read_to_string(&out).expect("written");
+    assert!(written.contains("ftcbf_qbot2e = "), "{written}");
+    let o = ftcbf(&["check", out.to_str().expect("utf-8")]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains("drive: differential, left `base_wheel_l_joint`"),
+        "{}",
+        text(&o)
+    );
+}

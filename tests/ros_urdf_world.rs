@@ -134,3 +134,26 @@ fn qbot_style_robot_with_collada_wheels_drives_between_pillars_under_attack() {
     let r = w.robot.as_ref().expect("rapier");
     assert!((r.wheels.geometry.radius - 0.035).abs() < 1e-6);
 }
+
+#[test]
+fn pioneer_robot_with_fixed_wheel_joints_drives_when_the_world_names_them() {
+    let w = drives_safely_to_the_goal("pioneer_fixed_wheels_block.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert_eq!(r.wheels.left[0].joint_name, "left_hub_joint");
+    assert!((r.wheels.geometry.radius - 0.0925).abs() < 1e-12);
+    // The hubs' mass came from their cylinders (the file gives them none).
+    let hub = r.body_of_link("left_hub").expect("hub body");
+    assert!(
+        r.bodies[hub].mass > 0.5 && r.bodies[hub].mass < 0.55,
+        "{}",
+        r.bodies[hub].mass
+    );
+}
+
+#[test]
+fn qbot2e_robot_drives_with_its_package_folder_mapped_by_name() {
+    let w = drives_safely_to_the_goal("qbot2e_style_pillars.toml");
+    let r = w.robot.as_ref().expect("rapier");
+    assert!((r.wheels.geometry.radius - 0.035).abs() < 1e-6);
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+}

@@ -15,23 +15,31 @@
 //!   warnings with their line, missing optional values take the spec's defaults, and what ROS
 //!   refuses is a [`RobotError::Parse`] naming the element, its `name` and the line.
 //! - `package://NAME/rest` is resolved against the caller's search path ([`LoadOptions`]):
-//!   for each directory `d`, `d/NAME/rest`, then `d/rest` when `d` itself is named `NAME`.
+//!   `packages[NAME]/rest` when the caller maps the package to a folder (a package whose folder
+//!   has another name), else for each directory `d`, `d/NAME/rest`, then `d/rest` when `d`
+//!   itself is named `NAME`.
 //!   `file://` paths are used as they are; relative paths are relative to the URDF's directory.
 //!   Meshes are read with the `mesh-loader` crate: STL (ASCII or binary), Collada (`.dae`, with
-//!   its `<unit>` scale and node transforms) and Wavefront OBJ. A missing *visual* mesh is a
-//!   warning ([`RobotDescription::warnings`]); a missing or unreadable *collision* mesh is an
-//!   error naming the file and the package search path.
+//!   its node transforms, and its `<unit>` applied by this module after them) and Wavefront
+//!   OBJ. A missing *visual* mesh is a warning ([`RobotDescription::warnings`]); a missing or
+//!   unreadable *collision* mesh is an error naming the file and the package search path.
 //! - Links without `<inertial>` (mass 0) are allowed only where they are rigidly attached
-//!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error.
+//!   (fixed joints) to a body that has mass; a movable body whose merged mass is ≤ 0 is an error,
+//!   except a promoted wheel (below), which gets the mass and inertia of its solid collision
+//!   cylinder at 1000 kg/m³, with a warning.
 //! - Xacro sources (`${...}`, `$(...)`, `<xacro:...>` outside XML comments, CDATA sections and
 //!   processing instructions: ROS packages ship plain URDFs with commented-out
 //!   `<xacro:include …/>` lines) read from a file are expanded by the real `xacro`
 //!   (`robot/xacro.rs`, with [`LoadOptions::xacro`]'s arguments); without xacro the error says
 //!   how to install it. From a string, or with [`XacroCommand::Disabled`], they are refused with
 //!   the line, the enclosing link/joint and the attribute.
-//! - Drive wheels: the two joints named by the caller, otherwise every `continuous` joint on the
-//!   root body with a lateral axis (±y of the root frame) whose child link has a cylinder or
-//!   mesh collision (a swivel caster's wheel hangs from the swivel, not the root body), grouped
+//! - Drive wheels: the two joints named by the caller (a named `fixed` joint is *promoted*: some
+//!   published files, e.g. Adept's Pioneer 3-DX, describe their drive wheels with fixed joints,
+//!   and it is driven as a continuous joint about the `<axis xyz>` written on it, which ROS
+//!   ignores on a fixed joint, else about its child's collision cylinder's axis, with a
+//!   warning), otherwise every `continuous` joint on the root body with a lateral axis (±y of
+//!   the root frame) whose child link has a cylinder or mesh collision (a swivel caster's wheel
+//!   hangs from the swivel, not the root body), grouped
 //!   by the side of the root frame's x axis its joint origin lies on (left = +y). Two such
 //!   joints make a differential drive; four or more, the same number on each side, make a
 //!   skid-steer drive whose wheels on one side all get the same command (as ROS's
@@ -47,7 +55,7 @@
 //!   `v_max = r · wheel_speed_max`, `omega_max = 2 r · wheel_speed_max / separation`.
 //!   A URDF without wheel velocity limits and no override is an error.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
@@ -184,7 +192,12 @@ fn line_prefix(line: Option<usize>) -> String {
 pub struct LoadOptions {
     /// Directories that hold ROS packages, used to resolve `package://NAME/...`.
     pub package_paths: Vec<PathBuf>,
-    /// Names of the (left, right) wheel joints; `None` = find the continuous wheel joints.
+    /// Folders of named packages, for a package whose folder has another name (MATLAB's copy of
+    /// Quanser's `package://qbot2e/` files is a folder `quanser_description`): `package://NAME/
+    /// rest` is `packages[NAME]/rest`, looked up before [`Self::package_paths`].
+    pub packages: BTreeMap<String, PathBuf>,
+    /// Names of the (left, right) wheel joints; `None` = find the continuous wheel joints. A
+    /// named `fixed` joint is driven as a continuous one (see [`RobotDescription::from_file`]).
     pub wheel_joints: Option<(String, String)>,
     /// Explicit drive limits; `None` = derive from the wheel joints' velocity limits.
     pub limits: Option<DriveLimits>,
@@ -826,6 +839,16 @@ fn build(
         body: 0,
         pose_in_body: Isometry3::identity(),
     });
+    // Fixed joints a world names as drive wheels (`[robot] wheels`): some published files
+    // describe their drive wheels with fixed joints (a display model: Adept's Pioneer 3-DX fixes
+    // `left_hub_joint` with `<!-- type="continuous" -->`); those are driven as continuous joints.
+    let named_wheel = |name: &str| {
+        opts.wheel_joints
+            .as_ref()
+            .is_some_and(|(l, r)| l == name || r == name)
+    };
+    let mut promoted_bodies: Vec<usize> = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
     let mut stack = vec![root];
     let mut visited = 1usize;
     while let Some(l) = stack.pop() {
@@ -841,22 +864,52 @@ fn build(
             }
             visited += 1;
             let origin_iso = iso_from_pose(&j.origin);
+            let promoted = j.joint_type == urdf_rs::JointType::Fixed && named_wheel(&j.name);
             match j.joint_type {
-                urdf_rs::JointType::Fixed => {
+                urdf_rs::JointType::Fixed if !promoted => {
                     info[c] = Some(LinkInfo {
                         body: lbody,
                         pose_in_body: lpose * origin_iso,
                     });
                     bodies[lbody].links.push(j.child.link.clone());
                 }
-                urdf_rs::JointType::Continuous
+                urdf_rs::JointType::Fixed
+                | urdf_rs::JointType::Continuous
                 | urdf_rs::JointType::Revolute
                 | urdf_rs::JointType::Prismatic => {
-                    let axis_v = Vector3::from(j.axis.xyz.0);
+                    let axis_v = if promoted {
+                        let (axis_v, from) = promoted_axis(parsed, ji, &robot.links[c])
+                            .ok_or_else(|| {
+                                invalid(format!(
+                                    "{} is `fixed`, and [robot] wheels names it as a drive wheel: \
+                                     to drive it as a continuous joint it needs an <axis xyz> or \
+                                     a <cylinder> collision on link `{}` to take the axis from{}",
+                                    jname(ji),
+                                    j.child.link,
+                                    wheel_above(robot, &j.name)
+                                ))
+                            })?;
+                        // Rounded to 1e-6 (a cylinder turned by rpy -1.57079635 gives
+                        // 2.7e-9 components); `+ 0.0` prints -0 as 0.
+                        let short = |x: f64| (x * 1e6).round() / 1e6 + 0.0;
+                        notes.push(format!(
+                            "{origin}: {} is `fixed` in the URDF; [robot] wheels names it, so it \
+                             is driven as a continuous wheel joint about ({}, {}, {}) ({from})",
+                            jname(ji),
+                            short(axis_v.x),
+                            short(axis_v.y),
+                            short(axis_v.z)
+                        ));
+                        axis_v
+                    } else {
+                        Vector3::from(j.axis.xyz.0)
+                    };
                     let axis = Unit::try_new(axis_v, 1e-9)
                         .ok_or_else(|| invalid(format!("{}: <axis xyz> is zero", jname(ji))))?;
                     let kind = match j.joint_type {
-                        urdf_rs::JointType::Continuous => JointKind::Continuous,
+                        urdf_rs::JointType::Continuous | urdf_rs::JointType::Fixed => {
+                            JointKind::Continuous
+                        }
                         urdf_rs::JointType::Revolute => JointKind::Revolute {
                             lower: j.limit.lower,
                             upper: j.limit.upper,
@@ -880,6 +933,9 @@ fn build(
                         visuals: Vec::new(),
                     });
                     body_joint.push(Some(ji));
+                    if promoted {
+                        promoted_bodies.push(b);
+                    }
                     joint_of_urdf.insert(ji, joints.len());
                     joints.push(RobotJoint {
                         name: j.name.clone(),
@@ -966,8 +1022,16 @@ fn build(
             }
         }
     }
+    warnings.append(&mut notes);
+    // A promoted wheel whose links carry no <inertial> (the file fixes them to the chassis and
+    // gives them no mass of their own) gets its mass once its wheel cylinder is known.
+    let mut massless_wheels: Vec<usize> = Vec::new();
     for (b, a) in acc.iter().enumerate() {
         let (m, c, i) = a.finish();
+        if m == 0.0 && promoted_bodies.contains(&b) {
+            massless_wheels.push(b);
+            continue;
+        }
         if m <= 0.0 {
             let joint = match body_joint[b] {
                 Some(ji) => robot.joints[ji].name.clone(),
@@ -985,7 +1049,43 @@ fn build(
         bodies[b].inertia = i;
     }
 
-    let wheels = find_wheels(robot, origin, &bodies, &joints, &joint_of_urdf, opts)?;
+    // Fixed joints on the chassis shaped like drive wheels (a lateral axis, a wheel-like
+    // collision on the child link): named when no wheel is found.
+    let fixed_wheels: Vec<String> = robot
+        .joints
+        .iter()
+        .enumerate()
+        .filter(|(ji, j)| {
+            let (p, c) = (
+                link_index[j.parent.link.as_str()],
+                link_index[j.child.link.as_str()],
+            );
+            let Some(parent) = info[p].as_ref().filter(|i| i.body == 0) else {
+                return false;
+            };
+            let wheel_like = robot.links[c].collision.iter().any(|col| {
+                matches!(
+                    col.geometry,
+                    urdf_rs::Geometry::Cylinder { .. } | urdf_rs::Geometry::Mesh { .. }
+                )
+            });
+            let rotation = (parent.pose_in_body * iso_from_pose(&j.origin)).rotation;
+            j.joint_type == urdf_rs::JointType::Fixed
+                && wheel_like
+                && promoted_axis(parsed, *ji, &robot.links[c])
+                    .is_some_and(|(a, _)| (rotation * a.normalize()).y.abs() >= 0.99)
+        })
+        .map(|(ji, _)| jname(ji))
+        .collect();
+    let wheels = find_wheels(
+        robot,
+        origin,
+        &bodies,
+        &joints,
+        &joint_of_urdf,
+        &fixed_wheels,
+        opts,
+    )?;
     for w in wheels.all() {
         let axis = joints[w.joint].axis;
         let body = &mut bodies[w.body];
@@ -1020,6 +1120,39 @@ fn build(
         for c in &mut body.colliders {
             c.is_wheel = true;
         }
+    }
+    for b in massless_wheels {
+        let body = &mut bodies[b];
+        let cylinder = body.colliders.iter().find_map(|c| match c.shape {
+            CollisionShape::Cylinder {
+                radius,
+                half_length,
+            } if c.is_wheel => Some((c.pose_in_body, radius, 2.0 * half_length)),
+            _ => None,
+        });
+        let Some((pose, r, width)) = cylinder else {
+            return Err(RobotError::NonPositiveMass {
+                origin: origin.to_string(),
+                link: body.name.clone(),
+                joint: body_joint[b]
+                    .map(|ji| robot.joints[ji].name.clone())
+                    .unwrap_or_default(),
+                mass: 0.0,
+            });
+        };
+        let m = WHEEL_DENSITY * PI * r * r * width;
+        let across = m * (3.0 * r * r + width * width) / 12.0;
+        let i_com = Matrix3::from_diagonal(&Vector3::new(across, across, m * r * r / 2.0));
+        let mut a = MassAcc::zero();
+        a.add(m, pose.translation.vector, &pose.rotation, &i_com);
+        let (m, c, i) = a.finish();
+        (body.mass, body.com, body.inertia) = (m, c, i);
+        warnings.push(format!(
+            "{origin}: wheel link `{}` has no <inertial> (the URDF fixes it to the chassis); \
+             it is given the mass of its collision cylinder (radius {r:.4} m, width {width:.4} m) \
+             at {WHEEL_DENSITY} kg/m³: {m:.4} kg",
+            body.name
+        ));
     }
     let (limits, limits_source) = match opts.limits {
         Some(l) => {
@@ -1064,6 +1197,33 @@ fn build(
         centre_height: 0.5 * (z_min.max(0.0) + z_max),
         warnings,
         xacro_output: None,
+    })
+}
+
+/// The axis a `fixed` joint named as a drive wheel turns about, and where it came from: the
+/// `<axis xyz>` written on it (ROS ignores it on a fixed joint; a file that once had the joint
+/// continuous keeps it), else the axis of the child link's first `<cylinder>` collision.
+fn promoted_axis(
+    parsed: &urdf::Parsed,
+    joint: usize,
+    child: &urdf_rs::Link,
+) -> Option<(Vector3<f64>, String)> {
+    if let Some(xyz) = parsed.fixed_axes.get(joint).copied().flatten() {
+        let v = Vector3::from(xyz);
+        if v.norm() > 1e-9 {
+            return Some((
+                v,
+                "its <axis xyz>, which ROS ignores on a fixed joint".to_string(),
+            ));
+        }
+    }
+    child.collision.iter().find_map(|col| {
+        matches!(col.geometry, urdf_rs::Geometry::Cylinder { .. }).then(|| {
+            (
+                iso_from_pose(&col.origin).rotation * Vector3::z(),
+                format!("the axis of link `{}`'s <cylinder> collision", child.name),
+            )
+        })
     })
 }
 
@@ -1165,13 +1325,8 @@ fn collision_shape(
                 filename: filename.clone(),
                 message,
             };
-            let path =
-                resolve_mesh_path(filename, base_dir, &opts.package_paths).ok_or_else(|| {
-                    mesh_err(format!(
-                        "file not found (package search path: {:?})",
-                        opts.package_paths
-                    ))
-                })?;
+            let path = resolve_mesh_path(filename, base_dir, &opts.package_paths, &opts.packages)
+                .ok_or_else(|| mesh_err(not_found(filename, opts)))?;
             let (vertices, indices) =
                 read_mesh(&path).map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
             let vertices = vertices
@@ -1196,7 +1351,7 @@ fn visual_mesh(
         return Ok(None);
     };
     let what = |m: &str| format!("visual mesh `{filename}` of link `{link}` {m} (ignored)");
-    let path = resolve_mesh_path(filename, base_dir, &opts.package_paths)
+    let path = resolve_mesh_path(filename, base_dir, &opts.package_paths, &opts.packages)
         .ok_or_else(|| what("not found"))?;
     let scale = scale.map(|s| s.0).unwrap_or([1.0; 3]);
     if !scale.iter().all(|v| v.is_finite() && *v != 0.0) {
@@ -1215,14 +1370,57 @@ fn visual_mesh(
     }))
 }
 
+/// Why a mesh file was not found: for `package://NAME/…`, where `NAME` was looked for, and how
+/// to map a package whose folder has another name.
+fn not_found(filename: &str, opts: &LoadOptions) -> String {
+    let Some((pkg, _)) = filename
+        .strip_prefix("package://")
+        .and_then(|r| r.split_once('/'))
+    else {
+        return "file not found".to_string();
+    };
+    if let Some(dir) = opts.packages.get(pkg) {
+        return format!(
+            "file not found in package `{pkg}`'s folder {} ([robot] packages)",
+            dir.display()
+        );
+    }
+    let found = opts
+        .package_paths
+        .iter()
+        .any(|d| d.join(pkg).is_dir() || d.file_name().is_some_and(|n| n == pkg));
+    if found {
+        format!(
+            "file not found in package `{pkg}` (package search path: {:?})",
+            opts.package_paths
+        )
+    } else {
+        format!(
+            "file not found: no package `{pkg}` in the package search path {:?} (a folder `{pkg}` \
+             in one of them, or one of them named `{pkg}`); if the package's folder has another \
+             name, map it: \
+             [robot] packages = {{ {pkg} = \"path/to/folder\" }}",
+            opts.package_paths
+        )
+    }
+}
+
 /// Resolves a mesh filename (`package://`, `file://`, absolute or relative) to an existing file.
+/// `package://NAME/rest` is `packages[NAME]/rest` when the map names the package, else the
+/// first of `DIR/NAME/rest` and (when `DIR` is itself named `NAME`) `DIR/rest` over
+/// `package_paths`.
 pub fn resolve_mesh_path(
     filename: &str,
     base_dir: Option<&Path>,
     package_paths: &[PathBuf],
+    packages: &BTreeMap<String, PathBuf>,
 ) -> Option<PathBuf> {
     if let Some(rest) = filename.strip_prefix("package://") {
         let (pkg, rel) = rest.split_once('/')?;
+        if let Some(dir) = packages.get(pkg) {
+            let cand = dir.join(rel);
+            return cand.is_file().then_some(cand);
+        }
         for dir in package_paths {
             let cand = dir.join(pkg).join(rel);
             if cand.is_file() {
@@ -1259,7 +1457,8 @@ pub fn resolve_mesh_path(
 pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
     // Collada is XML, parsed by a tokenizer that recurses per nesting level: refuse absurd
     // nesting before it can overflow the stack.
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    let mut bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    let mut unit = 1.0;
     if let Ok(text) = std::str::from_utf8(&bytes) {
         if text
             .trim_start_matches('\u{feff}')
@@ -1272,10 +1471,13 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
                      not a readable Collada mesh"
                 ));
             }
+            if let Some((in_own_unit, meter)) = collada_in_own_unit(text) {
+                (bytes, unit) = (in_own_unit.into_bytes(), meter);
+            }
         }
     }
     let scene = mesh_loader::Loader::default()
-        .load(path)
+        .load_from_slice(&bytes, path)
         .map_err(|e| format!("not a readable STL, Collada or OBJ mesh: {e}"))?;
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut indices: Vec<[u32; 3]> = Vec::new();
@@ -1289,7 +1491,7 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
             let next = u32::try_from(vertices.len())
                 .map_err(|_| "the mesh has more than 2³² vertices".to_string())?;
             let id = *weld.entry(v.map(f32::to_bits)).or_insert_with(|| {
-                vertices.push(v.map(f64::from));
+                vertices.push(v.map(|c| f64::from(c) * unit));
                 next
             });
             local.push(id);
@@ -1308,6 +1510,44 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
         return Err("the mesh has no triangles".into());
     }
     Ok((vertices, indices))
+}
+
+/// A Collada document whose `<asset><unit meter>` is not 1, rewritten to `meter="1"`, and that
+/// unit, so that the caller scales the loaded vertices itself. mesh-loader 0.1.13 applies the
+/// unit before the nodes' transforms instead of after them, which leaves a node's
+/// `<translate>` in the file's unit (a centimetre file's `<translate>0 0 6</translate>` came out
+/// as 6 m, not 0.06 m); COLLADA's unit applies to every distance in the document. `None` for
+/// anything else (not Collada, no unit, unit 1, or a unit that does not parse, which the loader
+/// then reports).
+fn collada_in_own_unit(text: &str) -> Option<(String, f64)> {
+    if !text.contains("COLLADA") {
+        return None;
+    }
+    let opts = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..roxmltree::ParsingOptions::default()
+    };
+    let doc = roxmltree::Document::parse_with_options(text, opts).ok()?;
+    let root = doc.root_element();
+    fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::Node<'a, 'i>> {
+        n.children()
+            .find(|c| c.is_element() && c.tag_name().name() == tag)
+    }
+    if root.tag_name().name() != "COLLADA" {
+        return None;
+    }
+    let unit = child(child(root, "asset")?, "unit")?;
+    let meter = unit.attributes().find(|a| a.name() == "meter")?;
+    let value: f64 = meter.value().trim().parse().ok()?;
+    if !(value.is_finite() && value > 0.0) || value == 1.0 {
+        return None;
+    }
+    let range = meter.range_value();
+    let mut out = String::with_capacity(text.len());
+    out.push_str(&text[..range.start]);
+    out.push('1');
+    out.push_str(&text[range.end..]);
+    Some((out, value))
 }
 
 /// Size of a wheel body about its joint axis.
@@ -1370,6 +1610,10 @@ fn wheel_size(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<WheelSize> {
     })
 }
 
+/// Density [kg/m³] that gives a promoted wheel without `<inertial>` its mass from its
+/// collision cylinder: water's, the default MuJoCo uses to infer inertia from geometry.
+const WHEEL_DENSITY: f64 = 1000.0;
+
 /// Distance from the root frame's x axis below which a wheel cannot be assigned to a side [m].
 const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 
@@ -1390,6 +1634,7 @@ fn find_wheels(
     bodies: &[RobotBody],
     joints: &[RobotJoint],
     joint_of_urdf: &HashMap<usize, usize>,
+    fixed_wheels: &[String],
     opts: &LoadOptions,
 ) -> Result<DriveWheels, RobotError> {
     let werr = |message: String| RobotError::Wheels {
@@ -1413,9 +1658,7 @@ fn find_wheels(
                     .position(|j| &j.name == name)
                     .ok_or_else(|| werr(format!("no joint named `{name}`")))?;
                 let k = *joint_of_urdf.get(&ji).ok_or_else(|| {
-                    werr(format!(
-                        "joint `{name}` is fixed; a wheel joint must rotate"
-                    ))
+                    werr(format!("joint `{name}` is not a joint a wheel can turn on"))
                 })?;
                 v.push(k);
             }
@@ -1441,10 +1684,20 @@ fn find_wheels(
             .join(", ")
     };
     if candidates.len() < 2 {
+        let fixed = if fixed_wheels.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; the URDF fixes {} to the chassis, shaped like wheels (a display model \
+                 describes its drive wheels so): name two of them in [robot] wheels to drive \
+                 them as continuous joints",
+                fixed_wheels.join(", ")
+            )
+        };
         return Err(werr(format!(
             "expected 2 (differential drive) or 4 or more (skid steer) continuous joints on the \
              chassis with a lateral axis whose child link has a <cylinder> or <mesh> collision, \
-             found {} [{}]; name the wheel joints explicitly if the URDF has others",
+             found {} [{}]; name the wheel joints explicitly if the URDF has others{fixed}",
             candidates.len(),
             names(&mut candidates.iter().copied())
         )));
@@ -1458,8 +1711,9 @@ fn find_wheels(
         let WheelSize { radius, from_mesh } = size(k).ok_or_else(|| {
             werr(format!(
                 "wheel link of joint `{}` has no <cylinder> or <mesh> collision to read the \
-                 radius from",
-                j.name
+                 radius from{}",
+                j.name,
+                wheel_above(robot, &j.name)
             ))
         })?;
         let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
@@ -1542,6 +1796,39 @@ fn find_wheels(
         right: right.iter().map(mk).collect(),
         geometry: WheelGeometry { radius, separation },
     })
+}
+
+/// When joint `name`'s parent link is wheel-shaped (a `<cylinder>` or `<mesh>` collision) and is
+/// itself fixed by another joint, "; its parent link … : name that joint instead" (Adept's
+/// Pioneer 3-DX fixes the tyre `left_wheel` to the hub `left_hub`, which holds the collision, and
+/// the hub to the chassis).
+fn wheel_above(robot: &urdf_rs::Robot, name: &str) -> String {
+    let Some(j) = robot.joints.iter().find(|u| u.name == name) else {
+        return String::new();
+    };
+    let wheel_like = robot
+        .links
+        .iter()
+        .find(|l| l.name == j.parent.link)
+        .is_some_and(|l| {
+            l.collision.iter().any(|c| {
+                matches!(
+                    c.geometry,
+                    urdf_rs::Geometry::Cylinder { .. } | urdf_rs::Geometry::Mesh { .. }
+                )
+            })
+        });
+    let above = robot
+        .joints
+        .iter()
+        .find(|u| u.child.link == j.parent.link && u.joint_type == urdf_rs::JointType::Fixed);
+    match above {
+        Some(u) if wheel_like => format!(
+            "; its parent link `{}` has one and is fixed by joint `{}`: name that joint instead",
+            j.parent.link, u.name
+        ),
+        _ => String::new(),
+    }
 }
 
 /// Splits automatically found wheels into (left, right) by the side of the root frame's x axis

@@ -110,7 +110,7 @@ impl WorldTemplate {
         Ok(text)
     }
 
-    /// Rewrites `robot.urdf`, `robot.package_paths` and `obstacles[*].shape.file` for a file
+    /// Rewrites `robot.urdf`, `robot.package_paths`, `robot.packages` and `obstacles[*].shape.file` for a file
     /// written at `out` (unchanged when `out` is in the original's directory).
     fn rebase_paths(&self, doc: &mut DocumentMut, out: &Path) -> anyhow::Result<()> {
         let from = canonical_dir(&self.path)?;
@@ -137,6 +137,13 @@ impl WorldTemplate {
                 for v in arr.iter_mut() {
                     if let Some(s) = v.as_str().map(&fix) {
                         *v = s.into();
+                    }
+                }
+            }
+            if let Some(map) = robot.get_mut("packages").and_then(Item::as_table_like_mut) {
+                for (_, v) in map.iter_mut() {
+                    if let Some(s) = v.as_str().map(&fix) {
+                        *v = toml_edit::value(s);
                     }
                 }
             }

@@ -38,6 +38,10 @@ pub(crate) struct Parsed {
     pub robot: urdf_rs::Robot,
     pub link_lines: Vec<usize>,
     pub joint_lines: Vec<usize>,
+    /// The `<axis xyz>` written on each `fixed` joint (parallel to `robot.joints`; `None` for
+    /// other joints and when absent or unparsable). urdfdom never reads it; the loader uses it
+    /// only when a world names a fixed joint as a drive wheel.
+    pub fixed_axes: Vec<Option<[f64; 3]>>,
     pub warnings: Vec<String>,
 }
 
@@ -308,6 +312,7 @@ impl<'a, 'input> Reader<'a, 'input> {
             materials: Vec::new(),
         };
         let (mut link_lines, mut joint_lines) = (vec![], vec![]);
+        let mut fixed_axes: Vec<Option<[f64; 3]>> = Vec::new();
         let mut material_lines: Vec<usize> = Vec::new();
         for c in root.children().filter(Node::is_element) {
             let tag = c.tag_name().name();
@@ -328,7 +333,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                     link_lines.push(self.line(c));
                 }
                 "joint" if plain => {
-                    let joint = self.joint(c)?;
+                    let (joint, fixed_axis) = self.joint(c)?;
                     if let Some(k) = robot.joints.iter().position(|j| j.name == joint.name) {
                         return Err(self.err(
                             c,
@@ -340,6 +345,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                     }
                     robot.joints.push(joint);
                     joint_lines.push(self.line(c));
+                    fixed_axes.push(fixed_axis);
                 }
                 "material" if plain => {
                     let m = self.material(c, "<robot>", false)?;
@@ -368,6 +374,7 @@ impl<'a, 'input> Reader<'a, 'input> {
             robot,
             link_lines,
             joint_lines,
+            fixed_axes,
             warnings: std::mem::take(&mut self.warnings),
         })
     }
@@ -582,7 +589,9 @@ impl<'a, 'input> Reader<'a, 'input> {
         })
     }
 
-    fn joint(&mut self, n: Node) -> Result<urdf_rs::Joint, RobotError> {
+    /// The joint, and for a `fixed` joint the `<axis xyz>` written on it (never an error: ROS
+    /// does not read it).
+    fn joint(&mut self, n: Node) -> Result<(urdf_rs::Joint, Option<[f64; 3]>), RobotError> {
         let name = self.name(n, "<joint>")?;
         let what = describe(n);
         self.attrs(n, &["name", "type"], &what);
@@ -635,6 +644,7 @@ impl<'a, 'input> Reader<'a, 'input> {
         let parent = link_of("parent")?;
         let child = link_of("child")?;
         let mut axis = urdf_rs::Axis::default();
+        let mut fixed_axis = None;
         if let Some(a) = first(n, "axis") {
             let ctx = format!("<axis> of {what}");
             self.attrs(a, &["xyz"], &ctx);
@@ -648,6 +658,8 @@ impl<'a, 'input> Reader<'a, 'input> {
                         self.warn(a, msg);
                     }
                 }
+            } else if joint_type == T::Fixed {
+                fixed_axis = self.vector::<3>(a, "xyz", &ctx).ok().flatten();
             }
         }
         let mut limit = urdf_rs::JointLimit::default();
@@ -747,7 +759,7 @@ impl<'a, 'input> Reader<'a, 'input> {
             }
             None => None,
         };
-        Ok(urdf_rs::Joint {
+        let joint = urdf_rs::Joint {
             name,
             joint_type,
             origin,
@@ -759,7 +771,8 @@ impl<'a, 'input> Reader<'a, 'input> {
             dynamics,
             mimic,
             safety_controller,
-        })
+        };
+        Ok((joint, fixed_axis))
     }
 }
 

@@ -974,6 +974,11 @@ impl Validator<'_> {
         let urdf = base.join(&r.urdf);
         let opts = LoadOptions {
             package_paths: r.package_paths.iter().map(|p| base.join(p)).collect(),
+            packages: r
+                .packages
+                .iter()
+                .map(|(name, dir)| (name.clone(), base.join(dir)))
+                .collect(),
             wheel_joints: r.wheels.clone().map(|[l, rr]| (l, rr)),
             limits: r.limits.map(|l| DriveLimits {
                 v_max: l.v_max,

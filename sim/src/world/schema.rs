@@ -76,10 +76,15 @@ pub struct RobotSection {
     /// Directories searched for `package://NAME/...`: `DIR/NAME/...`. Relative to the world file.
     #[serde(default)]
     pub package_paths: Vec<PathBuf>,
+    /// Folders of named packages whose folder has another name, e.g. `{ qbot2e =
+    /// "quanser_description" }`: `package://NAME/rest` is `FOLDER/rest`. Relative to the world file.
+    #[serde(default)]
+    pub packages: std::collections::BTreeMap<String, PathBuf>,
     /// Start pose in the world frame.
     #[serde(default)]
     pub start: StartPose,
-    /// Names of the left and right drive-wheel joints (default: found from the continuous joints).
+    /// Names of the left and right drive-wheel joints (default: found from the continuous joints);
+    /// a named `fixed` joint is driven as a continuous one.
     pub wheels: Option<[String; 2]>,
     /// Drive limits, for URDFs whose wheel joints carry no `<limit velocity>` (the ROS
     /// TurtleBot3 files do not). Default: derived from the wheel joints' limits.
