@@ -10,7 +10,8 @@
 # Writes OUT_DIR/*.toml, OUT_DIR/sweep/NAME.check.txt and NAME.json (each batch's results).
 # Columns: verdict = Theorem 3 applies / no / ERROR (check failed); safe, entered, settled =
 # trials of TRIALS; ω flips = mean % of control steps in which the commanded ω changes sign;
-# infeas = % of control steps with no feasible input.
+# infeas = % of control steps with no feasible input; liveness = check's prediction (live / stall),
+# judged against "settled in >= 95 % of trials" in the closing lines.
 set -euo pipefail
 
 seed=${1:-1}
@@ -38,6 +39,12 @@ while read -r file kind robot suite attack; do
     else
         verdict=ERROR
     fi
+    # check's liveness prediction (issue #36), compared with the outcome below
+    if grep -q '^liveness verdict: live' "$out/sweep/$name.check.txt"; then
+        live=live
+    else
+        live=stall
+    fi
     json="$out/sweep/$name.json"
     if "$ftcbf" batch "$file" --trials "$trials" --controller ft-cbf-clf --out "$json" \
         >"$out/sweep/$name.batch.txt" 2>&1; then
@@ -50,8 +57,8 @@ while read -r file kind robot suite attack; do
         stats=$'-\t-\t-\t-\t-'
         verdict="$verdict/batch-ERROR"
     fi
-    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$kind" "$robot" "$suite" "$attack" \
-        "$verdict" "$stats" >>"$rows"
+    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$kind" "$robot" "$suite" "$attack" \
+        "$verdict" "$stats" "$live" >>"$rows"
 done <"$out/sweep/gen.txt"
 
 awk -F'\t' -v n="$trials" '
@@ -76,16 +83,25 @@ function totals(table, title, order,    i, m, names, k) {
 }
 BEGIN {
     printf "%-22s %-8s %-6s %-17s %-30s %-8s %5s %7s %7s %7s %6s\n", "world", "kind", "robot", "suite",
-        "attack", "verdict", "safe", "entered", "settled", "ω flips", "infeas"
+        "attack", "verdict", "safe", "entered", "settled", "ω flips", "infeas", "liveness"
 }
 {
-    printf "%-22s %-8s %-6s %-17s %-30s %-8s %5s %7s %7s %6.1f%% %5.1f%%\n", $1, $2, $3, $4, $5, $6,
-        $7 "/" n, $8 "/" n, $9 "/" n, $10, $11
+    printf "%-22s %-8s %-6s %-17s %-30s %-8s %5s %7s %7s %6.1f%% %5.1f%% %s\n", $1, $2, $3, $4, $5, $6,
+        $7 "/" n, $8 "/" n, $9 "/" n, $10, $11, $12
     add("suite", $4); add("kind", $2); add("all", "all")
+    if ($7 != "-") {
+        judged++
+        outcome = ($9 >= 0.95 * n) ? "live" : "stall"
+        if ($12 == outcome) matched++
+        if ($12 == "live") { predicted_live++; if (outcome == "live") live_settled++ }
+        if ($6 == "applies") { applies_worlds++; if ($7 < n) unsafe_applies++ }
+    }
 }
 END {
     totals("suite", "per suite", "two_receivers three_receivers odometry encoders receiver_velocity")
     totals("kind", "per kind", "room corridor doorway clutter l_turn")
     totals("all", "total", "all")
+    printf "\nliveness: predicted live in %d of %d worlds, %d of them settled in >= 95 %% of trials; the prediction (live = settles in >= 95 %%) matches the outcome in %d of %d worlds\n", predicted_live, judged, live_settled, matched, judged
+    printf "Theorem 3 applies in %d worlds; unsafe trials in %d of them\n", applies_worlds, unsafe_applies
 }
 ' "$rows"
