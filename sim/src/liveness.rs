@@ -505,11 +505,6 @@ impl<'a> Model<'a> {
             }
         };
         path.push(goal);
-        let length: f64 = path
-            .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-            .sum();
-        let _ = length;
         let max_coord = path
             .iter()
             .map(|p| p[0].abs().max(p[1].abs()))
@@ -662,12 +657,23 @@ impl Model<'_> {
         if r.exact {
             return r.reach;
         }
-        let theta = self
-            .spoofed
+        r.reach.min(self.theta_max(t) * (1.0 - 1e-9))
+    }
+
+    /// The largest θ_ia(t) over the spoofed units.
+    fn theta_max(&self, t: f64) -> f64 {
+        self.spoofed
             .iter()
             .map(|&(i, a)| theta_at(self.setup, self.patterns, i, a, t))
-            .fold(0.0, f64::max);
-        r.reach.min(theta * (1.0 - 1e-9))
+            .fold(0.0, f64::max)
+    }
+
+    /// Length of the path [m].
+    fn length(&self) -> f64 {
+        self.path
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum()
     }
 }
 
@@ -805,13 +811,6 @@ fn case(
             vec![[0.0, 0.0]]
         }
     };
-    let theta_max = |t: f64| {
-        model
-            .spoofed
-            .iter()
-            .map(|&(i, a)| theta_at(model.setup, model.patterns, i, a, t))
-            .fold(0.0, f64::max)
-    };
     let mut applied: f64 = 0.0;
     let mut rows = Vec::new();
     let mut least = (f64::INFINITY, model.path[0]);
@@ -820,7 +819,7 @@ fn case(
         let time = model.time_at(along);
         for o in offs_at(time) {
             let r = o[0].hypot(o[1]);
-            if r <= theta_max(time) {
+            if r <= model.theta_max(time) {
                 applied = applied.max(r);
             }
             match model.progress_near(p, t, o, time, (kappa, limit), &mut rows) {
@@ -845,12 +844,7 @@ fn case(
     }
     // Holding: u = 0 satisfies every row at rest at some point of the goal set, at every time
     // from the robot's arrival to the end of the run.
-    let length = model
-        .path
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum::<f64>();
-    let arrive = model.time_at(length).min(model.world.file.duration);
+    let arrive = model.time_at(model.length()).min(model.world.file.duration);
     let times: Vec<f64> = (0..=HOLD_TIMES)
         .map(|k| {
             arrive + (model.world.file.duration - arrive) * f64::from(k) / f64::from(HOLD_TIMES)
@@ -950,11 +944,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             skipped: Some("the nominal controller imposes no rows".into()),
         };
     };
-    let path_length: f64 = model
-        .path
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum();
+    let path_length = model.length();
     let n_samples = samples(&model.path).len();
     let cases = cases(&model, cfg.cbf_gain, cfg.input_limit);
     let live = cases.iter().all(LivenessCase::live);
@@ -1012,12 +1002,7 @@ fn structural_notes(model: &Model, cases: &[LivenessCase], out: &mut Vec<String>
     if !under_attack_only {
         return;
     }
-    let t_end = model.world.file.duration;
-    let worst_theta = model
-        .spoofed
-        .iter()
-        .map(|&(i, a)| theta_at(model.setup, model.patterns, i, a, t_end))
-        .fold(0.0, f64::max);
+    let worst_theta = model.theta_max(model.world.file.duration);
     let reach = cases.iter().map(|c| c.reach).fold(0.0, f64::max);
     if worst_theta > 1.0 {
         out.push(format!(
