@@ -441,6 +441,11 @@ fn check_prints_no_nan_for_a_start_inside_an_obstacle_or_a_half_plane_without_ve
         let o = ftcbf(&["check", "--strict", f]);
         assert_eq!(o.status.code(), Some(4), "{}", text(&o));
     }
+    // The advice for a barrier the input cannot act on at rest is a velocity term, not an
+    // infinite box.
+    let t = text(&ftcbf(&["check", &flat]));
+    assert!(!t.contains("≥ (inf"), "{t}");
+    assert!(t.contains("no input limit can meet its robust row"), "{t}");
 }
 
 /// Found by the 10,000-input fuzz (a hang): a linear world with `process_noise = 0` gave its

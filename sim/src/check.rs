@@ -1472,11 +1472,16 @@ fn check_input_authority(
                 "; worst of 360 boundary normals, curvature term left out"
             }
         );
-        if !holds {
+        if !holds && ratio.is_finite() {
             found.reasons.push(format!(
                 "{name}: the input limit cannot meet the robust CBF row at rest on its boundary ({needed}); raise control.input_limit to ≥ ({:.3}, {:.3}) m/s², or lower γ‖Kc̄‖ (less process noise, more precise sensors)",
                 limit[0] * ratio,
                 limit[1] * ratio
+            ));
+        } else if !holds {
+            // Λ = Gᵀ∂h = 0 at rest: no box can help, the barrier needs a velocity term.
+            found.reasons.push(format!(
+                "{name}: the input does not act on this barrier at rest (Λ = Gᵀ∂h = 0), so no input limit can meet its robust row ({needed}); give the barrier a velocity term (relative degree 2: a ≠ 0 on v_x or v_y)"
             ));
         }
         found.hypotheses.push(Hypothesis {
