@@ -1602,7 +1602,7 @@ pub fn suggest(world: &World) -> Result<Suggestion, RunError> {
         }
     }
     let mut tried = 0;
-    for changes in candidates.iter().cloned() {
+    for changes in candidates {
         let overrides: Vec<crate::world::Override> = changes
             .iter()
             .map(|(k, v)| crate::world::Override {

@@ -158,27 +158,6 @@ impl LivenessReport {
         self.cases.iter().all(LivenessCase::live)
     }
 
-    /// One line for tables and run summaries.
-    pub fn short(&self) -> String {
-        if self.skipped.is_some() {
-            return "not predicted".into();
-        }
-        match self.cases.iter().find(|c| !c.live()) {
-            None => "live".into(),
-            Some(c) => match &c.stall {
-                Some(s) => format!(
-                    "stalls at ({:.2}, {:.2}) {}",
-                    s.at[0],
-                    s.at[1],
-                    if c.reach > 0.0 { "under attack" } else { "" }
-                )
-                .trim_end()
-                .to_string(),
-                None => "cannot hold the goal".into(),
-            },
-        }
-    }
-
     /// The verdict line.
     pub fn line(&self) -> String {
         if let Some(why) = &self.skipped {
