@@ -7,7 +7,11 @@
 #   defaults: seed 1, 40 worlds, 10 trials, gen_out/; GEN_OPTIONS go to `ftcbf gen`
 #   (e.g. -- --kind doorway --robot waffle). FTCBF=path/to/ftcbf overrides the binary
 #   (default target/release/ftcbf); run from the repository root (robots/ is read from there).
-# Writes OUT_DIR/*.toml, OUT_DIR/sweep/NAME.check.txt and NAME.json (each batch's results).
+# Writes OUT_DIR/*.toml, OUT_DIR/sweep/NAME.check.txt and NAME.json (each batch's results),
+# and OUT_DIR/sweep/summary.md: the same table as Markdown, stamped with the command, commit,
+# date and machine (the book's results/generated-worlds.md is that file).
+# REUSE=1 keeps the batch JSON already in OUT_DIR/sweep (a sweep stopped half-way resumes;
+# check always runs again, so the prediction is the current binary's).
 # Columns: verdict = Theorem 3 applies / no / ERROR (check failed); safe, entered, settled =
 # trials of TRIALS; ω flips = mean % of control steps in which the commanded ω changes sign;
 # infeas = % of control steps with no feasible input; liveness = check's prediction (live / stall),
@@ -46,8 +50,9 @@ while read -r file kind robot suite attack; do
         live=stall
     fi
     json="$out/sweep/$name.json"
-    if "$ftcbf" batch "$file" --trials "$trials" --controller ft-cbf-clf --out "$json" \
-        >"$out/sweep/$name.batch.txt" 2>&1; then
+    if [[ ${REUSE:-0} == 1 && -s $json ]] \
+        || "$ftcbf" batch "$file" --trials "$trials" --controller ft-cbf-clf --out "$json" \
+            >"$out/sweep/$name.batch.txt" 2>&1; then
         stats=$(jq -r '.results[0].summaries[0] as $s
             | [$s.safe, $s.goals, $s.settled,
                (100 * $s.smoothness.omega_sign_change_fraction_mean),
@@ -61,6 +66,7 @@ while read -r file kind robot suite attack; do
         "$verdict" "$stats" "$live" >>"$rows"
 done <"$out/sweep/gen.txt"
 
+report="$out/sweep/report.txt"
 awk -F'\t' -v n="$trials" '
 function add(table, key) {
     worlds[table, key]++; keys[table, key] = 1
@@ -104,4 +110,23 @@ END {
     printf "\nliveness: predicted live in %d of %d worlds, %d of them settled in >= 95 %% of trials; the prediction (live = settles in >= 95 %%) matches the outcome in %d of %d worlds\n", predicted_live, judged, live_settled, matched, judged
     printf "Theorem 3 applies in %d worlds; unsafe trials in %d of them\n", applies_worlds, unsafe_applies
 }
-' "$rows"
+' "$rows" | tee "$report"
+
+{
+    echo "# Generated worlds: defaults only"
+    echo
+    echo "Written by \`scripts/gen_sweep.sh $seed $count $trials $out\` (do not edit by hand):"
+    echo "$count worlds from \`ftcbf gen --seed $seed\`, every one with defaults only (no tuning key,"
+    echo "no \`[control]\` table), \`ftcbf check\` on each, then \`ftcbf batch --trials $trials"
+    echo "--controller ft-cbf-clf\`. Commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD 2>/dev/null || echo ' (with local changes)'),"
+    echo "$(date -u +%Y-%m-%d), $(uname -m), $(nproc) cores."
+    echo
+    echo "Columns: verdict = Theorem 3 applies / no; safe, entered, settled = trials of $trials;"
+    echo "ω flips = mean % of control steps in which the commanded ω changes sign; infeas = % of"
+    echo "control steps with no feasible input; liveness = \`check\`'s prediction, judged against"
+    echo "\"settled in ≥ 95 % of trials\"."
+    echo
+    echo '```text'
+    cat "$report"
+    echo '```'
+} >"$out/sweep/summary.md"

@@ -184,3 +184,42 @@ noise_std = 0.01
     let e = parse(&missing).expect_err("a GNSS channel without noise_std is refused");
     assert!(e.contains("gx") && e.contains("noise_std"), "{e}");
 }
+
+/// "A knob every catalogue world sets is a default that is wrong" (issue #36): no catalogue
+/// world sets a tuning key any more (`form`, `cbf_gain`, `[control.drive]`), except the paper's
+/// own form and κ in the worlds that reproduce the thesis (the paper form, or the linear model).
+#[test]
+fn catalogue_worlds_set_no_tuning_key_but_the_papers_own() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&root).expect("worlds/ is readable") {
+        let path = entry.expect("a directory entry").path();
+        if path.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let w = World::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+        let c = &w.file.control;
+        let paper = c.form_declared == Some(FormSpec::Paper)
+            || matches!(w.file.dynamics, ftcbf_sim::world::Dynamics::Linear);
+        assert!(
+            c.form_declared.is_none() || paper,
+            "{}: form = safety_filter is the default",
+            w.name
+        );
+        if !paper {
+            assert!(c.cbf_gain_declared.is_none(), "{}: cbf_gain", w.name);
+        }
+        let d = &c.drive;
+        assert!(
+            d.low_speed.is_none()
+                && d.low_speed_scale.is_none()
+                && d.dv_max.is_none()
+                && d.domega_max.is_none()
+                && d.wheel_speed_resolution.is_none(),
+            "{}: [control.drive]",
+            w.name
+        );
+        n += 1;
+    }
+    assert!(n >= 16, "only {n} catalogue worlds");
+}

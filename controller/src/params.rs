@@ -102,6 +102,31 @@ fn riccati_step(
     (prior, p)
 }
 
+/// The sequential scalar updates one filter step applies with the channels where `uses[k]`,
+/// starting from the prior covariance `prior`: `(k, K_k, I − K_k c_k)` in update order.
+///
+/// At a steady-state prior ([`RiccatiSolution::prior`]) these gains are the same every step,
+/// so the estimate responds linearly to an offset `d` added to its readings: after `e ← Φ e`,
+/// `e ← (I − K_k c_k) e + K_k d_k` for each update. That is how far an attack on the readings
+/// moves the estimate, whatever the state and the input.
+pub fn update_gains(
+    model: &LinearModel,
+    uses: &[bool],
+    prior: &StateMatrix,
+) -> Vec<(usize, State, StateMatrix)> {
+    let mut p = *prior;
+    let mut out = Vec::new();
+    for (k, &u) in uses.iter().enumerate() {
+        if !u || k >= model.channels() {
+            continue;
+        }
+        let (kg, ikc) = scalar_gain(model, k, &p);
+        p = joseph(model, k, &p, &kg, &ikc);
+        out.push((k, kg, ikc));
+    }
+    out
+}
+
 /// The gain K = P cᵀ/(c P cᵀ + r) of a scalar update with channel `k`, and I − K c.
 fn scalar_gain(model: &LinearModel, k: usize, p: &StateMatrix) -> (State, StateMatrix) {
     let c: RowVector4<f64> = model.c[k];
@@ -1020,6 +1045,41 @@ impl fmt::Display for Thm5Verdict {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The steady-state filter's response to a constant offset on its readings. An offset b on
+    /// both x channels of the paper's observation moves the estimate to exactly (b, 0, 0, 0)
+    /// (a still robot b further along x explains every reading). An offset on the ẋ channel
+    /// alone, contradicted by the position channels, leaves a bounded position offset and a
+    /// velocity offset short of the reading's.
+    #[test]
+    fn update_gains_move_the_estimate_by_the_filters_response() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        let dt = 0.02;
+        let phi = model.discretize(dt).phi;
+        let uses = [true; 6];
+        let ss = steady_state_riccati(&model, &uses, dt);
+        assert!(ss.converged);
+        let gains = update_gains(&model, &uses, &ss.prior);
+        assert_eq!(gains.len(), 6);
+        let settle = |d: [f64; 6], steps: usize| {
+            let mut e = State::zeros();
+            for _ in 0..steps {
+                e = phi * e;
+                for (k, kg, ikc) in &gains {
+                    e = ikc * e + kg * d[*k];
+                }
+            }
+            e
+        };
+        let fix = settle([0.3, 0.3, 0.0, 0.0, 0.0, 0.0], 20_000);
+        assert!((fix[0] - 0.3).abs() < 1e-9, "{fix}");
+        assert!(fix[1].abs() < 1e-12 && fix[2].abs() < 1e-9 && fix[3].abs() < 1e-12);
+        let vel = settle([0.0, 0.0, 0.0, 0.0, 0.1, 0.0], 20_000);
+        let later = settle([0.0, 0.0, 0.0, 0.0, 0.1, 0.0], 40_000);
+        assert!((vel - later).amax() < 1e-9, "not settled: {vel} vs {later}");
+        assert!(vel[0] > 0.0 && vel[0] < 1.0, "{vel}");
+        assert!(vel[2] > 0.0 && vel[2] < 0.1, "{vel}");
+    }
 
     #[test]
     fn chi_square_quantiles_match_tables() {

@@ -866,6 +866,53 @@ impl Injector {
     }
 }
 
+/// What the attack adds to a fresh reading of its `j`-th channel at time `t` when the true
+/// value is `truth(t)`, played open loop: no detector feedback (a stealthy bias grows at its
+/// largest rate), no random draws (spikes add nothing on average), readings the controller
+/// rejects (non-finite, absurd) add nothing, a frozen channel holds its value (or the truth at
+/// the window's start), a replayed one plays the truth recorded in its recording window. 0
+/// outside the window. The injector's own arithmetic ([`fresh_effect`]) decides the value
+/// kinds, so a prediction made from this matches what a run injects.
+pub fn open_loop_offset(spec: &AttackSpec, j: usize, t: f64, truth: &dyn Fn(f64) -> f64) -> f64 {
+    if !spec.contains(t) {
+        return 0.0;
+    }
+    let now = truth(t);
+    match &spec.kind {
+        AttackKind::Freeze { value } => value.unwrap_or_else(|| truth(spec.start)) - now,
+        AttackKind::Replay {
+            record_start,
+            length,
+        } => {
+            let played = if *length > 0.0 {
+                (t - spec.start).rem_euclid(*length)
+            } else {
+                0.0
+            };
+            truth(record_start + played) - now
+        }
+        AttackKind::Dropout {} | AttackKind::NonFinite { .. } | AttackKind::Absurd { .. } => 0.0,
+        kind => {
+            let mut st = ChannelState {
+                effect: Effect::None,
+                rng: None,
+                beta: 0.0,
+                last_fresh: None,
+                last_value: None,
+                frozen: None,
+                delivered: None,
+                recording: Vec::new(),
+            };
+            let v = fresh_effect(kind, spec, j, 0, t, now, &mut st, &NoDetector).apply(now);
+            if v.is_finite() {
+                v - now
+            } else {
+                0.0
+            }
+        }
+    }
+}
+
 /// The effect a value-transforming injector applies to a fresh sample inside its window.
 #[allow(clippy::too_many_arguments)]
 fn fresh_effect(

@@ -15,9 +15,12 @@
 //!   steady-state gain terms M = K c̄ and N = K ν̄ν̄ᵀKᵀ (finite-horizon worst posterior for a
 //!   filter with no steady state), `ftcbf_controller::constraints::cbf_row` itself;
 //! - **the estimates**: at rest on the path point. Without attack every estimate is there (to
-//!   within γ). Under the declared attack, the filters that read the attacked channels are moved
-//!   off it by the attack's reach ([`declared_reach`]), at most by θ_ia (beyond θ, Step 2 drops
-//!   them), in every direction the attacked channels can move a position fix.
+//!   within γ). Under the declared attack, each spoofed filter's estimate is moved by that
+//!   filter's own response to what the attack adds to its readings (`Model::responses`: a
+//!   steady-state Kalman filter is linear, so the offset does not depend on the state or the
+//!   input), when the robot gets there on the planned timeline; where that cannot be computed,
+//!   by the attack's reach ([`declared_reach`]) in every direction the attacked channels can
+//!   move a position fix. Beyond θ_ia(t), Step 2 drops the spoofed estimate.
 //!
 //! At each point it solves the 2-D problem "largest acceleration along the path's direction
 //! that satisfies every row jointly inside the input box" exactly (vertex enumeration, as
@@ -35,10 +38,12 @@ use std::fmt;
 
 use ftcbf_controller::constraints::{cbf_row, HalfSpace};
 use ftcbf_controller::controller::{ControllerKind, ProblemForm};
-use ftcbf_controller::params::{gain_product, horizon_posterior_max, steady_state_riccati};
+use ftcbf_controller::params::{
+    gain_product, horizon_posterior_max, steady_state_riccati, update_gains,
+};
 use ftcbf_controller::{Input, State, StateMatrix};
 
-use crate::attacks::AttackKind;
+use crate::attacks::{open_loop_offset, AttackKind};
 use crate::runner::setup::{channel_mask, initial_covariance, ControlSetup};
 use crate::sensors::Quantity;
 use crate::summary::RunSummary;
@@ -58,8 +63,9 @@ pub const NOMINAL_SPEED_SHARE: f64 = 0.6;
 /// Seconds before the robot is assumed to start along the path.
 const START_DELAY: f64 = 1.0;
 
-/// Times from the robot's arrival to the end of the run at which holding is judged.
-const HOLD_TIMES: u8 = 8;
+/// Spacing of the times, from the robot's arrival to the end of the run, at which holding is
+/// judged [s] (an attack's offset can sweep a spoofed estimate across a thin wall in less).
+const HOLD_STEP: f64 = 0.1;
 
 /// How far across the path the robot is looked for a live point [m].
 pub const LATERAL_REACH: f64 = 0.5;
@@ -76,6 +82,10 @@ struct Unit {
     gamma: f64,
     m: StateMatrix,
     n: StateMatrix,
+    /// The channels the filter uses.
+    mask: Vec<bool>,
+    /// Its steady-state prior covariance (None: no steady state).
+    prior: Option<StateMatrix>,
 }
 
 /// Why a path point is not live.
@@ -287,26 +297,39 @@ struct Model<'a> {
     max_coord: f64,
     attack_name: String,
     world: &'a World,
+    /// Each spoofed unit's estimate offset [m] at every control step under the declared attack,
+    /// where it can be computed exactly ([`Model::responses`]); in the order of `spoofed`.
+    response: Option<Vec<Vec<[f64; 2]>>>,
 }
 
-/// The gain terms of a filter that keeps `mask`: steady state, or the worst posterior over the
-/// run from P0 when the recursion has none.
-fn gains(world: &World, setup: &ControlSetup, mask: &[bool]) -> (StateMatrix, StateMatrix) {
+/// The offsets of every unit's estimate [m], indexed like `Model::units`.
+type Offsets = Vec<[f64; 2]>;
+
+/// The unit of a filter that keeps `mask`, with its gain terms: steady state, or the worst
+/// posterior over the run from P0 when the recursion has none.
+fn unit(world: &World, setup: &ControlSetup, mask: Vec<bool>, gamma: f64) -> Unit {
     let model = &setup.config.model;
     let dt = world.control_dt();
-    let ss = steady_state_riccati(model, mask, dt);
-    let (prior, post) = if ss.converged && ss.posterior.iter().all(|v| v.is_finite()) {
+    let ss = steady_state_riccati(model, &mask, dt);
+    let steady = ss.converged && ss.posterior.iter().all(|v| v.is_finite());
+    let (prior, post) = if steady {
         (ss.prior, ss.posterior)
     } else {
         let n = (world.file.duration / dt).ceil() as usize;
-        let post = horizon_posterior_max(model, mask, dt, &initial_covariance(world), n);
+        let post = horizon_posterior_max(model, &mask, dt, &initial_covariance(world), n);
         let d = model.discretize(dt);
         let prior = d.phi * post * d.phi.transpose() + d.qd;
         (prior, post)
     };
-    let m = gain_product(model, mask, &post, dt);
+    let m = gain_product(model, &mask, &post, dt);
     let diff = (prior - post) / dt;
-    (m, (diff + diff.transpose()) * 0.5)
+    Unit {
+        gamma,
+        m,
+        n: (diff + diff.transpose()) * 0.5,
+        prior: steady.then_some(prior),
+        mask,
+    }
 }
 
 /// The packed index of pair (i, j), i ≠ j, among m patterns (the order of `ParamReport::theta`).
@@ -454,22 +477,15 @@ impl<'a> Model<'a> {
             ControllerKind::FtCbfClf => (0..m)
                 .map(|i| {
                     let mask = channel_mask(q, &cfg.fault_patterns, &[i]);
-                    let (mm, nn) = gains(world, setup, &mask);
-                    Unit {
-                        gamma: setup.params.gamma[i],
-                        m: mm,
-                        n: nn,
-                    }
+                    unit(world, setup, mask, setup.params.gamma[i])
                 })
                 .collect(),
-            ControllerKind::Baseline => {
-                let (mm, nn) = gains(world, setup, &vec![true; q]);
-                vec![Unit {
-                    gamma: setup.params.gamma_baseline,
-                    m: mm,
-                    n: nn,
-                }]
-            }
+            ControllerKind::Baseline => vec![unit(
+                world,
+                setup,
+                vec![true; q],
+                setup.params.gamma_baseline,
+            )],
         };
         let x0 = cfg.x0;
         let mut path = vec![[x0[0], x0[1]]];
@@ -509,7 +525,7 @@ impl<'a> Model<'a> {
             .map(|a| format!("{} on {}", a.kind.name(), a.channels.join("+")))
             .collect::<Vec<_>>()
             .join(", ");
-        Some(Self {
+        let mut model = Self {
             setup,
             units,
             spoofed,
@@ -522,7 +538,152 @@ impl<'a> Model<'a> {
             max_coord,
             attack_name,
             world,
-        })
+            response: None,
+        };
+        model.response = model.responses();
+        Some(model)
+    }
+
+    /// Each spoofed unit's estimate offset at every control step, exact by linearity: a
+    /// steady-state Kalman filter's estimate moves by its own response to the offsets the attack
+    /// adds to its readings (`update_gains`), whatever the state and the input, so the offset
+    /// is that response to [`open_loop_offset`] along the planned timeline ([`Model::truth_at`]).
+    /// A position fix attacked in a filter that also reads velocity is pulled back by it, a
+    /// velocity offset in one that reads positions stays bounded, a scale follows the true
+    /// coordinate where the robot is. `None` (the bound of [`declared_reach`] is used instead)
+    /// when an attacked sensor is not a position or velocity fix or a speed the filters read as
+    /// world velocity, or when a spoofed filter has no steady state.
+    fn responses(&self) -> Option<Vec<Vec<[f64; 2]>>> {
+        let f = &self.world.file;
+        if f.attacks.is_empty() || self.spoofed.is_empty() {
+            return None;
+        }
+        for a in &f.attacks {
+            for c in &a.channels {
+                let s = f.sensors.iter().find(|s| &s.name == c)?;
+                let direct = matches!(
+                    s.measures,
+                    Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy
+                );
+                if !(direct || (s.measures == Quantity::Speed && s.world_velocity)) {
+                    return None;
+                }
+            }
+        }
+        let cfg = &self.setup.config;
+        let gains = self
+            .spoofed
+            .iter()
+            .map(|&(ui, _)| {
+                let u = &self.units[ui];
+                Some(update_gains(&cfg.model, &u.mask, u.prior.as_ref()?))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let dt = self.world.control_dt();
+        let n = (f.duration / dt).ceil() as usize + 1;
+        let phi = cfg.model.discretize(dt).phi;
+        let q = cfg.model.channels();
+        let mut e = vec![State::zeros(); gains.len()];
+        let mut out = vec![Vec::with_capacity(n); gains.len()];
+        let mut d = vec![0.0; q];
+        for k in 0..n {
+            let t = k as f64 * dt;
+            for (ch, dk) in d.iter_mut().enumerate() {
+                let s = &f.sensors[self.setup.sensor_of_channel[ch]];
+                let truth = |tt: f64| {
+                    let (p, tan, v) = self.truth_at(tt);
+                    match s.measures {
+                        Quantity::X => p[0],
+                        Quantity::Y => p[1],
+                        Quantity::Vx => v * tan[0],
+                        Quantity::Vy => v * tan[1],
+                        _ => v,
+                    }
+                };
+                let off: f64 = f
+                    .attacks
+                    .iter()
+                    .filter_map(|a| {
+                        let j = a.channels.iter().position(|c| c == &s.name)?;
+                        Some(open_loop_offset(a, j, t, &truth))
+                    })
+                    .sum();
+                *dk = if s.measures == Quantity::Speed {
+                    // Read as world velocity along the heading: the path's direction.
+                    let tan = self.truth_at(t).1;
+                    off * if cfg.model.c[ch][2] != 0.0 {
+                        tan[0]
+                    } else {
+                        tan[1]
+                    }
+                } else {
+                    off
+                };
+            }
+            for ((ek, g), o) in e.iter_mut().zip(&gains).zip(out.iter_mut()) {
+                let mut x = phi * *ek;
+                for (ch, kg, ikc) in g {
+                    x = ikc * x + kg * d[*ch];
+                }
+                *ek = x;
+                o.push([x[0], x[1]]);
+            }
+        }
+        Some(out)
+    }
+
+    /// Where the robot is assumed at time `t` on the planned timeline (still for
+    /// [`START_DELAY`], then along the path at `speed`, then at the goal): position, the path's
+    /// direction there (the heading), and speed.
+    fn truth_at(&self, t: f64) -> ([f64; 2], [f64; 2], f64) {
+        let along = ((t - START_DELAY) * self.speed).max(0.0);
+        let moving = t > START_DELAY && along < self.length();
+        let mut rest = along;
+        let mut last = ([self.path[0][0], self.path[0][1]], [1.0, 0.0]);
+        for w in self.path.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+            if len < 1e-9 {
+                continue;
+            }
+            let tan = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+            if rest <= len {
+                let p = [a[0] + tan[0] * rest, a[1] + tan[1] * rest];
+                return (p, tan, if moving { self.speed } else { 0.0 });
+            }
+            rest -= len;
+            last = (b, tan);
+        }
+        (last.0, last.1, 0.0)
+    }
+
+    /// The estimates' offsets to try at time `t`: none without attack; under it, the exact
+    /// response where there is one, else every direction of the declared reach for every
+    /// spoofed unit.
+    fn scenarios_at(&self, t: f64, attack: bool) -> Vec<Offsets> {
+        let zero = vec![[0.0, 0.0]; self.units.len()];
+        if !attack {
+            return vec![zero];
+        }
+        if let Some(resp) = &self.response {
+            let mut v = zero;
+            for (&(ui, _), r) in self.spoofed.iter().zip(resp) {
+                let k = ((t / self.world.control_dt()).round().max(0.0) as usize)
+                    .min(r.len().saturating_sub(1));
+                v[ui] = r.get(k).copied().unwrap_or([0.0, 0.0]);
+            }
+            return vec![v];
+        }
+        offsets(self.axes, self.reach_at(t))
+            .into_iter()
+            .map(|o| {
+                let mut v = zero.clone();
+                for &(ui, _) in &self.spoofed {
+                    v[ui] = o;
+                }
+                v
+            })
+            .collect()
     }
 
     /// The rows `a·u ≤ b` (unit normals) of every unit at its estimate, with the barrier index
@@ -530,7 +691,7 @@ impl<'a> Model<'a> {
     fn rows(
         &self,
         p: [f64; 2],
-        offset: [f64; 2],
+        offsets: &[[f64; 2]],
         t: f64,
         kappa: f64,
         out: &mut Vec<(HalfSpace, usize, f64)>,
@@ -538,19 +699,16 @@ impl<'a> Model<'a> {
         out.clear();
         let cfg = &self.setup.config;
         for (ui, u) in self.units.iter().enumerate() {
-            let off = match self.spoofed.iter().find(|(i, _)| *i == ui) {
-                // Step 2 drops an estimate farther than θ_ia(t) from the honest one (the
-                // baseline has no Step 2).
-                Some(&(i, a))
-                    if cfg.kind == ControllerKind::FtCbfClf
-                        && offset[0].hypot(offset[1])
-                            > theta_at(self.setup, self.patterns, i, a, t) =>
+            let off = offsets[ui];
+            // Step 2 drops an estimate farther than θ_ia(t) from the honest one (the baseline
+            // has no Step 2).
+            if let Some(&(i, a)) = self.spoofed.iter().find(|(i, _)| *i == ui) {
+                if cfg.kind == ControllerKind::FtCbfClf
+                    && off[0].hypot(off[1]) > theta_at(self.setup, self.patterns, i, a, t)
                 {
-                    continue
+                    continue;
                 }
-                Some(_) => offset,
-                None => [0.0, 0.0],
-            };
+            }
             let x = State::new(p[0] + off[0], p[1] + off[1], 0.0, 0.0);
             for (bi, b) in cfg.barriers.iter().enumerate() {
                 let eval = b.eval(&x);
@@ -575,7 +733,7 @@ impl Model<'_> {
         &self,
         p: [f64; 2],
         t: [f64; 2],
-        o: [f64; 2],
+        o: &[[f64; 2]],
         time: f64,
         (kappa, limit): (f64, Option<Input>),
         rows: &mut Vec<(HalfSpace, usize, f64)>,
@@ -783,12 +941,13 @@ fn case(
     kappa: f64,
     limit: Option<Input>,
 ) -> LivenessCase {
-    let offs_at = |t: f64| -> Vec<[f64; 2]> {
-        if attack {
-            offsets(model.axes, model.reach_at(t))
-        } else {
-            vec![[0.0, 0.0]]
-        }
+    let offs_at = |t: f64| model.scenarios_at(t, attack);
+    // The largest offset of a scenario, and that offset.
+    let largest = |o: &[[f64; 2]]| {
+        o.iter()
+            .copied()
+            .max_by(|a, b| a[0].hypot(a[1]).total_cmp(&b[0].hypot(b[1])))
+            .unwrap_or([0.0, 0.0])
     };
     let mut applied: f64 = 0.0;
     let mut rows = Vec::new();
@@ -797,24 +956,25 @@ fn case(
     'path: for (p, t, along) in samples(&model.path) {
         let time = model.time_at(along);
         for o in offs_at(time) {
-            let r = o[0].hypot(o[1]);
+            let big = largest(&o);
+            let r = big[0].hypot(big[1]);
             if r <= model.theta_max(time) {
                 applied = applied.max(r);
             }
-            match model.progress_near(p, t, o, time, (kappa, limit), &mut rows) {
+            match model.progress_near(p, t, &o, time, (kappa, limit), &mut rows) {
                 Ok((a, q)) => {
                     if a < least.0 {
                         least = (a, q);
                     }
                 }
                 Err(blocked) => {
-                    model.rows(p, o, time, kappa, &mut rows);
+                    model.rows(p, &o, time, kappa, &mut rows);
                     stall = Some(Stall {
                         at: p,
                         along,
                         blocked,
                         binding: binding(model, &rows),
-                        offset: o,
+                        offset: big,
                     });
                     break 'path;
                 }
@@ -824,14 +984,15 @@ fn case(
     // Holding: u = 0 satisfies every row at rest at some point of the goal set, at every time
     // from the robot's arrival to the end of the run.
     let arrive = model.time_at(model.length()).min(model.world.file.duration);
-    let times: Vec<f64> = (0..=HOLD_TIMES)
-        .map(|k| {
-            arrive + (model.world.file.duration - arrive) * f64::from(k) / f64::from(HOLD_TIMES)
-        })
+    let n_hold = ((model.world.file.duration - arrive) / HOLD_STEP)
+        .ceil()
+        .max(0.0) as u32;
+    let times: Vec<f64> = (0..=n_hold)
+        .map(|k| (arrive + f64::from(k) * HOLD_STEP).min(model.world.file.duration))
         .collect();
     let mut holds_at = |g: [f64; 2]| {
         times.iter().all(|&t| {
-            offs_at(t).iter().all(|&o| {
+            offs_at(t).iter().all(|o| {
                 model.rows(g, o, t, kappa, &mut rows);
                 rows.iter()
                     .all(|(h, _, _)| h.offset.is_finite() && h.offset >= -1e-12)
