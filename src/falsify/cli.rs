@@ -73,7 +73,8 @@ pub struct FalsifyArgs {
     #[arg(long, value_name = "KEY=VALUE", value_parser = super::scenario::parse_range,
           requires = "scenario")]
     pub range: Vec<(String, f64)>,
-    /// Where --scenario writes a regression world per defect [default: runs/<world>-scenario/].
+    /// Where --scenario writes a regression world per defect [default: runs/<world>-scenario/]
+    /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,
 }
@@ -226,9 +227,11 @@ fn scenario_command(
     template: &WorldTemplate,
     settings: &Settings,
 ) -> anyhow::Result<()> {
-    use super::scenario::{scenario, write_defect, Ranges};
-    if args.out.is_some() || args.no_record || args.no_random {
-        eprintln!("note: --out, --no-record and --no-random apply to the attack search, not to --scenario");
+    use super::scenario::{scenario, write_defects, write_run, Ranges};
+    if args.no_record || args.no_random {
+        eprintln!(
+            "note: --no-record and --no-random apply to the attack search, not to --scenario"
+        );
     }
     let ranges = Ranges::resolve(&template.world, &args.range)?;
     let mut report = scenario(template, settings, &ranges)?;
@@ -236,11 +239,29 @@ fn scenario_command(
         .defects
         .clone()
         .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}-scenario", report.world)));
-    for i in 0..report.defects.len() {
-        let file = write_defect(template, &report, &report.defects[i], &dir)?;
-        report.defects[i].file = file;
+    write_defects(template, &mut report, &dir)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| dir.join(format!("{}-scenario-worst.toml", report.world)));
+    if let Some(w) = report.worst.clone() {
+        write_run(
+            template,
+            &report,
+            &w,
+            &format!("{}_scenario_worst", report.world),
+            "The worst run of the scenario search",
+            &out,
+        )?;
     }
     print!("{}", report.text());
+    if report.worst.is_some() {
+        println!(
+            "worst run written to {}; `ftcbf run {}` replays it (identical ρ)",
+            out.display(),
+            out.display()
+        );
+    }
     if let Some(j) = &args.json {
         let text = serde_json::to_string_pretty(&report).context("serialising the report")?;
         std::fs::write(j, text + "\n").with_context(|| format!("cannot write {}", j.display()))?;

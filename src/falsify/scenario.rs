@@ -217,6 +217,15 @@ fn round_to(x: f64, digits: i32) -> f64 {
     (x * f).round() / f
 }
 
+/// Rounded to 6 significant digits: a moved value (a sum or product of short numbers) is
+/// written short, and the in-memory variant holds exactly what the file says.
+fn sig6(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.5e}").parse().unwrap_or(x)
+}
+
 /// Uniform in [−r, r], rounded to `digits` decimals.
 fn sym(rng: &mut ChaCha8Rng, r: f64, digits: i32) -> f64 {
     if r == 0.0 {
@@ -227,9 +236,10 @@ fn sym(rng: &mut ChaCha8Rng, r: f64, digits: i32) -> f64 {
 
 fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
     let mut s = shape.clone();
+    let f = |v: &mut f64| *v = sig6(*v * f);
     match &mut s {
-        ShapeSpec::Cuboid { half_extents } => half_extents.iter_mut().for_each(|v| *v *= f),
-        ShapeSpec::Ball { radius } => *radius *= f,
+        ShapeSpec::Cuboid { half_extents } => half_extents.iter_mut().for_each(f),
+        ShapeSpec::Ball { radius } => f(radius),
         ShapeSpec::Cylinder {
             radius,
             half_height,
@@ -242,10 +252,10 @@ fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
             radius,
             half_height,
         } => {
-            *radius *= f;
-            *half_height *= f;
+            f(radius);
+            f(half_height);
         }
-        ShapeSpec::ConvexHull { points } => points.iter_mut().flatten().for_each(|v| *v *= f),
+        ShapeSpec::ConvexHull { points } => points.iter_mut().flatten().for_each(f),
         ShapeSpec::HalfSpace { .. } => {}
         ShapeSpec::TriMesh {
             vertices,
@@ -254,9 +264,11 @@ fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
             ..
         } => {
             if file.is_some() {
-                *scale = Some(scale.unwrap_or(1.0) * f);
+                let mut k = scale.unwrap_or(1.0);
+                f(&mut k);
+                *scale = Some(k);
             } else {
-                vertices.iter_mut().flatten().for_each(|v| *v *= f);
+                vertices.iter_mut().flatten().for_each(f);
             }
         }
     }
@@ -309,40 +321,43 @@ impl Variant {
     /// `file` moved by this variant, with `controller` as its controller.
     pub fn apply(&self, file: &WorldFile, controller: &str) -> WorldFile {
         let mut f = file.clone();
+        let add = |v: &mut f64, d: f64| *v = sig6(*v + d);
         for (o, (d, s)) in f.obstacles.iter_mut().zip(&self.obstacles) {
-            o.position[0] += d[0];
-            o.position[1] += d[1];
-            o.shape = scaled(&o.shape, *s);
+            add(&mut o.position[0], d[0]);
+            add(&mut o.position[1], d[1]);
+            if *s != 1.0 {
+                o.shape = scaled(&o.shape, *s);
+            }
         }
         match f.dynamics {
             Dynamics::Rapier => {
                 if let Some(rb) = &mut f.robot {
-                    rb.start.x += self.start[0];
-                    rb.start.y += self.start[1];
-                    rb.start.theta += self.start[2];
+                    add(&mut rb.start.x, self.start[0]);
+                    add(&mut rb.start.y, self.start[1]);
+                    add(&mut rb.start.theta, self.start[2]);
                 }
             }
             Dynamics::Linear => {
                 if let Some(l) = &mut f.linear {
-                    l.x0[0] += self.start[0];
-                    l.x0[1] += self.start[1];
+                    add(&mut l.x0[0], self.start[0]);
+                    add(&mut l.x0[1], self.start[1]);
                 }
             }
         }
-        f.goal.center[0] += self.goal[0];
-        f.goal.center[1] += self.goal[1];
+        add(&mut f.goal.center[0], self.goal[0]);
+        add(&mut f.goal.center[1], self.goal[1]);
         for w in &mut f.goal.waypoints {
-            w[0] += self.goal[0];
-            w[1] += self.goal[1];
+            add(&mut w[0], self.goal[0]);
+            add(&mut w[1], self.goal[1]);
         }
         for (s, k) in f.sensors.iter_mut().zip(&self.noise) {
-            s.noise_std *= k;
+            s.noise_std = sig6(s.noise_std * k);
         }
         let t = f.duration;
         for a in &mut f.attacks {
-            let start = (a.start + self.onset).clamp(0.0, 0.9 * t);
+            let start = sig6((a.start + self.onset).clamp(0.0, 0.9 * t));
             if let Some(e) = a.end {
-                a.end = Some((e + self.onset).max(start + 0.02));
+                a.end = Some(sig6((e + self.onset).max(start + 0.02)));
             }
             a.start = start;
         }
@@ -872,15 +887,16 @@ impl WorldTemplate {
     }
 }
 
-/// Writes a defect's world to `dir`, runs it as `ftcbf run` would, and checks that it replays
-/// the defect's ρ bit for bit; returns the file's path.
-pub fn write_defect(
+/// Writes the world of run `r` of `report` at `out` (header line `what` says why), runs it as
+/// `ftcbf run` would, and checks that it replays the run's ρ bit for bit.
+pub fn write_run(
     template: &WorldTemplate,
     report: &ScenarioReport,
-    defect: &Defect,
-    dir: &Path,
-) -> anyhow::Result<String> {
-    let r = &defect.run;
+    r: &ScenarioRun,
+    name: &str,
+    what: &str,
+    out: &Path,
+) -> anyhow::Result<()> {
     let variant = &report.accepted[r.variant];
     let space = SearchSpace::new(&template.world)?;
     let attacks = match &r.candidate {
@@ -891,18 +907,11 @@ pub fn write_defect(
                 .attacks
         }
     };
-    let name = format!(
-        "{}_scenario_v{}_{}",
-        report.world,
-        variant.index,
-        report.controller.replace('-', "_")
-    );
     let description = format!(
-        "A defect `ftcbf falsify --scenario` found on {}: {}; attack {}; `check` says \"{}\", yet the run is unsafe: ρ = {}.",
-        report.world,
+        "{what}: {} on {}; attack {}; ρ = {}.",
         variant.describe(),
+        report.world,
         r.attack,
-        defect.verdict,
         r.robustness.display()
     );
     let header = vec![
@@ -910,26 +919,24 @@ pub fn write_defect(
             "Written by `ftcbf falsify {} --scenario --controller {} --seed {} --budget {}`.",
             report.world_file, report.controller, report.seed, report.plan.budget
         ),
+        format!("{what}."),
         format!("{} (run seed {}).", variant.describe(), r.seed),
         format!("Attack: {}.", r.attack),
-        format!("check: {}", defect.verdict),
-        format!(
-            "ρ = {} → UNSAFE where check says Theorem 3 applies.",
-            r.robustness.display()
-        ),
+        format!("ρ = {}.", r.robustness.display()),
     ];
     let info = super::ReplayInfo {
-        name: &name,
+        name,
         description: &description,
         seed: r.seed,
         controller: &report.controller,
         header: &header,
     };
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let out = dir.join(format!("{name}_s{}.toml", r.seed));
-    let text = template.scenario_text(variant, &attacks, &info, &out)?;
-    std::fs::write(&out, &text).with_context(|| format!("cannot write {}", out.display()))?;
-    let world = World::load(&out, &[])
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let text = template.scenario_text(variant, &attacks, &info, out)?;
+    std::fs::write(out, &text).with_context(|| format!("cannot write {}", out.display()))?;
+    let world = World::load(out, &[])
         .with_context(|| format!("the written world {} does not load", out.display()))?;
     let s = run(&world, &RunOptions::default())?;
     let rho = Robustness::of(&world, &s).ok_or_else(|| anyhow!("no safe set and no obstacle"))?;
@@ -941,7 +948,27 @@ pub fn write_defect(
             r.robustness.display()
         ));
     }
-    Ok(out.display().to_string())
+    Ok(())
+}
+
+/// Writes every defect of `report` into `dir` ([`write_run`]) and records the file names.
+pub fn write_defects(
+    template: &WorldTemplate,
+    report: &mut ScenarioReport,
+    dir: &Path,
+) -> anyhow::Result<()> {
+    for i in 0..report.defects.len() {
+        let d = &report.defects[i];
+        let name = format!(
+            "{}_scenario_v{}_s{}",
+            report.world, report.accepted[d.run.variant].index, d.run.seed
+        );
+        let out = dir.join(format!("{name}.toml"));
+        let what = format!("DEFECT: unsafe where check says \"{}\"", d.verdict);
+        write_run(template, report, &d.run, &name, &what, &out)?;
+        report.defects[i].file = out.display().to_string();
+    }
+    Ok(())
 }
 
 impl ScenarioReport {
