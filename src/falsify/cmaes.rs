@@ -139,6 +139,28 @@ impl Cmaes {
             .collect()
     }
 
+    /// Spends `budget` evaluations: generations of λ points (the last one smaller if `budget`
+    /// is not a multiple of λ), each evaluated by `evaluate` (one objective value per point,
+    /// lower is better) and told. Returns the lowest value seen (∞ if `budget` is 0).
+    pub fn spend<E>(
+        &mut self,
+        rng: &mut ChaCha8Rng,
+        budget: usize,
+        mut evaluate: impl FnMut(&[Vec<f64>]) -> Result<Vec<f64>, E>,
+    ) -> Result<f64, E> {
+        let mut best = f64::INFINITY;
+        let mut left = budget;
+        while left > 0 {
+            let mut xs = self.ask(rng);
+            xs.truncate(left);
+            left -= xs.len();
+            let f = evaluate(&xs)?;
+            best = f.iter().copied().fold(best, f64::min);
+            self.tell(&xs, &f);
+        }
+        Ok(best)
+    }
+
     /// Updates from the points `xs` (as [`Cmaes::ask`] returned them, or any points of the box)
     /// and their objective values `f` (lower is better; NaN ranks last).
     pub fn tell(&mut self, xs: &[Vec<f64>], f: &[f64]) {
@@ -278,6 +300,22 @@ mod tests {
         // Rosenbrock in 4-D has a local minimum near y = (−1, 1, 1, 1) that a small population
         // can end in; most seeds find the global one.
         assert!(solved >= 4, "solved on {solved}/5 seeds");
+    }
+
+    #[test]
+    fn spend_uses_exactly_the_budget() {
+        let mut es = Cmaes::new(&[0.5; 3], 0.2, &[1.0; 3], 4);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut calls = Vec::new();
+        let best = es
+            .spend(&mut rng, 10, |xs| {
+                calls.push(xs.len());
+                Ok::<_, ()>(xs.iter().map(|x| x.iter().map(|v| v * v).sum()).collect())
+            })
+            .expect("spend");
+        assert_eq!(calls, vec![4, 4, 2]);
+        assert_eq!(es.generation(), 3);
+        assert!(best < 0.75, "{best}");
     }
 
     #[test]

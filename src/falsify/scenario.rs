@@ -31,15 +31,15 @@ use ftcbf_sim::check::check_world;
 use ftcbf_sim::obstacles::ShapeSpec;
 use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::runner::{run, RunOptions};
-use ftcbf_sim::world::{Dynamics, FalsifySection, World, WorldFile};
+use ftcbf_sim::world::{Dynamics, World, WorldFile};
 use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use toml_edit::{Array, DocumentMut, InlineTable, Item};
 
-use super::search::run_seed;
-use super::space::{Candidate, SearchSpace, KINDS};
+use super::search::{run_seed, uniform};
+use super::space::{Candidate, SearchSpace};
 use super::{cmaes, Robustness, Settings, WorldTemplate};
 use crate::batch::{progress_bar, run_parallel, trial_seed, worker_pool};
 
@@ -143,29 +143,12 @@ impl Ranges {
     pub fn resolve(world: &World, overrides: &[(String, f64)]) -> anyhow::Result<Ranges> {
         let mut r = Ranges::default();
         if let Some(t) = &world.file.falsify {
-            let FalsifySection {
-                obstacle_shift,
-                obstacle_scale,
-                start_shift,
-                start_heading,
-                goal_shift,
-                noise,
-                onset_shift,
-            } = t;
-            let declared = [
-                obstacle_shift,
-                obstacle_scale,
-                start_shift,
-                start_heading,
-                goal_shift,
-                noise,
-                onset_shift,
-            ];
-            for (key, v) in RANGE_KEYS.iter().zip(declared) {
-                if let Some(v) = v {
-                    r.set(key, *v)
-                        .map_err(|e| anyhow!("{}: [falsify] {e}", world.path.display()))?;
-                }
+            // The declared keys (absent ones are not serialised), in the table's names.
+            let declared = toml::Table::try_from(t).context("reading the [falsify] table")?;
+            for (key, v) in declared {
+                let v = v.as_float().unwrap_or(f64::NAN);
+                r.set(&key, v)
+                    .map_err(|e| anyhow!("{}: [falsify] {e}", world.path.display()))?;
             }
         }
         for (key, v) in overrides {
@@ -624,11 +607,7 @@ pub fn scenario(
             let candidate = if j == 0 && runs > ATTACKS_PER_VARIANT {
                 None
             } else {
-                Some(Candidate {
-                    pattern: rng.random_range(0..space.patterns.len()),
-                    kind: KINDS[rng.random_range(0..KINDS.len())],
-                    z: (0..space.dim).map(|_| rng.random::<f64>()).collect(),
-                })
+                Some(uniform(&space, &mut rng))
             };
             tasks.push(Task {
                 variant: k,
@@ -705,38 +684,27 @@ pub fn scenario(
         let lambda = cmaes::default_lambda(c0.z.len()).min(share / 3).max(2);
         let sigma0 = 0.15;
         let mut es = cmaes::Cmaes::new(&c0.z, sigma0, &vec![1.0; c0.z.len()], lambda);
-        let mut best = start.robustness.value;
-        let mut left = share;
         bar.set_message(format!(
             "{}: CMA-ES on variant {}",
             base.name, accepted[start.variant].variant.index
         ));
-        while left > 0 {
-            let mut zs = es.ask(&mut rng);
-            zs.truncate(left);
-            left -= zs.len();
-            let cs: Vec<Candidate> = zs
-                .iter()
-                .map(|z| Candidate {
-                    pattern: c0.pattern,
-                    kind: c0.kind,
-                    z: z.clone(),
-                })
-                .collect();
-            let rs = run_parallel(&pool, &cs, &bar, |c| {
-                one(start.variant, start.seed, Some(c))
-            })?;
-            let f: Vec<f64> = rs
-                .iter()
-                .map(|r| r.robustness.value - if r.robustness.collided { 10.0 } else { 0.0 })
-                .collect();
-            best = f.iter().copied().fold(best, f64::min);
-            es.tell(&zs, &f);
-            runs.extend(rs.into_iter().map(|mut r| {
-                r.phase = "cmaes";
-                r
-            }));
-        }
+        let best = es
+            .spend(&mut rng, share, |zs| {
+                let cs: Vec<Candidate> = zs.iter().map(|z| c0.with_z(z)).collect();
+                let rs = run_parallel(&pool, &cs, &bar, |c| {
+                    one(start.variant, start.seed, Some(c))
+                })?;
+                let f = rs
+                    .iter()
+                    .map(|r| r.robustness.value - if r.robustness.collided { 10.0 } else { 0.0 })
+                    .collect();
+                runs.extend(rs.into_iter().map(|mut r| {
+                    r.phase = "cmaes";
+                    r
+                }));
+                Ok::<_, anyhow::Error>(f)
+            })?
+            .min(start.robustness.value);
         cma_traces.push(ScenarioCma {
             variant: start.variant,
             seed: start.seed,
@@ -1110,9 +1078,10 @@ mod tests {
         );
         assert_eq!(
             s,
+            // 0.2 × 1.5 is 0.30000000000000004 in f64: scaled sizes keep 6 significant digits.
             ShapeSpec::Cylinder {
-                radius: 0.2 * 1.5,
-                half_height: 0.5 * 1.5
+                radius: 0.3,
+                half_height: 0.75
             }
         );
         let h = ShapeSpec::HalfSpace {

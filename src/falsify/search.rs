@@ -498,7 +498,8 @@ fn categorical(p: &[f64], rng: &mut ChaCha8Rng) -> usize {
     p.len() - 1
 }
 
-fn uniform(space: &SearchSpace, rng: &mut ChaCha8Rng) -> Candidate {
+/// A uniform point of `space`: pattern, kind and every continuous parameter.
+pub(super) fn uniform(space: &SearchSpace, rng: &mut ChaCha8Rng) -> Candidate {
     let pattern = rng.random_range(0..space.patterns.len());
     let kind = KINDS[rng.random_range(0..KINDS.len())];
     let z = (0..space.dim).map(|_| rng.random::<f64>()).collect();
@@ -761,27 +762,14 @@ fn cma_refine(
                 .filter(|e| e.candidate == *start)
                 .count()
                 .max(1) as f64;
-        let mut best = f64::INFINITY;
-        let mut left = share;
-        while left > 0 {
-            let mut zs = es.ask(&mut rng);
-            zs.truncate(left);
-            left -= zs.len();
-            let candidates: Vec<Candidate> = zs
-                .iter()
-                .map(|z| Candidate {
-                    pattern: start.pattern,
-                    kind: start.kind,
-                    z: z.clone(),
-                })
-                .collect();
+        let best = es.spend(&mut rng, share, |zs| {
+            let candidates: Vec<Candidate> = zs.iter().map(|z| start.with_z(z)).collect();
             let mut evals = evaluate(plan.cma_from, candidates)?;
             evals.iter_mut().for_each(|e| e.cmaes = true);
-            let f: Vec<f64> = evals.iter().map(cma_objective).collect();
-            best = f.iter().copied().fold(best, f64::min);
-            es.tell(&zs, &f);
+            let f = evals.iter().map(cma_objective).collect();
             out.extend(evals);
-        }
+            Ok::<_, anyhow::Error>(f)
+        })?;
         traces.push(CmaTrace {
             pattern: start.pattern,
             kind: start.kind,
