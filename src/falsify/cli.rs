@@ -21,7 +21,8 @@ use crate::falsify::search::MIN_BUDGET;
 /// of the signed obstacle clearance (negative = unsafe; a collision ranks below any run without
 /// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, starting
 /// from random search's first candidates and carrying its best candidates from one generation to
-/// the next, re-runs its best 3 candidates on held-out seeds, then spends a fourth finalist's
+/// the next, spends its last third of generations on CMA-ES over the continuous parameters of
+/// its best (pattern, kind) cells, re-runs its best 3 candidates on held-out seeds, then spends a fourth finalist's
 /// runs descending from its worst run so far on that run's seed (with the noise fixed, ρ is a
 /// deterministic function of the attack); random search (4 finalists) with the same
 /// budget and seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
@@ -32,7 +33,8 @@ use crate::falsify::search::MIN_BUDGET;
 #[command(after_help = "Examples:
   ftcbf falsify worlds/paper_turtlebot.toml --controller baseline --budget 200 --out worst.toml
   ftcbf run worst.toml                       # replays the worst run (seed and controller are in the file)
-  ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record")]
+  ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record
+  ftcbf falsify worlds/corridor_spoof.toml --scenario --budget 32 --range obstacle_shift=0.3 --json scen.json")]
 pub struct FalsifyArgs {
     /// World file (TOML). Its own [[attacks]] are replaced by the searched ones.
     pub world: PathBuf,
