@@ -133,7 +133,11 @@ fn dispatch(command: Command) -> Result<(), Failure> {
         }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
         Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
-            code: code_of(&e),
+            code: if e.is::<falsify::UsageError>() {
+                EXIT_USAGE
+            } else {
+                code_of(&e)
+            },
             error: e,
         }),
         Command::Gen(a) => cmd_gen(&a).map_err(Failure::from),

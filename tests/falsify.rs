@@ -314,3 +314,170 @@ fn falsify_counterexamples_are_explained_and_regressed() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert!(text(&o).contains("0 failed"), "{}", text(&o));
 }
+
+/// `--scenario` (issue #31): the same seed gives the same report and worst-run world for any
+/// --jobs (the time aside); the JSON counts the variants tried, accepted by `check` and the
+/// unsafe runs where it applies; the written worst run replays with `ftcbf run`; the [falsify]
+/// table of the world file moves the ranges.
+#[test]
+fn scenario_search_is_deterministic_counts_and_replays() {
+    let world = "worlds/corridor_spoof.toml";
+    let mut reports = Vec::new();
+    let mut worlds = Vec::new();
+    for jobs in ["1", "2"] {
+        let json = tmp(&format!("scenario-{jobs}.json"));
+        let out = tmp(&format!("scenario-{jobs}.toml"));
+        let o = ftcbf(&[
+            "falsify",
+            world,
+            "--scenario",
+            "--budget",
+            "8",
+            "--jobs",
+            jobs,
+            "--json",
+            s(&json),
+            "--out",
+            s(&out),
+            "--defects",
+            s(&tmp("scenario-defects")),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        assert!(text(&o).contains("variants: "), "{}", text(&o));
+        let mut v = read_json(&json);
+        assert!(v["time_seconds"].as_f64().is_some_and(|t| t > 0.0));
+        v["time_seconds"] = Value::Null;
+        reports.push(v);
+        worlds.push(std::fs::read_to_string(&out).expect("worst world"));
+    }
+    assert_eq!(reports[0], reports[1]);
+    assert_eq!(worlds[0], worlds[1]);
+    let v = &reports[0];
+    // budget 8 with the world's own attack: 1 variant × (own + 3 uniform) + 2 + 2 CMA-ES runs.
+    assert_eq!(v["plan"]["runs_per_variant"], 4);
+    assert_eq!(v["plan"]["variants_wanted"], 1);
+    let tried = v["variants_tried"].as_u64().expect("tried");
+    let accepted = v["variants_accepted"].as_u64().expect("accepted");
+    let rejected = [
+        "variants_invalid",
+        "variants_not_applies",
+        "variants_not_live",
+    ]
+    .iter()
+    .map(|k| v[k].as_u64().expect("count"))
+    .sum::<u64>();
+    assert_eq!(accepted, 1, "{v}");
+    assert!(tried >= accepted && rejected <= tried - accepted, "{v}");
+    assert_eq!(v["runs"], 8);
+    assert_eq!(v["unsafe_where_applies"], 0);
+    assert_eq!(v["defects"].as_array().map(Vec::len), Some(0));
+    // The variant moved the world: the written worst run is not the catalogue file's start.
+    let written: toml::Table = toml::from_str(&worlds[0]).expect("TOML");
+    let original: toml::Table =
+        toml::from_str(&std::fs::read_to_string(world).expect("world")).expect("TOML");
+    assert_ne!(written["goal"]["center"], original["goal"]["center"]);
+    assert!(worlds[0].starts_with("# Written by `ftcbf falsify"));
+    let o = ftcbf(&["run", s(&tmp("scenario-1.toml")), "--no-record", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let summary: Value = serde_json::from_slice(&o.stdout).expect("summary JSON");
+    let worst = v["worst"]["robustness"]["value"].as_f64().expect("ρ");
+    let margins: Vec<f64> = summary["min_barrier"]
+        .as_array()
+        .expect("min_barrier")
+        .iter()
+        .filter_map(|b| b["value"].as_f64())
+        .chain(summary["min_clearance"].as_f64())
+        .collect();
+    assert!(margins.contains(&worst), "{worst} not in {margins:?}");
+
+    // A [falsify] table narrows the ranges: with every range 0 the variant is the world itself.
+    let still = tmp("still.toml");
+    let body = std::fs::read_to_string(world).expect("world");
+    std::fs::write(
+        &still,
+        format!(
+            "{}\n[falsify]\nobstacle_shift = 0.0\nobstacle_scale = 0.0\nstart_shift = 0.0\nstart_heading = 0.0\ngoal_shift = 0.0\nnoise = 0.0\nonset_shift = 0.0\n",
+            body.replace("../robots/", &format!("{}/robots/", env!("CARGO_MANIFEST_DIR")))
+        ),
+    )
+    .expect("write");
+    let json = tmp("still.json");
+    let o = ftcbf(&[
+        "falsify",
+        s(&still),
+        "--scenario",
+        "--budget",
+        "8",
+        "--json",
+        s(&json),
+        "--defects",
+        s(&tmp("still-defects")),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let v = read_json(&json);
+    assert_eq!(v["ranges"]["goal_shift"], 0.0);
+    let accepted = &v["accepted"][0];
+    assert_eq!(accepted["goal"], serde_json::json!([0.0, 0.0]));
+    assert!(accepted["noise"]
+        .as_array()
+        .expect("noise")
+        .iter()
+        .all(|k| k.as_f64() == Some(1.0)));
+}
+
+#[test]
+fn scenario_ranges_are_checked() {
+    // Unknown or out-of-range --range values are usage errors.
+    for bad in ["nosie=0.1", "noise=1.5", "goal_shift=x"] {
+        let o = ftcbf(&[
+            "falsify",
+            "worlds/corridor_spoof.toml",
+            "--scenario",
+            "--range",
+            bad,
+        ]);
+        assert_ne!(o.status.code(), Some(0), "{bad}: {}", text(&o));
+        assert!(
+            text(&o).contains("--range") || text(&o).contains("range"),
+            "{}",
+            text(&o)
+        );
+    }
+    // --range without --scenario is a usage error; so is a budget below 8 with it.
+    let o = ftcbf(&[
+        "falsify",
+        "worlds/corridor_spoof.toml",
+        "--range",
+        "noise=0.1",
+    ]);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
+    let o = ftcbf(&[
+        "falsify",
+        "worlds/corridor_spoof.toml",
+        "--scenario",
+        "--budget",
+        "7",
+    ]);
+    assert_eq!(o.status.code(), Some(64), "{}", text(&o));
+    assert!(text(&o).contains("--budget 7"), "{}", text(&o));
+    // A typo in the [falsify] table is an invalid world naming the key; a bad value names it too.
+    let body = std::fs::read_to_string("worlds/corridor_spoof.toml").expect("world");
+    let body = body.replace(
+        "../robots/",
+        &format!("{}/robots/", env!("CARGO_MANIFEST_DIR")),
+    );
+    let typo = tmp("typo.toml");
+    std::fs::write(&typo, format!("{body}\n[falsify]\nobstacle_shfit = 0.1\n")).expect("write");
+    let o = ftcbf(&["falsify", s(&typo), "--scenario", "--budget", "8"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("obstacle_shfit"), "{}", text(&o));
+    let bad = tmp("bad_range.toml");
+    std::fs::write(&bad, format!("{body}\n[falsify]\nnoise = 2.0\n")).expect("write");
+    let o = ftcbf(&["falsify", s(&bad), "--scenario", "--budget", "8"]);
+    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains("bad_range.toml") && text(&o).contains("[falsify] `noise` = 2"),
+        "{}",
+        text(&o)
+    );
+}

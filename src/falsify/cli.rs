@@ -21,7 +21,8 @@ use crate::falsify::search::MIN_BUDGET;
 /// of the signed obstacle clearance (negative = unsafe; a collision ranks below any run without
 /// one). A cross-entropy method searches with BUDGET runs, each candidate on 2 seeds, starting
 /// from random search's first candidates and carrying its best candidates from one generation to
-/// the next, re-runs its best 3 candidates on held-out seeds, then spends a fourth finalist's
+/// the next, spends its last third of generations on CMA-ES over the continuous parameters of
+/// its best (pattern, kind) cells, re-runs its best 3 candidates on held-out seeds, then spends a fourth finalist's
 /// runs descending from its worst run so far on that run's seed (with the noise fixed, ρ is a
 /// deterministic function of the attack); random search (4 finalists) with the same
 /// budget and seeds is run for comparison. The worst run is written as a world file (its attacks, seed and
@@ -32,16 +33,17 @@ use crate::falsify::search::MIN_BUDGET;
 #[command(after_help = "Examples:
   ftcbf falsify worlds/paper_turtlebot.toml --controller baseline --budget 200 --out worst.toml
   ftcbf run worst.toml                       # replays the worst run (seed and controller are in the file)
-  ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record")]
+  ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record
+  ftcbf falsify worlds/corridor_spoof.toml --scenario --budget 32 --range obstacle_shift=0.3 --json scen.json")]
 pub struct FalsifyArgs {
     /// World file (TOML). Its own [[attacks]] are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
     #[arg(long, value_name = "KIND", value_parser = ["ft-cbf-clf", "baseline", "nominal"])]
     pub controller: Option<String>,
-    /// Runs (simulations) per search method.
+    /// Runs (simulations) per search method (at least 24), or in all with --scenario (at least 8).
     #[arg(long, value_name = "N", default_value_t = 200,
-          value_parser = clap::value_parser!(u64).range(MIN_BUDGET as u64..=1_000_000))]
+          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub budget: u64,
     /// Base seed S of the candidates and of the run seeds [default: the world's seed].
     #[arg(long, value_name = "S")]
@@ -62,6 +64,21 @@ pub struct FalsifyArgs {
     /// Skip the random-search comparison (halves the runs).
     #[arg(long)]
     pub no_random: bool,
+    /// Scenario search: also vary the world (obstacles, start, goal, sensor noise, attack onset)
+    /// within the ranges of its [falsify] table and --range, keep the variants `ftcbf check`
+    /// accepts (Theorem 3 applies, robot predicted live), attack them, and report every unsafe
+    /// run there as a defect (written to --defects). --budget is then the total runs.
+    #[arg(long)]
+    pub scenario: bool,
+    /// A scenario range, overriding the [falsify] table: obstacle_shift, obstacle_scale,
+    /// start_shift, start_heading, goal_shift, noise, onset_shift (repeatable).
+    #[arg(long, value_name = "KEY=VALUE", value_parser = super::scenario::parse_range,
+          requires = "scenario")]
+    pub range: Vec<(String, f64)>,
+    /// Where --scenario writes a regression world per defect [default: runs/<world>-scenario/]
+    /// (and its worst run, unless --out says where).
+    #[arg(long, value_name = "DIR", requires = "scenario")]
+    pub defects: Option<PathBuf>,
 }
 
 fn parse_controller(s: &str) -> anyhow::Result<ControllerKindSpec> {
@@ -74,6 +91,11 @@ fn parse_controller(s: &str) -> anyhow::Result<ControllerKindSpec> {
         )),
     }
 }
+
+/// A command-line value out of range (exit 64, as clap's own usage errors).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
 
 /// The replay of the written world.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -200,6 +222,56 @@ pub fn write_worst(
     })
 }
 
+/// `ftcbf falsify --scenario`: search, write every defect's world, print the summary, write the
+/// JSON.
+fn scenario_command(
+    args: &FalsifyArgs,
+    template: &WorldTemplate,
+    settings: &Settings,
+) -> anyhow::Result<()> {
+    use super::scenario::{scenario, write_defects, write_run, Ranges};
+    if args.no_record || args.no_random {
+        eprintln!(
+            "note: --no-record and --no-random apply to the attack search, not to --scenario"
+        );
+    }
+    let ranges = Ranges::resolve(&template.world, &args.range)?;
+    let mut report = scenario(template, settings, &ranges)?;
+    let dir = args
+        .defects
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}-scenario", report.world)));
+    write_defects(template, &mut report, &dir)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| dir.join(format!("{}-scenario-worst.toml", report.world)));
+    if let Some(w) = report.worst.clone() {
+        write_run(
+            template,
+            &report,
+            &w,
+            &format!("{}_scenario_worst", report.world),
+            "The worst run of the scenario search",
+            &out,
+        )?;
+    }
+    print!("{}", report.text());
+    if report.worst.is_some() {
+        println!(
+            "worst run written to {}; `ftcbf run {}` replays it (identical ρ)",
+            out.display(),
+            out.display()
+        );
+    }
+    if let Some(j) = &args.json {
+        let text = serde_json::to_string_pretty(&report).context("serialising the report")?;
+        std::fs::write(j, text + "\n").with_context(|| format!("cannot write {}", j.display()))?;
+        eprintln!("wrote {}", j.display());
+    }
+    Ok(())
+}
+
 /// `ftcbf falsify`: search, print the summary, write the worst world, its recording and the JSON.
 pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     if let Some(j) = &args.json {
@@ -217,6 +289,23 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
                 out.display()
             ));
         }
+    }
+    let least = if args.scenario {
+        super::scenario::MIN_BUDGET
+    } else {
+        MIN_BUDGET
+    };
+    if args.budget < least as u64 {
+        return Err(UsageError(format!(
+            "--budget {}: expected at least {least} runs{}",
+            args.budget,
+            if args.scenario {
+                " with --scenario"
+            } else {
+                ""
+            }
+        ))
+        .into());
     }
     let template = WorldTemplate::load(&args.world)?;
     let controller = match &args.controller {
@@ -237,6 +326,9 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     };
     for w in super::model_warnings(&template.world) {
         eprintln!("warning: {w}");
+    }
+    if args.scenario {
+        return scenario_command(args, &template, &settings);
     }
     let report = falsify(&template, &settings)?;
     print!("{}", report.text());

@@ -15,8 +15,12 @@
 //!   the best quarter of each generation. Its first generation, twice the later ones, is random
 //!   search's first candidates on the same seeds (run once, counted in both budgets); each later
 //!   generation re-runs the previous one's best candidates on its fresh seeds (elitism), and the
-//!   last third of the generations also samples close to the previous best (local refinement of
-//!   its continuous parameters), and half of every later generation explores: uniform
+//!   CEM spends the candidates of the last third of the generations on a **CMA-ES refinement**
+//!   ([`cmaes`]) of the continuous parameters of its best (pattern, kind) cells, started at each
+//!   cell's best candidate with the CEM's spread there as its step, every candidate on the same
+//!   2 seeds (common random numbers: the seed-averaged ρ is then a deterministic function of z,
+//!   on which CMA-ES converges; the CEM's own update stalls where its elites cluster, issue #31),
+//!   and half of every later CEM generation explores: uniform
 //!   parameters in the (pattern, kind) cell tried least so far, so every kind on every pattern
 //!   is tried within the budget. The worst run is an extreme over seeds and attacks, which a
 //!   narrowed distribution alone stops sampling, and a catastrophic attack can live in one rare
@@ -46,7 +50,9 @@
 //!   the same robustness, bit for bit.
 
 mod cli;
+pub mod cmaes;
 mod robustness;
+pub mod scenario;
 pub mod search;
 pub mod space;
 mod template;
@@ -59,7 +65,7 @@ use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
 
-pub use cli::{falsify_command, FalsifyArgs};
+pub use cli::{falsify_command, FalsifyArgs, UsageError};
 pub use robustness::{Robustness, CLEARANCE};
 pub use search::{Method, MethodResult, Plan};
 pub use space::{Candidate, Kind, SearchSpace};
@@ -273,7 +279,7 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells, {} local from generation {}), then the best {} on {} held-out seeds = {} runs; the CEM re-runs one finalist fewer and spends those runs, after the held-out ones, descending from its worst run so far on that run's seed ({} rounds × {} runs)",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells); the CEM spends generations {}–{} ({} candidates, {} runs = {:.0} % of the budget) on CMA-ES over the continuous parameters of its best {} (pattern, kind) cell(s), seeded from the CEM's elites, on 2 fixed seeds; then the best {} on {} held-out seeds = {} runs; the CEM re-runs one finalist fewer and spends those runs, after the held-out ones, descending from its worst run so far on that run's seed ({} rounds × {} runs)",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,
@@ -282,8 +288,12 @@ impl Report {
             p.elites,
             p.carry,
             p.explore,
-            p.local,
-            p.local_from + 1,
+            p.cma_from + 1,
+            p.generations,
+            p.cma_candidates,
+            p.cma_candidates * p.seeds_per_candidate,
+            100.0 * (p.cma_candidates * p.seeds_per_candidate) as f64 / p.budget as f64,
+            p.cma_cells,
             p.finalists,
             p.final_seeds,
             p.runs,
@@ -309,6 +319,24 @@ impl Report {
                 b.unsafe_runs,
                 b.runs.len()
             );
+        }
+        for m in &self.methods {
+            for t in &m.cmaes {
+                let _ = writeln!(
+                    s,
+                    "{} CMA-ES on pattern {} × {}: λ = {}, {} candidates in {} generations, σ {:.3} → {:.3}; seed-averaged ρ {:.4} (start) → {:.4} (best)",
+                    m.method.name(),
+                    self.patterns.get(t.pattern).map_or("?", |p| p.name.as_str()),
+                    t.kind.name(),
+                    t.lambda,
+                    t.candidates,
+                    t.generations,
+                    t.sigma0,
+                    t.final_sigma,
+                    t.start_mean,
+                    t.best_mean
+                );
+            }
         }
         if let [cem, random] = &self.methods[..] {
             let ord = cem.witness.robustness.cmp_worse(&random.witness.robustness);

@@ -118,6 +118,17 @@ pub struct Candidate {
     pub z: Vec<f64>,
 }
 
+impl Candidate {
+    /// The same pattern and kind with continuous parameters `z`.
+    pub fn with_z(&self, z: &[f64]) -> Candidate {
+        Candidate {
+            pattern: self.pattern,
+            kind: self.kind,
+            z: z.to_vec(),
+        }
+    }
+}
+
 /// The search space of one world: its fault patterns and duration.
 #[derive(Debug, Clone)]
 pub struct SearchSpace {

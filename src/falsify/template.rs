@@ -50,7 +50,7 @@ impl WorldTemplate {
     }
 
     /// The document with `attacks` in place of the file's own `[[attacks]]`.
-    fn with_attacks(&self, attacks: &[AttackSpec]) -> anyhow::Result<DocumentMut> {
+    pub(super) fn with_attacks(&self, attacks: &[AttackSpec]) -> anyhow::Result<DocumentMut> {
         let mut doc = self.doc.clone();
         doc.remove("attacks");
         let mut aot = ArrayOfTables::new();
@@ -66,11 +66,19 @@ impl WorldTemplate {
         Ok(doc)
     }
 
-    /// The world with `attacks` in place of its own, loaded and validated exactly as
-    /// `ftcbf run` loads a file with that text next to the original.
+    /// The world with `attacks` in place of its own, validated exactly as `ftcbf run` validates
+    /// a file with those attacks next to the original, but edited in memory (no TOML or URDF is
+    /// read again; the written world's replay check confirms it is the same world).
     pub fn world_with(&self, attacks: &[AttackSpec]) -> anyhow::Result<World> {
-        let text = self.with_attacks(attacks)?.to_string();
-        World::from_str(&text, &self.path, &[])
+        self.variant_with(&self.world, attacks)
+    }
+
+    /// `base` (this world or a variant of it, see [`World::with_file`]) with `attacks` in place
+    /// of its own.
+    pub fn variant_with(&self, base: &World, attacks: &[AttackSpec]) -> anyhow::Result<World> {
+        let mut file = base.file.clone();
+        file.attacks = attacks.to_vec();
+        base.with_file(file)
             .with_context(|| format!("{}: the world with a candidate attack", self.path.display()))
     }
 
@@ -84,7 +92,16 @@ impl WorldTemplate {
         info: &ReplayInfo<'_>,
         out: &Path,
     ) -> anyhow::Result<String> {
-        let mut doc = self.with_attacks(attacks)?;
+        self.finish_replay(self.with_attacks(attacks)?, info, out)
+    }
+
+    /// [`WorldTemplate::replay_text`] of an already edited document `doc`.
+    pub(super) fn finish_replay(
+        &self,
+        mut doc: DocumentMut,
+        info: &ReplayInfo<'_>,
+        out: &Path,
+    ) -> anyhow::Result<String> {
         // The original's leading comment describes its own attack: drop it.
         if let Some((mut key, _)) = doc.as_table_mut().iter_mut().next() {
             key.leaf_decor_mut().set_prefix("");

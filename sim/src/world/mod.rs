@@ -173,7 +173,27 @@ impl World {
                 .unwrap_or_else(|| "world".into())
         });
         file.resolve_defaults();
-        let world = Validator { path }.validate(file, name)?;
+        Self::validated(file, name, path, None)
+    }
+
+    /// This world with `file` in place of its own (a copy of `self.file` edited in memory:
+    /// attacks, obstacles, start, goal, noise, …), validated exactly as [`World::from_str`]
+    /// validates a file, without reading anything again: the robot description is this world's
+    /// (so `file.robot` must name the same robot — URDF, packages, wheels, limits, xacro
+    /// arguments; its `start` may differ). Mesh obstacles are loaded from their files.
+    pub fn with_file(&self, file: WorldFile) -> Result<World, WorldError> {
+        Self::validated(file, self.name.clone(), &self.path, self.robot.clone())
+    }
+
+    /// Validates a resolved file and checks the control structure; `robot`, if given, is used
+    /// instead of loading `file.robot`'s URDF.
+    fn validated(
+        file: WorldFile,
+        name: String,
+        path: &Path,
+        robot: Option<RobotDescription>,
+    ) -> Result<World, WorldError> {
+        let world = Validator { path }.validate(file, name, robot)?;
         crate::runner::setup::check_structure(&world).map_err(|e| match e {
             crate::runner::RunError::Setup { key, message, .. } => WorldError::Invalid {
                 path: path.to_path_buf(),
@@ -725,7 +745,12 @@ impl Validator<'_> {
         Ok(())
     }
 
-    fn validate(&self, file: WorldFile, name: String) -> Result<World, WorldError> {
+    fn validate(
+        &self,
+        file: WorldFile,
+        name: String,
+        loaded: Option<RobotDescription>,
+    ) -> Result<World, WorldError> {
         self.positive("duration", file.duration)?;
         self.check_ranges(&file)?;
         let base = self.path.parent().unwrap_or_else(|| Path::new("."));
@@ -888,7 +913,10 @@ impl Validator<'_> {
         // Robot and obstacles.
         let robot = match (&file.dynamics, &file.robot) {
             (Dynamics::Rapier, Some(r)) => {
-                let robot = self.load_robot(base, r)?;
+                let robot = match loaded {
+                    Some(robot) => robot,
+                    None => self.load_robot(base, r)?,
+                };
                 self.check_robot(&robot)?;
                 Some(robot)
             }

@@ -54,6 +54,30 @@ pub struct WorldFile {
     pub attacks: Vec<AttackSpec>,
     /// Expectations that make the world a regression case.
     pub expect: Option<Expect>,
+    /// The ranges `ftcbf falsify --scenario` varies the world in (no other command reads it).
+    pub falsify: Option<FalsifySection>,
+}
+
+/// `[falsify]`: how far `ftcbf falsify --scenario` may move the world. Every key is optional
+/// (the defaults suit a ground robot) and ≥ 0; relative ranges are below 1.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FalsifySection {
+    /// Largest shift of each obstacle's position along x and y [m].
+    pub obstacle_shift: Option<f64>,
+    /// Largest relative change of each obstacle's size (every dimension by one factor in
+    /// [1 − s, 1 + s]).
+    pub obstacle_scale: Option<f64>,
+    /// Largest shift of the start position along x and y [m].
+    pub start_shift: Option<f64>,
+    /// Largest change of the start heading [rad].
+    pub start_heading: Option<f64>,
+    /// Largest shift of the goal centre (and its waypoints) along x and y [m].
+    pub goal_shift: Option<f64>,
+    /// Largest relative change of every sensor channel's noise standard deviation (±x).
+    pub noise: Option<f64>,
+    /// Largest shift of the world's own attacks' onset (and end) [s].
+    pub onset_shift: Option<f64>,
 }
 
 /// Which plant the run simulates.
