@@ -283,7 +283,7 @@ impl Validator<'_> {
         } else {
             Err(self.err(
                 key,
-                format!("{n} entries; at most {max} are supported (see the README's world-file reference)"),
+                format!("{n} entries; at most {max} are supported (see the world-file reference, book/src/reference/world-file.md)"),
             ))
         }
     }
@@ -590,7 +590,7 @@ impl Validator<'_> {
             self.err(
                 "robot.urdf",
                 format!(
-                    "robot `{}`: {what} (see the README's world-file reference for the ranges)",
+                    "robot `{}`: {what} (see the world-file reference, book/src/reference/world-file.md, for the ranges)",
                     robot.name
                 ),
             )
