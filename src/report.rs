@@ -290,8 +290,9 @@ fn figure_path(results: &[BatchResult]) -> PathBuf {
     Path::new(FIGURES).join(format!("{}.svg", results[0].plan.world))
 }
 
-/// The header every page starts with: where the numbers come from and how to make them again.
-fn provenance(out: &mut String, stamp: &Stamp, kind: &str) {
+/// The start of every page: its title, and where the numbers come from.
+fn page_start(title: &str, stamp: &Stamp, kind: &str) -> String {
+    let mut out = format!("# {title}\n\n");
     let _ = writeln!(
         out,
         "<!-- Written by `ftcbf report` from results/{STAMP} and the JSON files it lists. Do not \
@@ -304,6 +305,7 @@ fn provenance(out: &mut String, stamp: &Stamp, kind: &str) {
          fails when this page differs from what they give.\n",
         stamp.commit, stamp.date, stamp.machine, stamp.toolchain
     );
+    out
 }
 
 fn commands(out: &mut String, stamp: &Stamp, runs: &[&StampedRun]) {
@@ -410,10 +412,8 @@ fn over_gamma(s: &ControllerSummary) -> String {
 
 fn catalogue_page(inputs: &Inputs) -> String {
     let stamp = &inputs.stamp;
-    let mut out = String::new();
-    let _ = writeln!(out, "# Safety certification (`ftcbf batch`)\n");
-    provenance(
-        &mut out,
+    let mut out = page_start(
+        "Safety certification (`ftcbf batch`)",
         stamp,
         "the trials per world are each command's `--trials` (the table's `trials` column)",
     );
@@ -557,23 +557,11 @@ fn findings(out: &mut String, batches: &[(StampedRun, Vec<BatchResult>)]) {
             format!("unsafe trials in {}", unsafe_certified.join(", "))
         }
     );
-    let refuted: Vec<String> = results
-        .iter()
-        .flat_map(|r| {
-            r.summaries
-                .iter()
-                .filter(|s| s.verdict == crate::batch::Verdict::Refuted)
-                .map(move |s| format!("`{}` ({})", r.plan.world, s.controller))
-        })
-        .collect();
+    let refuted = summaries_where(&results, |s| s.verdict == crate::batch::Verdict::Refuted);
     let _ = writeln!(
         out,
         "- **Refuted claims** (the interval lies below 1 − ε): {}.",
-        if refuted.is_empty() {
-            "none".to_string()
-        } else {
-            refuted.join(", ")
-        }
+        listed(&refuted, "none")
     );
     let mut better: BTreeMap<bool, Vec<String>> = BTreeMap::new();
     for r in &results {
@@ -591,32 +579,42 @@ fn findings(out: &mut String, batches: &[(StampedRun, Vec<BatchResult>)]) {
         "- **Paired against the baseline** (exact McNemar test, p < 0.05): FT-CBF-CLF is the \
          safer in {}; the baseline in {}; the other paired worlds show no significant \
          difference.",
-        better
-            .get(&true)
-            .map_or("none".to_string(), |v| v.join(", ")),
-        better
-            .get(&false)
-            .map_or("none".to_string(), |v| v.join(", "))
+        listed(better.get(&true).map_or(&[][..], |v| v), "none"),
+        listed(better.get(&false).map_or(&[][..], |v| v), "none"),
     );
-    let gamma_refuted: Vec<String> = results
-        .iter()
-        .flat_map(|r| {
-            r.summaries
-                .iter()
-                .filter(|s| s.estimation.iter().any(|f| f.refuted))
-                .map(move |s| format!("`{}` ({})", r.plan.world, s.controller))
-        })
-        .collect();
+    let gamma_refuted = summaries_where(&results, |s| s.estimation.iter().any(|f| f.refuted));
     let _ = writeln!(
         out,
         "- **Theorem 1's hypothesis** (honest filters within γ with probability ≥ 1 − ε) is \
          refuted by its interval in: {}.\n",
-        if gamma_refuted.is_empty() {
-            "none".to_string()
-        } else {
-            gamma_refuted.join(", ")
-        }
+        listed(&gamma_refuted, "none")
     );
+}
+
+/// "`world` (controller)" for every summary that meets `pred`.
+fn summaries_where(
+    results: &[&BatchResult],
+    pred: impl Fn(&ControllerSummary) -> bool,
+) -> Vec<String> {
+    let pred = &pred;
+    results
+        .iter()
+        .flat_map(move |r| {
+            r.summaries
+                .iter()
+                .filter(move |s| pred(s))
+                .map(move |s| format!("`{}` ({})", r.plan.world, s.controller))
+        })
+        .collect()
+}
+
+/// The items joined with commas, or `none` when there are none.
+fn listed(items: &[String], none: &str) -> String {
+    if items.is_empty() {
+        none.to_string()
+    } else {
+        items.join(", ")
+    }
 }
 
 fn rho(r: &FalsifyRobustness) -> String {
@@ -651,10 +649,8 @@ fn held_out(e: &FalsifyEvaluation) -> String {
 
 fn falsify_page(inputs: &Inputs) -> String {
     let stamp = &inputs.stamp;
-    let mut out = String::new();
-    let _ = writeln!(out, "# Worst attacks found (`ftcbf falsify`)\n");
-    provenance(
-        &mut out,
+    let mut out = page_start(
+        "Worst attacks found (`ftcbf falsify`)",
         stamp,
         "the runs per search method are each command's `--budget`",
     );
@@ -751,20 +747,12 @@ fn falsify_page(inputs: &Inputs) -> String {
     let _ = writeln!(
         out,
         "- **Unsafe runs where Theorem 3 applies**: {}.",
-        if unsafe_certified.is_empty() {
-            "none, for either method".to_string()
-        } else {
-            unsafe_certified.join(", ")
-        }
+        listed(&unsafe_certified, "none, for either method")
     );
     let _ = writeln!(
         out,
         "- **Worlds where some searched attack made FT-CBF-CLF unsafe**: {}.\n",
-        if unsafe_any.is_empty() {
-            "none".to_string()
-        } else {
-            unsafe_any.join(", ")
-        }
+        listed(&unsafe_any, "none")
     );
     let _ = writeln!(out, "The worst attack each method found:\n");
     for (_, f) in &inputs.falsify {
