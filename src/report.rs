@@ -141,13 +141,16 @@ pub struct FalsifyPaired {
     pub p: f64,
 }
 
+/// A batch file's results with the command that made them.
+pub type MeasuredBatch = (StampedRun, Vec<BatchResult>);
+
 /// Everything a report is rendered from.
 #[derive(Debug)]
 pub struct Inputs {
     /// The stamp.
     pub stamp: Stamp,
     /// Batch results per stamped run (in stamp order), with the command that made them.
-    pub batches: Vec<(StampedRun, Vec<BatchResult>)>,
+    pub batches: Vec<MeasuredBatch>,
     /// Falsify results per stamped run.
     pub falsify: Vec<(StampedRun, FalsifyJson)>,
 }
@@ -436,7 +439,7 @@ fn catalogue_page(inputs: &Inputs) -> String {
     findings(&mut out, &inputs.batches);
 
     // Group by folder, in the stamp's order of first appearance.
-    let mut groups: Vec<(String, Vec<&(StampedRun, Vec<BatchResult>)>)> = Vec::new();
+    let mut groups: Vec<(String, Vec<&MeasuredBatch>)> = Vec::new();
     for b in &inputs.batches {
         let dir = world_dir(&b.1[0].plan.world_file);
         match groups.iter_mut().find(|(d, _)| *d == dir) {
@@ -530,7 +533,7 @@ fn catalogue_page(inputs: &Inputs) -> String {
 }
 
 /// Statements the tables support, computed from them.
-fn findings(out: &mut String, batches: &[(StampedRun, Vec<BatchResult>)]) {
+fn findings(out: &mut String, batches: &[MeasuredBatch]) {
     let results: Vec<&BatchResult> = batches.iter().flat_map(|(_, r)| r).collect();
     fn ft<'a>(r: &&'a BatchResult) -> Option<&'a ControllerSummary> {
         r.summaries.iter().find(|s| s.controller == "ft-cbf-clf")
