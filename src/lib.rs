@@ -12,6 +12,8 @@
 //! from the stored batch and falsify JSON (`ftcbf report`). The binary (`src/main.rs`) is a thin shell over
 //! them and over `ftcbf-sim`.
 
+#![warn(missing_docs)]
+
 pub mod batch;
 pub mod falsify;
 pub mod regress;

@@ -4,7 +4,7 @@
 //! JSON files under `results/`, with `results/stamp.toml`: the commit, date, machine and
 //! toolchain of the measurement and every command exactly as it was run. [`load`] reads the
 //! stamp and the files it lists; [`render`] turns them into the pages (Markdown tables, and the
-//! Pr(safe) figure `batch` draws, as SVG); [`write`] puts them into the book and [`differences`]
+//! Pr(safe) figure `batch` draws, as SVG); [`write()`] puts them into the book and [`differences`]
 //! compares them with what is there (`ftcbf report --check`, run in CI, so the pages in the
 //! repository are exactly what the stored JSON gives). Nothing here is measured or typed by
 //! hand: every number on the pages comes from a JSON file the stamp names.

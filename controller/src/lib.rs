@@ -122,6 +122,8 @@
 //! `controller/examples/ros_readings.rs` does the same from readings as ROS publishes them
 //! (a quaternion, body-frame odometry, a biased gyro fused with the compass).
 
+#![warn(missing_docs)]
+
 pub mod barrier;
 pub mod conditions;
 pub mod constraints;

@@ -194,12 +194,12 @@ impl World {
         self.path.parent().unwrap_or_else(|| Path::new("."))
     }
 
-    /// Control period [s].
+    /// Control period \[s\].
     pub fn control_dt(&self) -> f64 {
         1.0 / self.file.control.rate_hz
     }
 
-    /// Plant step [s] (physics or linear integration).
+    /// Plant step \[s\] (physics or linear integration).
     pub fn plant_dt(&self) -> f64 {
         match self.file.dynamics {
             Dynamics::Rapier => self.file.physics.dt,
