@@ -65,7 +65,7 @@ pub enum Command {
     /// and write it as a world file that `ftcbf run` replays.
     Falsify(crate::falsify::FalsifyArgs),
     /// Generate seeded world files the way users write them: rooms, corridors, doorways,
-    /// clutter fields and L turns; the burger or the waffle; the README's sensor suites; one
+    /// clutter fields and L turns; the burger or the waffle; the book's sensor suites; one
     /// attack inside one fault pattern; defaults only (no tuning keys).
     ///
     /// Every world's goal is reachable: the start and the goal disc are at least 0.15 m clear of
@@ -78,6 +78,17 @@ pub enum Command {
         after_help = "Examples:\n  ftcbf gen --seed 1 --count 40 --out gen_out\n  ftcbf gen --seed 7 --count 10 --out doors --kind doorway --robot waffle\n  ftcbf gen --seed 2 --count 5 --out enc --suite encoders --robots /path/to/ftcbf/robots\n\nThen, for each file:  ftcbf check FILE;  ftcbf batch FILE --trials 10 --controller ft-cbf-clf\n(scripts/gen_sweep.sh does both for a whole generated set and prints a table)."
     )]
     Gen(GenArgs),
+    /// Render the book's results pages (tables and Pr(safe) figures) from the batch and
+    /// falsify JSON stored under results/, stamped with the commit, date, machine and commands
+    /// that produced them; with --check, fail when the pages in the book differ.
+    ///
+    /// The JSON and results/stamp.toml are written by scripts/results.sh (the full
+    /// measurement: `scripts/results.sh 1000 400`). Exits 0 when the pages were written (or,
+    /// with --check, are up to date), 1 when they differ or a file cannot be read.
+    #[command(
+        after_help = "Examples:\n  ftcbf report                 # results/*.json → book/src/results/\n  ftcbf report --check         # CI: fail when the committed pages differ\n  scripts/results.sh 100 200   # re-measure (100 trials per world, falsify budget 200), then report"
+    )]
+    Report(ReportArgs),
 }
 
 /// `ftcbf gen`
@@ -99,7 +110,7 @@ pub struct GenArgs {
     /// Robot; `any` alternates the burger and the waffle.
     #[arg(long, value_enum, default_value = "any")]
     pub robot: RobotArg,
-    /// Sensor suite (README, "Sensors"); `any` takes every suite in turn.
+    /// Sensor suite (book: Generating worlds); `any` takes every suite in turn.
     #[arg(long, value_enum, default_value = "any")]
     pub suite: SuiteArg,
     /// Directory holding turtlebot3_burger.urdf and turtlebot3_waffle.urdf (the project's
@@ -221,4 +232,19 @@ pub struct RegressArgs {
     /// instead of the table.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `ftcbf report`.
+#[derive(Debug, clap::Args)]
+pub struct ReportArgs {
+    /// Folder holding stamp.toml and the JSON files it lists (their paths are relative to the
+    /// current directory, the repository root).
+    #[arg(long, value_name = "DIR", default_value = "results")]
+    pub results: PathBuf,
+    /// Folder of the book's results pages.
+    #[arg(long, value_name = "DIR", default_value = "book/src/results")]
+    pub out: PathBuf,
+    /// Write nothing; exit 1 when a page in --out differs from what the JSON gives.
+    #[arg(long)]
+    pub check: bool,
 }

@@ -8,9 +8,13 @@
 //! search for the worst attack inside a world's threat model (a cross-entropy method on the
 //! batch engine's thread pool, compared with random search); and [`regress`], the world
 //! catalogue as a regression suite: every world's `[expect]` over its regression seeds, in
-//! parallel, with a table (`ftcbf regress`). The binary (`src/main.rs`) is a thin shell over
+//! parallel, with a table (`ftcbf regress`); and [`report`], the book's results pages rendered
+//! from the stored batch and falsify JSON (`ftcbf report`). The binary (`src/main.rs`) is a thin shell over
 //! them and over `ftcbf-sim`.
+
+#![warn(missing_docs)]
 
 pub mod batch;
 pub mod falsify;
 pub mod regress;
+pub mod report;

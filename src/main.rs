@@ -1,6 +1,6 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
-use ftcbf::{batch, falsify, regress};
+use ftcbf::{batch, falsify, regress, report};
 mod cli;
 
 use std::io::IsTerminal;
@@ -21,8 +21,8 @@ use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, Param, World, WorldError};
 
 use cli::{
-    CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, RobotArg, RunArgs,
-    SuiteArg,
+    CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg,
+    RunArgs, SuiteArg,
 };
 
 /// Exit code: a world file is invalid.
@@ -101,7 +101,7 @@ fn code_of(e: &anyhow::Error) -> u8 {
 /// the command, `FTCBF_TEST_PANIC=worker` in a worker thread of the pool that `batch`,
 /// `regress` and `falsify` run their trials on (rayon carries the panic back to the command). It
 /// lets `tests/reliability.rs` check what a user sees on a real bug, since no input is known to
-/// panic any more. Documented in the README (Development); unset, it does nothing.
+/// panic any more. Documented in the book (Development: tests); unset, it does nothing.
 const TEST_PANIC_VAR: &str = "FTCBF_TEST_PANIC";
 
 fn test_panic_hook() {
@@ -141,6 +141,7 @@ fn dispatch(command: Command) -> Result<(), Failure> {
             error: e,
         }),
         Command::Gen(a) => cmd_gen(&a).map_err(Failure::from),
+        Command::Report(a) => cmd_report(&a).map_err(Failure::from),
     }
 }
 
@@ -573,6 +574,37 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
 }
 
 /// `ftcbf gen`: the library generates (`ftcbf_sim::worldgen`); this writes and lists.
+/// `ftcbf report`: load, render, then write or compare (the logic is `ftcbf::report`).
+fn cmd_report(a: &ReportArgs) -> anyhow::Result<()> {
+    let inputs = report::load(Path::new("."), &a.results)?;
+    let pages = report::render(&inputs)?;
+    if a.check {
+        let differ = report::differences(&pages, &a.out)?;
+        if !differ.is_empty() {
+            let list: Vec<String> = differ.iter().map(|p| p.display().to_string()).collect();
+            anyhow::bail!(
+                "the results pages differ from what `{}` gives: {}; run `ftcbf report` and \
+                 commit the pages",
+                a.results.join(report::STAMP).display(),
+                list.join(", ")
+            );
+        }
+        println!(
+            "{} pages and figures in {} are up to date",
+            pages.len(),
+            a.out.display()
+        );
+    } else {
+        report::write(&pages, &a.out)?;
+        println!(
+            "wrote {} pages and figures to {}",
+            pages.len(),
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
 fn cmd_gen(a: &GenArgs) -> anyhow::Result<()> {
     use ftcbf_sim::worldgen::{write_worlds, GenConfig, Generator, Kind, RobotModel, Suite};
     let kind = match a.kind {

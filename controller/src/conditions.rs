@@ -32,7 +32,7 @@ pub struct Condition44Verdict {
     /// min_i Λ_i·u / ‖Λ_i‖ at the witness (the cosine of the worst angle; in (0, 1] when
     /// the condition holds), or `None`.
     pub margin: Option<f64>,
-    /// The largest angle between the Λ_i's directions and the direction opposite to it [rad]
+    /// The largest angle between the Λ_i's directions and the direction opposite to it \[rad\]
     /// (the angular spread; (4.4) holds iff it is < π and no Λ_i vanishes).
     pub spread: f64,
     /// Estimates whose Λ_i vanishes (‖Λ_i‖ ≤ 1e-12) or is not finite: (4.4) fails for them.

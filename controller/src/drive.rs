@@ -1,5 +1,5 @@
 //! The compensator (eq. 6.3)–(6.4): planar acceleration u = (a_x, a_y) [m/s², world frame] →
-//! body command (v [m/s], ω [rad/s]) of a differential-drive robot with heading θ [rad].
+//! body command (v [m/s], ω [rad/s]) of a differential-drive robot with heading θ \[rad\].
 //!
 //! It belongs to the controller (the drive is part of the control law, not of the plant): the
 //! simulator and a real robot both only turn (v, ω) into wheel speeds.
@@ -108,9 +108,9 @@ pub struct BodyCommand {
     pub omega: f64,
 }
 
-/// The world-frame acceleration [m/s²] a unicycle realises over one period of `dt` [s] in
+/// The world-frame acceleration [m/s²] a unicycle realises over one period of `dt` \[s\] in
 /// which its body command goes from `before` to `after` (the commands actually sent, after every
-/// limit) while its heading starts at `yaw` [rad] and turns at `after.omega`:
+/// limit) while its heading starts at `yaw` \[rad\] and turns at `after.omega`:
 /// `(v_after·e(yaw + ω_after·dt) − v_before·e(yaw)) / dt`, e(θ) = (cos θ, sin θ).
 ///
 /// This is u as the drive performed it, not as the controller asked for it: at rest a lateral
@@ -199,7 +199,7 @@ impl Compensator {
         })
     }
 
-    /// One step over `dt` [s]: integrates (6.3), applies (6.4) with the low-speed law, the
+    /// One step over `dt` \[s\]: integrates (6.3), applies (6.4) with the low-speed law, the
     /// limits and the rate limits. `u` is the world-frame acceleration, `theta` the heading.
     pub fn command(&mut self, u: Input, theta: f64, dt: f64) -> BodyCommand {
         if !(u[0].is_finite() && u[1].is_finite() && theta.is_finite() && dt.is_finite()) {

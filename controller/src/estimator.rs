@@ -42,7 +42,7 @@ use crate::model::{Discretization, LinearModel};
 use crate::params::chi_square_cdf;
 use crate::types::{Input, State, StateMatrix};
 
-/// Length of the window of the χ² innovation test [s].
+/// Length of the window of the χ² innovation test \[s\].
 pub const RESIDUE_WINDOW: f64 = 1.0;
 /// Largest number of control steps in the window (the buffer is allocated once).
 pub const RESIDUE_WINDOW_MAX_STEPS: usize = 512;

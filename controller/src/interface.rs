@@ -14,9 +14,9 @@ use crate::types::Input;
 /// The readings of one control step, as the controller receives them (after any attack).
 #[derive(Debug, Clone, Copy)]
 pub struct Readings<'a> {
-    /// Time at the start of the step [s].
+    /// Time at the start of the step \[s\].
     pub t: f64,
-    /// Control period: time since the previous step [s].
+    /// Control period: time since the previous step \[s\].
     pub dt: f64,
     /// One value per channel of the linear model (the rows of C, in order) [m or m/s]. May be
     /// NaN, ±∞ or absurd under attack: a law must survive that.

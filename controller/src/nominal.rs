@@ -43,9 +43,9 @@ pub enum TrackerError {
 pub struct TrackerConfig {
     /// Waypoints to pass before the goal [m, world frame] (may be empty).
     pub waypoints: Vec<[f64; 2]>,
-    /// Goal position [m].
+    /// Goal position \[m\].
     pub goal: [f64; 2],
-    /// Goal radius [m]: no stall is counted within it.
+    /// Goal radius \[m\]: no stall is counted within it.
     pub goal_radius: f64,
     /// Cruise speed v_cruise [m/s].
     pub cruise_speed: f64,
@@ -53,21 +53,21 @@ pub struct TrackerConfig {
     pub speed_gain: f64,
     /// Deceleration used for the approach a_arrive [m/s²].
     pub arrive_accel: f64,
-    /// Lookahead L along the path [m].
+    /// Lookahead L along the path \[m\].
     pub lookahead: f64,
     /// Input box |u_k| ≤ limit (m/s²), if any.
     pub input_limit: Option<Input>,
-    /// Low-pass time constant τ of u_nom [s] (0: none).
+    /// Low-pass time constant τ of u_nom \[s\] (0: none).
     pub smoothing: f64,
     /// Jerk limit j_max [m/s³] (None: none).
     pub jerk_limit: Option<f64>,
-    /// A stall: less than this progress [m] ...
+    /// A stall: less than this progress \[m\] ...
     pub stall_progress: f64,
-    /// ... within this time [s].
+    /// ... within this time \[s\].
     pub stall_time: f64,
-    /// How long an escape lasts [s].
+    /// How long an escape lasts \[s\].
     pub escape_time: f64,
-    /// How far the desired direction turns during an escape [rad].
+    /// How far the desired direction turns during an escape \[rad\].
     pub escape_angle: f64,
 }
 
@@ -143,7 +143,7 @@ fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 impl PathTracker {
-    /// Validates the configuration; the path starts at `start` [m].
+    /// Validates the configuration; the path starts at `start` \[m\].
     pub fn new(cfg: TrackerConfig, start: [f64; 2]) -> Result<Self, TrackerError> {
         positive("cruise_speed", cfg.cruise_speed)?;
         positive("speed_gain", cfg.speed_gain)?;
@@ -261,7 +261,7 @@ impl PathTracker {
         [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
     }
 
-    /// One step: position estimate `p` [m], velocity estimate `v` [m/s], period `dt` [s].
+    /// One step: position estimate `p` \[m\], velocity estimate `v` [m/s], period `dt` \[s\].
     /// Returns u_nom [m/s²].
     pub fn propose(&mut self, p: [f64; 2], v: [f64; 2], dt: f64) -> Input {
         if !(p.iter().chain(v.iter()).all(|x| x.is_finite()) && dt.is_finite() && dt > 0.0) {

@@ -1,12 +1,12 @@
 //! Readings as a ROS robot has them, turned into the channels of the linear model (6.2).
 //!
 //! Frames and signs follow REP-103 and REP-105:
-//! - **World** (`map` or `odom`): ENU, x east, y north [m]. The model's state is
+//! - **World** (`map` or `odom`): ENU, x east, y north \[m\]. The model's state is
 //!   (p_x, p_y, v_x, v_y) in this frame, and a GNSS fix (converted to local ENU) is a position
 //!   reading in it.
 //! - **Body** (`base_footprint`): x forward, y left, z up. Wheel odometry
 //!   (`nav_msgs/Odometry` twist.linear.x) is the forward speed v [m/s] in this frame.
-//! - **Yaw** θ [rad]: the heading of the body x axis, counter-clockwise from world +x, from an
+//! - **Yaw** θ \[rad\]: the heading of the body x axis, counter-clockwise from world +x, from an
 //!   IMU orientation quaternion (`sensor_msgs/Imu` orientation) or a compass.
 //!
 //! A differential-drive robot does not slide sideways, so its world-frame velocity is
@@ -21,14 +21,14 @@
 //! Kalman filter on (θ, b_g) that integrates the gyro and estimates its bias from the compass.
 //! [`fused_yaw_variance`] gives the yaw variance to put into [`world_velocity_variance`] for it.
 
-/// Yaw [rad] from a unit quaternion (x, y, z, w) (`geometry_msgs/Quaternion`): the rotation
+/// Yaw \[rad\] from a unit quaternion (x, y, z, w) (`geometry_msgs/Quaternion`): the rotation
 /// about the world z axis, in (−π, π].
 pub fn yaw_from_quaternion(x: f64, y: f64, z: f64, w: f64) -> f64 {
     (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 
 /// World-frame velocity (v_x, v_y) [m/s] of a robot moving forward at `v` [m/s] with yaw `yaw`
-/// [rad]. A non-finite input gives non-finite output, which the controller rejects as a
+/// \[rad\]. A non-finite input gives non-finite output, which the controller rejects as a
 /// malformed reading.
 pub fn body_speed_to_world_velocity(v: f64, yaw: f64) -> [f64; 2] {
     [v * yaw.cos(), v * yaw.sin()]
@@ -36,8 +36,8 @@ pub fn body_speed_to_world_velocity(v: f64, yaw: f64) -> [f64; 2] {
 
 /// Variance [(m/s)²] to declare for each axis of [`body_speed_to_world_velocity`]:
 /// σ_v² + v_max²·(σ_θ² + b_θ² + w_θ²·T). Here σ_v [m/s] is the speed noise, v_max [m/s] the
-/// robot's speed bound, σ_θ [rad] the yaw noise, b_θ [rad] a yaw bias bound, and w_θ
-/// [rad/√s] a yaw bias walk over the horizon T [s].
+/// robot's speed bound, σ_θ \[rad\] the yaw noise, b_θ \[rad\] a yaw bias bound, and w_θ
+/// [rad/√s] a yaw bias walk over the horizon T \[s\].
 pub fn world_velocity_variance(
     speed_std: f64,
     v_max: f64,
@@ -50,7 +50,7 @@ pub fn world_velocity_variance(
     speed_std * speed_std + v_max * v_max * yaw_var
 }
 
-/// `true` for a usable yaw reading [rad]: finite and in [−π, π] (a yaw from a quaternion, or a
+/// `true` for a usable yaw reading \[rad\]: finite and in [−π, π] (a yaw from a quaternion, or a
 /// wrapped compass, always is; anything else is a fault or an attack).
 pub fn valid_yaw(yaw: f64) -> bool {
     yaw.abs() <= std::f64::consts::PI + 1e-9
@@ -105,15 +105,15 @@ pub struct HeadingFilterParams {
     pub gyro_bias_walk: f64,
     /// 1σ of the gyro bias before the first reading [rad/s].
     pub gyro_bias_prior: f64,
-    /// Compass (yaw reading) noise [rad].
+    /// Compass (yaw reading) noise \[rad\].
     pub compass_std: f64,
     /// Gyro readings with |ω| above this [rad/s] are malformed and skipped (an IMU's full scale;
     /// 2000 °/s = 34.9 rad/s is common).
     pub gyro_range: f64,
-    /// 1σ of the start yaw given to [`HeadingFilter::started_at`] [rad] (a marked start pose);
+    /// 1σ of the start yaw given to [`HeadingFilter::started_at`] \[rad\] (a marked start pose);
     /// ∞ when the start is unknown and the first compass reading starts the filter.
     pub initial_yaw_std: f64,
-    /// Innovation gate [σ]: a compass reading further than this many standard deviations of the
+    /// Innovation gate \[σ\]: a compass reading further than this many standard deviations of the
     /// innovation from the gyro-propagated yaw is rejected (a frozen or jumping compass while the
     /// gyro sees the robot turn). The gate widens by itself while readings are rejected, since
     /// the yaw variance keeps growing with the gyro's noise and bias uncertainty.
@@ -165,7 +165,7 @@ impl HeadingFilter {
         }
     }
 
-    /// A filter that starts at a known yaw `yaw` [rad] with σ `params.initial_yaw_std` (the
+    /// A filter that starts at a known yaw `yaw` \[rad\] with σ `params.initial_yaw_std` (the
     /// robot set down at a marked pose); with an infinite σ it is [`HeadingFilter::new`].
     pub fn started_at(params: HeadingFilterParams, yaw: f64) -> Self {
         let mut f = Self::new(params);
@@ -176,7 +176,7 @@ impl HeadingFilter {
         f
     }
 
-    /// Integrates one gyro reading `gyro` [rad/s] over `dt` [s]. Before the first compass
+    /// Integrates one gyro reading `gyro` [rad/s] over `dt` \[s\]. Before the first compass
     /// reading only the bias uncertainty grows.
     pub fn predict(&mut self, gyro: f64, dt: f64) {
         if !(gyro.is_finite() && gyro.abs() <= self.params.gyro_range && dt > 0.0) {
@@ -205,7 +205,7 @@ impl HeadingFilter {
         }
     }
 
-    /// Corrects with one fresh compass reading `yaw` [rad]. Skipped: a reading outside [−π, π]
+    /// Corrects with one fresh compass reading `yaw` \[rad\]. Skipped: a reading outside [−π, π]
     /// (non-finite, absurd), one that repeats the previous reading bit for bit while the compass
     /// has noise (stuck: [`RepeatDetector`]), and one outside the innovation gate.
     pub fn correct(&mut self, yaw: f64) {
@@ -248,12 +248,12 @@ impl HeadingFilter {
         self.p = [(1.0 - k0) * a, (1.0 - k0) * b, c - k1 * b];
     }
 
-    /// The yaw estimate [rad] (NaN before the first compass reading).
+    /// The yaw estimate \[rad\] (NaN before the first compass reading).
     pub fn yaw(&self) -> f64 {
         self.yaw
     }
 
-    /// The variance of the yaw estimate [rad²].
+    /// The variance of the yaw estimate \[rad²\].
     pub fn yaw_variance(&self) -> f64 {
         self.p[0]
     }
@@ -269,9 +269,9 @@ impl HeadingFilter {
     }
 }
 
-/// The yaw variance [rad²] to put into [`world_velocity_variance`] (as σ_θ², with the compass's
-/// bias and bias walk added there) for a [`HeadingFilter`] run at period `dt` [s] with a compass
-/// reading every `compass_every` steps, over `horizon` [s], started as
+/// The yaw variance \[rad²\] to put into [`world_velocity_variance`] (as σ_θ², with the compass's
+/// bias and bias walk added there) for a [`HeadingFilter`] run at period `dt` \[s\] with a compass
+/// reading every `compass_every` steps, over `horizon` \[s\], started as
 /// [`HeadingFilter::started_at`] does. The robot starts at rest and cannot be
 /// faster than min(v_max, a_max·t), so the bound is max over t of
 /// (min(v_max, a_max·t)/v_max)²·P_θθ(t): the filter's early, large variance weighs little because

@@ -473,7 +473,7 @@ pub struct FtParameters {
 /// the horizon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThetaSchedule {
-    /// Step of the table [s].
+    /// Step of the table \[s\].
     pub dt: f64,
     /// Per pair, θ_ij after each step.
     pub theta: Vec<Vec<f64>>,
@@ -488,7 +488,7 @@ impl ThetaSchedule {
     }
 }
 
-/// Length of the window of Step 2's increment test [s]: how far x̂_a and x̂_ij moved apart over
+/// Length of the window of Step 2's increment test \[s\]: how far x̂_a and x̂_ij moved apart over
 /// the last second.
 pub const STEP2_WINDOW: f64 = 1.0;
 

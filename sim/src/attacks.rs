@@ -76,7 +76,7 @@ use thiserror::Error;
 
 use crate::sensors::{join_names, stream_rng, ChannelSpec, Sample, SensorSuite};
 
-/// Tolerance on window boundaries [s].
+/// Tolerance on window boundaries \[s\].
 const WINDOW_EPS: f64 = 1e-9;
 
 /// What the attacker knows of the defender's detector: for a channel, the attacked filter's
@@ -228,9 +228,9 @@ attack_kinds! {
     Sinusoid {
         /// Amplitude (unit of the channel).
         amplitude: f64,
-        /// Frequency [Hz].
+        /// Frequency \[Hz\].
         frequency_hz: f64,
-        /// Phase at `start` [rad]. Default 0.
+        /// Phase at `start` \[rad\]. Default 0.
         #[serde(default)]
         phase: f64,
     },
@@ -243,9 +243,9 @@ attack_kinds! {
     },
     /// Plays back the readings recorded in `[record_start, record_start + length)` from `start`.
     Replay {
-        /// Start of the recording [s].
+        /// Start of the recording \[s\].
         record_start: f64,
-        /// Duration of the recording [s].
+        /// Duration of the recording \[s\].
         length: f64,
     },
     /// Denial of service: no new samples.
@@ -325,9 +325,9 @@ pub struct AttackSpec {
     pub label: Option<String>,
     /// Names of the targeted channels.
     pub channels: Vec<String>,
-    /// Window start [s]. Default 0.
+    /// Window start \[s\]. Default 0.
     pub start: f64,
-    /// Window end [s], exclusive; `None` = forever.
+    /// Window end \[s\], exclusive; `None` = forever.
     pub end: Option<f64>,
     /// What the attack does.
     pub kind: AttackKind,

@@ -102,12 +102,12 @@ pub enum CovarianceBound {
     /// No steady state; the largest covariance over the horizon from the declared P0, accepted
     /// (positions dead-reckoned from measured velocity).
     FiniteHorizon {
-        /// Horizon [s].
+        /// Horizon \[s\].
         seconds: f64,
     },
     /// No steady state and no velocity fix: open loop, not certifiable.
     OpenLoop {
-        /// Horizon [s].
+        /// Horizon \[s\].
         seconds: f64,
     },
 }

@@ -162,8 +162,8 @@ impl Drive {
         })
     }
 
-    /// One compensator step: integrates (6.3) over `dt` [s] and applies (6.4) with the guard.
-    /// `u` is the world-frame acceleration [m/s²], `theta` the heading [rad].
+    /// One compensator step: integrates (6.3) over `dt` \[s\] and applies (6.4) with the guard.
+    /// `u` is the world-frame acceleration [m/s²], `theta` the heading \[rad\].
     pub fn command(&mut self, u: Input, theta: f64, dt: f64) -> BodyCommand {
         self.compensator.command(u, theta, dt)
     }

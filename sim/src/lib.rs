@@ -7,6 +7,8 @@
 //! Frames: the world frame is Z-up, REP-103 (x forward, y left at the start pose of
 //! identity); SI units, angles in radians.
 
+#![warn(missing_docs)]
+
 pub mod attacks;
 pub mod check;
 pub mod drive;

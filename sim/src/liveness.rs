@@ -49,7 +49,7 @@ use crate::sensors::Quantity;
 use crate::summary::RunSummary;
 use crate::world::World;
 
-/// Spacing of the path samples [m].
+/// Spacing of the path samples \[m\].
 pub const SAMPLE_STEP: f64 = 0.05;
 
 /// The least acceleration along the path [m/s²] the rows must leave for the robot to be
@@ -67,10 +67,10 @@ const START_DELAY: f64 = 1.0;
 /// judged [s] (an attack's offset can sweep a spoofed estimate across a thin wall in less).
 const HOLD_STEP: f64 = 0.1;
 
-/// How far across the path the robot is looked for a live point [m].
+/// How far across the path the robot is looked for a live point \[m\].
 pub const LATERAL_REACH: f64 = 0.5;
 
-/// Spacing of the points tried across the path [m].
+/// Spacing of the points tried across the path \[m\].
 const LATERAL_STEP: f64 = 0.025;
 
 /// Directions tried for a spoofed estimate whose attack moves both position axes.
@@ -100,15 +100,15 @@ pub enum Blocked {
 /// The first point of the path that is not live.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stall {
-    /// Where [m].
+    /// Where \[m\].
     pub at: [f64; 2],
-    /// How far along the path [m].
+    /// How far along the path \[m\].
     pub along: f64,
     /// Why.
     pub blocked: Blocked,
     /// Barriers whose rows demand a push there (ω̄ > 0), most demanding first.
     pub binding: Vec<String>,
-    /// The spoofed estimates' offset at the worst direction [m] (zero without attack).
+    /// The spoofed estimates' offset at the worst direction \[m\] (zero without attack).
     pub offset: [f64; 2],
 }
 
@@ -117,7 +117,7 @@ pub struct Stall {
 pub struct LivenessCase {
     /// "without attack", "under the declared attack (…)".
     pub name: String,
-    /// The spoofed estimates' largest offset [m] (0 without attack).
+    /// The spoofed estimates' largest offset \[m\] (0 without attack).
     pub reach: f64,
     /// The first point that is not live.
     pub stall: Option<Stall>,
@@ -148,13 +148,13 @@ pub struct Fix {
 pub struct LivenessReport {
     /// κ the rows were built with.
     pub kappa: f64,
-    /// Length of the path [m] and the number of points sampled.
+    /// Length of the path \[m\] and the number of points sampled.
     pub path_length: f64,
     /// Points sampled.
     pub samples: usize,
     /// Without attack, then under the declared attack (when there is one).
     pub cases: Vec<LivenessCase>,
-    /// The smallest change found that makes every case live (see [`smallest_fix`]).
+    /// The smallest change found that makes every case live (see `smallest_fix`).
     pub fix: Option<Fix>,
     /// What no key of `[control]` can change (e.g. a pair filter with no channel).
     pub structural: Vec<String>,
@@ -293,7 +293,7 @@ struct Model<'a> {
     axes: [bool; 2],
     /// The speed the robot is assumed to make along the path [m/s] (when it reaches a point).
     speed: f64,
-    /// The largest coordinate of the path [m] (a `scale` attack's reach).
+    /// The largest coordinate of the path \[m\] (a `scale` attack's reach).
     max_coord: f64,
     attack_name: String,
     world: &'a World,
@@ -357,7 +357,7 @@ fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
     th.get(slot).copied().unwrap_or(f64::INFINITY)
 }
 
-/// How far the declared attacks move a position fix at time `t` [m], and which axes: a bias its
+/// How far the declared attacks move a position fix at time `t` \[m\], and which axes: a bias its
 /// value, a ramp or coordinated walk its rate times the time since its start (up to its cap),
 /// a stealthy bias its rate times time (up to its cap), a sinusoid its amplitude, a scale its
 /// factor's excess over the largest coordinate of the path; a frozen or replayed fix as far as
@@ -457,7 +457,7 @@ pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> Reac
 /// What [`declared_reach`] found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reach {
-    /// The largest offset of a position fix [m].
+    /// The largest offset of a position fix \[m\].
     pub reach: f64,
     /// The axes it can move (x, y).
     pub axes: [bool; 2],
@@ -783,12 +783,12 @@ impl Model<'_> {
 }
 
 impl Model<'_> {
-    /// When the robot is assumed to reach `along` metres of the path [s].
+    /// When the robot is assumed to reach `along` metres of the path \[s\].
     fn time_at(&self, along: f64) -> f64 {
         START_DELAY + along / self.speed.max(1e-3)
     }
 
-    /// The spoofed estimates' offset at time `t` [m] (see [`Reach::exact`]).
+    /// The spoofed estimates' offset at time `t` \[m\] (see [`Reach::exact`]).
     fn reach_at(&self, t: f64) -> f64 {
         let r = declared_reach(self.world, t, self.speed, self.max_coord);
         if r.exact {
@@ -805,7 +805,7 @@ impl Model<'_> {
             .fold(0.0, f64::max)
     }
 
-    /// Length of the path [m].
+    /// Length of the path \[m\].
     fn length(&self) -> f64 {
         self.path
             .windows(2)
@@ -1057,10 +1057,10 @@ fn cases(model: &Model, kappa: f64, limit: Option<Input>) -> Vec<LivenessCase> {
     out
 }
 
-/// Values of κ tried by [`smallest_fix`] (each at most [`kappa_max`]).
+/// Values of κ tried by `smallest_fix` (each at most [`kappa_max`]).
 pub const KAPPA_CANDIDATES: [f64; 6] = [10.0, 12.5, 15.0, 20.0, 25.0, 30.0];
 
-/// Input limits tried by [`smallest_fix`] [m/s²].
+/// Input limits tried by `smallest_fix` [m/s²].
 pub const LIMIT_CANDIDATES: [f64; 6] = [0.75, 1.0, 1.25, 1.5, 2.0, 2.5];
 
 /// The largest κ the rows may use at the world's control rate: κ·dt ≤ 1/2, so that one control
@@ -1109,7 +1109,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
 }
 
 /// The smallest change of one `[control]` key that makes every case live: κ up to
-/// [`kappa_max`] first (it costs nothing physical), then the input box up to 2.5 m/s².
+/// `kappa_max` first (it costs nothing physical), then the input box up to 2.5 m/s².
 fn smallest_fix(world: &World, model: &Model, kappa: f64, limit: Option<Input>) -> Option<Fix> {
     let kmax = kappa_max(world);
     for &k in KAPPA_CANDIDATES.iter().filter(|&&k| k > kappa && k <= kmax) {

@@ -7,33 +7,33 @@ use crate::state::TruthState;
 /// A drawable shape in its own frame. Cylinders, capsules and cones stand along their local z.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
-    /// Box with half extents [m].
+    /// Box with half extents \[m\].
     Cuboid {
         /// Half extents along x, y, z.
         half_extents: [f32; 3],
     },
     /// Sphere.
     Ball {
-        /// [m]
+        /// \[m\]
         radius: f32,
     },
     /// Cylinder along local z.
     Cylinder {
-        /// [m]
+        /// \[m\]
         radius: f32,
-        /// [m]
+        /// \[m\]
         half_height: f32,
     },
     /// Capsule along local z.
     Capsule {
-        /// [m]
+        /// \[m\]
         radius: f32,
-        /// Half length of the segment between the cap centres [m].
+        /// Half length of the segment between the cap centres \[m\].
         half_height: f32,
     },
     /// A triangle mesh (cones, hulls, meshes, and a finite patch of a half-space).
     Mesh {
-        /// Vertices [m].
+        /// Vertices \[m\].
         vertices: Vec<[f32; 3]>,
         /// Triangles as vertex indices.
         triangles: Vec<[u32; 3]>,
@@ -47,7 +47,7 @@ pub struct Placed {
     pub name: String,
     /// Shape.
     pub geometry: Geometry,
-    /// [m]
+    /// \[m\]
     pub translation: [f32; 3],
     /// Quaternion (x, y, z, w).
     pub rotation: [f32; 4],
@@ -64,7 +64,7 @@ pub struct Scene {
     pub robot_links: Vec<(String, Vec<Placed>)>,
     /// Safe-set boundaries at zero velocity, as polylines on the ground (name, points).
     pub safe_set_outlines: Vec<(String, Vec<[f32; 3]>)>,
-    /// Goal centre and radius [m].
+    /// Goal centre and radius \[m\].
     pub goal: ([f32; 2], f32),
     /// Sensor channel names, in measurement order.
     pub channels: Vec<String>,
@@ -112,7 +112,7 @@ pub struct ChannelView {
 /// One control step.
 #[derive(Debug, Clone)]
 pub struct Frame<'a> {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub t: f64,
     /// Control step index.
     pub step: u64,

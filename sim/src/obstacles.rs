@@ -23,7 +23,7 @@
 //! footprint radius) centred on p at the height z_c of its geometry:
 //! d(p) = sd((p, z_c)) − r, where sd is the signed distance from the point to the solid
 //! shape (parry point projection; negative inside), and
-//! H(x) = d(p) − margin + k·∇d(p)·v           (a first-order velocity lift, gain k [s]).
+//! H(x) = d(p) − margin + k·∇d(p)·v           (a first-order velocity lift, gain k \[s\]).
 //! ∇H = (∇d + k∇²d·v, k∇d); ∇²H = [[∇²d + k·D(∇²d·v), k∇²d], [k∇²d, 0]].
 //!
 //! **What this lift is, and is not.** H = k·(ḣ₀ + h₀/k) with h₀ = d − margin and ḣ₀ = ∇d·v is
@@ -115,10 +115,10 @@ pub enum ObstacleError {
 pub struct ObstacleSpec {
     /// Name used in logs, collision reports and barrier names.
     pub name: String,
-    /// Position of the obstacle frame, world frame [m].
+    /// Position of the obstacle frame, world frame \[m\].
     #[serde(default)]
     pub position: [f64; 3],
-    /// Roll, pitch, yaw of the obstacle frame [rad].
+    /// Roll, pitch, yaw of the obstacle frame \[rad\].
     #[serde(default)]
     pub rpy: [f64; 3],
     /// The shape in the obstacle frame.
@@ -134,36 +134,36 @@ crate::world::tagged::kind_tagged! {
 pub enum ShapeSpec via ShapeByKind {
     /// Box.
     Cuboid {
-        /// Half extents along x, y, z [m].
+        /// Half extents along x, y, z \[m\].
         half_extents: [f64; 3],
     },
     /// Sphere.
     Ball {
-        /// [m]
+        /// \[m\]
         radius: f64,
     },
     /// Cylinder along z.
     Cylinder {
-        /// [m]
+        /// \[m\]
         radius: f64,
-        /// Half of the height [m].
+        /// Half of the height \[m\].
         half_height: f64,
     },
     /// Capsule along z (`half_height` of the cylindrical part).
     Capsule {
-        /// [m]
+        /// \[m\]
         radius: f64,
-        /// [m]
+        /// \[m\]
         half_height: f64,
     },
     /// Cone along z, apex at +half_height.
     Cone {
-        /// Base radius [m].
+        /// Base radius \[m\].
         radius: f64,
-        /// [m]
+        /// \[m\]
         half_height: f64,
     },
-    /// Convex hull of points (obstacle frame) [m].
+    /// Convex hull of points (obstacle frame) \[m\].
     ConvexHull {
         /// At least 4 non-coplanar points.
         points: Vec<[f64; 3]>,
@@ -175,7 +175,7 @@ pub enum ShapeSpec via ShapeByKind {
     },
     /// Triangle mesh given inline or as an STL file.
     TriMesh {
-        /// Vertices (obstacle frame) [m].
+        /// Vertices (obstacle frame) \[m\].
         #[serde(default)]
         vertices: Vec<[f64; 3]>,
         /// Triangles as vertex indices.
@@ -527,7 +527,7 @@ impl Obstacle {
         matches!(self.spec.shape, ShapeSpec::HalfSpace { .. })
     }
 
-    /// Signed distance from a world point to the solid shape [m] (negative inside).
+    /// Signed distance from a world point to the solid shape \[m\] (negative inside).
     pub fn signed_distance(&self, p: Vector3<f64>) -> f64 {
         self.sd_and_grad(p).0
     }
@@ -634,22 +634,22 @@ fn coplanar(points: &[[f64; 3]]) -> bool {
 /// Parameters shared by all obstacle barriers of one robot.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BarrierConfig {
-    /// Robot footprint radius r [m].
+    /// Robot footprint radius r \[m\].
     pub robot_radius: f64,
-    /// Height z_c at which distances are evaluated [m].
+    /// Height z_c at which distances are evaluated \[m\].
     pub centre_height: f64,
-    /// Safety margin subtracted from the clearance [m].
+    /// Safety margin subtracted from the clearance \[m\].
     pub margin: f64,
-    /// Gain k of the lift H = d − margin + k∇d·v [s].
+    /// Gain k of the lift H = d − margin + k∇d·v \[s\].
     pub k: f64,
     /// Speed bound used in the Lipschitz bound of h̄ [m/s].
     pub v_max: f64,
-    /// Step of the numerical derivatives [m]. Default 2e-3.
+    /// Step of the numerical derivatives \[m\]. Default 2e-3.
     pub fd_step: f64,
 }
 
 impl BarrierConfig {
-    /// Footprint radius, centre height and v_max from a robot; `margin` [m] and `k` [s] given.
+    /// Footprint radius, centre height and v_max from a robot; `margin` \[m\] and `k` \[s\] given.
     pub fn for_robot(robot: &RobotDescription, margin: f64, k: f64) -> Self {
         Self {
             robot_radius: robot.footprint_radius,
@@ -700,7 +700,7 @@ impl ObstacleBarrier {
         }
     }
 
-    /// Clearance d(p) = sd − r of the robot disc at planar position p [m] (no margin, no lift).
+    /// Clearance d(p) = sd − r of the robot disc at planar position p \[m\] (no margin, no lift).
     pub fn clearance(&self, p: Vector2<f64>) -> f64 {
         self.obstacle
             .signed_distance(Vector3::new(p.x, p.y, self.cfg.centre_height))

@@ -58,7 +58,7 @@ pub enum PhysicsError {
 /// Physics settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhysicsConfig {
-    /// Time step [s]. Default 1/240.
+    /// Time step \[s\]. Default 1/240.
     pub dt: f64,
     /// Friction coefficient of wheels against the ground and of obstacles. Default 1.0.
     pub friction: f64,
@@ -70,12 +70,12 @@ pub struct PhysicsConfig {
     pub motor_max_force: f64,
     /// Solver iterations per step. Default 4.
     pub solver_iterations: usize,
-    /// A robot–obstacle contact point at distance ≤ this counts as a collision [m]. Default 1e-3.
+    /// A robot–obstacle contact point at distance ≤ this counts as a collision \[m\]. Default 1e-3.
     pub contact_distance: f64,
-    /// rapier's characteristic length [m] (scales its allowed penetration and prediction
+    /// rapier's characteristic length \[m\] (scales its allowed penetration and prediction
     /// distance). Default 0.1, the size of a TurtleBot3.
     pub length_unit: f64,
-    /// Natural frequency of contacts with fixed colliders (ground, obstacles) [Hz]. Default 160
+    /// Natural frequency of contacts with fixed colliders (ground, obstacles) \[Hz\]. Default 160
     /// (rapier's 60 Hz with damping ratio 10 let the wheels sink 0.8 mm, making the rolling
     /// radius 2.3 % short; 160 Hz with ratio 1 sinks 0.1 mm without jitter at dt = 1/240).
     pub static_contact_hz: f64,
@@ -103,11 +103,11 @@ impl Default for PhysicsConfig {
 /// A planar pose of the robot's root frame, world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Pose2 {
-    /// [m]
+    /// \[m\]
     pub x: f64,
-    /// [m]
+    /// \[m\]
     pub y: f64,
-    /// Heading [rad].
+    /// Heading \[rad\].
     pub theta: f64,
 }
 
@@ -133,7 +133,7 @@ pub struct PhysicsWorld {
     right: Vec<WheelMotor>,
     steps: u64,
     contacts_buf: Vec<usize>,
-    /// Accumulated wheel rotation (left, right) [rad], integrated from the joint speeds after
+    /// Accumulated wheel rotation (left, right) \[rad\], integrated from the joint speeds after
     /// every step (what a wheel encoder counts).
     wheel_angles: (f64, f64),
 }
@@ -462,7 +462,7 @@ impl PhysicsWorld {
         }
     }
 
-    /// Simulated time [s] (steps × dt).
+    /// Simulated time \[s\] (steps × dt).
     pub fn time(&self) -> f64 {
         self.steps as f64 * self.cfg.dt
     }
@@ -505,12 +505,12 @@ impl PhysicsWorld {
         }
     }
 
-    /// Height of the root frame above the ground [m] (0 at rest on flat ground).
+    /// Height of the root frame above the ground \[m\] (0 at rest on flat ground).
     pub fn root_height(&self) -> f64 {
         self.root_iso().translation.z
     }
 
-    /// Roll/pitch magnitude: angle between the root frame's z axis and the world z axis [rad].
+    /// Roll/pitch magnitude: angle between the root frame's z axis and the world z axis \[rad\].
     pub fn tilt(&self) -> f64 {
         let r = self.root_iso().rotation.to_rotation_matrix();
         r[(2, 2)].clamp(-1.0, 1.0).acos()
@@ -521,7 +521,7 @@ impl PhysicsWorld {
         self.contacts_buf.iter().copied()
     }
 
-    /// True minimum distance from the robot's colliders to each obstacle [m] (parry query on
+    /// True minimum distance from the robot's colliders to each obstacle \[m\] (parry query on
     /// the current poses); negative = penetration depth. `out` is resized to the obstacle count.
     pub fn clearances(&self, out: &mut Vec<f64>) {
         out.clear();

@@ -18,13 +18,13 @@ use std::collections::{BinaryHeap, HashMap};
 /// Planner settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlannerConfig {
-    /// Required clearance of the robot disc along the path [m].
+    /// Required clearance of the robot disc along the path \[m\].
     pub inflate: f64,
-    /// Grid cell [m].
+    /// Grid cell \[m\].
     pub resolution: f64,
-    /// How far beyond the leg's end points the grid reaches [m].
+    /// How far beyond the leg's end points the grid reaches \[m\].
     pub border: f64,
-    /// Spacing of the line-of-sight samples [m].
+    /// Spacing of the line-of-sight samples \[m\].
     pub sample: f64,
 }
 
@@ -42,7 +42,7 @@ impl Default for PlannerConfig {
 /// A planned path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
-    /// The points to pass after the start, the goal last [m].
+    /// The points to pass after the start, the goal last \[m\].
     pub points: Vec<[f64; 2]>,
     /// Legs that had no collision-free grid path and were left straight.
     pub unplanned_legs: usize,
@@ -206,7 +206,7 @@ fn string_pull(
     out
 }
 
-/// Plans start → waypoints → goal around the obstacles whose robot-disc clearance [m] is
+/// Plans start → waypoints → goal around the obstacles whose robot-disc clearance \[m\] is
 /// `clear(p)`.
 pub fn plan(
     start: [f64; 2],

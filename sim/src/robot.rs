@@ -82,7 +82,7 @@ pub enum RobotError {
     /// too): the message names the element and its `name`.
     #[error("{origin}: {}malformed URDF: {message}", line_prefix(*.line))]
     Parse {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// 1-based line of the offending element, when known.
         line: Option<usize>,
@@ -95,7 +95,7 @@ pub enum RobotError {
          this is a xacro source, run `xacro file.urdf.xacro > file.urdf` first"
     )]
     Xacro {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// 1-based line number.
         line: usize,
@@ -133,7 +133,7 @@ pub enum RobotError {
     /// The URDF's structure is not a tree the loader can use.
     #[error("{origin}: {message}")]
     Structure {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// What is wrong.
         message: String,
@@ -144,7 +144,7 @@ pub enum RobotError {
          give it an <inertial> with a positive <mass value>"
     )]
     NonPositiveMass {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// Link name.
         link: String,
@@ -156,7 +156,7 @@ pub enum RobotError {
     /// A number in the URDF is invalid (negative size, non-finite value, …).
     #[error("{origin}: {what}")]
     InvalidValue {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// What is wrong, naming the link/joint and attribute.
         what: String,
@@ -164,7 +164,7 @@ pub enum RobotError {
     /// The drive wheels could not be identified.
     #[error("{origin}: cannot find the drive wheels: {message}")]
     Wheels {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// What is wrong.
         message: String,
@@ -172,7 +172,7 @@ pub enum RobotError {
     /// A collision mesh could not be resolved or read.
     #[error("{origin}: collision mesh `{filename}` of link `{link}`: {message}")]
     CollisionMesh {
-        /// File path or "<string>".
+        /// File path or `"<string>"`.
         origin: String,
         /// Link name.
         link: String,
@@ -272,9 +272,9 @@ const TURTLEBOT3_SPECS: &str =
 /// Wheel geometry of a differential drive, read from the URDF.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WheelGeometry {
-    /// Wheel radius [m].
+    /// Wheel radius \[m\].
     pub radius: f64,
-    /// Distance between the two wheel contact points (track width) [m].
+    /// Distance between the two wheel contact points (track width) \[m\].
     pub separation: f64,
 }
 
@@ -354,33 +354,33 @@ impl DriveWheels {
 /// frame's **z** axis (URDF convention); the physics converts to parry's y axis.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CollisionShape {
-    /// Box with half extents along x, y, z [m].
+    /// Box with half extents along x, y, z \[m\].
     Box {
-        /// Half extents [m].
+        /// Half extents \[m\].
         half_extents: [f64; 3],
     },
     /// Cylinder along z.
     Cylinder {
-        /// Radius [m].
+        /// Radius \[m\].
         radius: f64,
-        /// Half of the length [m].
+        /// Half of the length \[m\].
         half_length: f64,
     },
     /// Capsule along z (`half_length` is half the cylindrical part).
     Capsule {
-        /// Radius [m].
+        /// Radius \[m\].
         radius: f64,
-        /// Half of the cylindrical part's length [m].
+        /// Half of the cylindrical part's length \[m\].
         half_length: f64,
     },
     /// Sphere.
     Sphere {
-        /// Radius [m].
+        /// Radius \[m\].
         radius: f64,
     },
-    /// Triangle mesh (already scaled, collider frame) [m].
+    /// Triangle mesh (already scaled, collider frame) \[m\].
     Mesh {
-        /// Vertices [m].
+        /// Vertices \[m\].
         vertices: Vec<[f64; 3]>,
         /// Triangles (indices into `vertices`).
         indices: Vec<[u32; 3]>,
@@ -444,9 +444,9 @@ pub struct RobotBody {
     pub links: Vec<String>,
     /// Body frame in the root frame, in the URDF's rest configuration (all joints at 0).
     pub pose_in_root: Isometry3<f64>,
-    /// Total mass [kg].
+    /// Total mass \[kg\].
     pub mass: f64,
-    /// Centre of mass in the body frame [m].
+    /// Centre of mass in the body frame \[m\].
     pub com: Vector3<f64>,
     /// Inertia tensor about the centre of mass, body-frame axes [kg·m²].
     pub inertia: Matrix3<f64>,
@@ -463,7 +463,7 @@ pub struct RobotVisual {
     pub link: String,
     /// Mesh frame in the body frame.
     pub pose_in_body: Isometry3<f64>,
-    /// Vertices in the mesh frame [m].
+    /// Vertices in the mesh frame \[m\].
     pub vertices: Vec<[f64; 3]>,
     /// Triangles as vertex indices.
     pub indices: Vec<[u32; 3]>,
@@ -476,16 +476,16 @@ pub enum JointKind {
     Continuous,
     /// Rotation about the axis within [lower, upper] rad.
     Revolute {
-        /// Lower limit [rad].
+        /// Lower limit \[rad\].
         lower: f64,
-        /// Upper limit [rad].
+        /// Upper limit \[rad\].
         upper: f64,
     },
     /// Translation along the axis within [lower, upper] m.
     Prismatic {
-        /// Lower limit [m].
+        /// Lower limit \[m\].
         lower: f64,
-        /// Upper limit [m].
+        /// Upper limit \[m\].
         upper: f64,
     },
 }
@@ -512,7 +512,7 @@ pub struct RobotJoint {
 pub struct RobotDescription {
     /// The URDF robot name.
     pub name: String,
-    /// Where it was loaded from ("<string>" when from a string).
+    /// Where it was loaded from (`"<string>"` when from a string).
     pub origin: String,
     /// Bodies; index 0 is the root body (its frame is the root frame).
     pub bodies: Vec<RobotBody>,
@@ -525,9 +525,9 @@ pub struct RobotDescription {
     /// Where [`Self::limits`] came from.
     pub limits_source: LimitsSource,
     /// Circumscribed radius of the robot's collision footprint in the plane, about the root
-    /// frame origin [m] (the disc the obstacle barriers keep away from obstacles).
+    /// frame origin \[m\] (the disc the obstacle barriers keep away from obstacles).
     pub footprint_radius: f64,
-    /// Height above the ground of the middle of the robot's collision geometry [m]; obstacle
+    /// Height above the ground of the middle of the robot's collision geometry \[m\]; obstacle
     /// distances for the barriers are evaluated at this height.
     pub centre_height: f64,
     /// Non-fatal problems (missing visual meshes, …).
@@ -569,7 +569,7 @@ impl RobotDescription {
         load(text, "<string>", None, opts)
     }
 
-    /// Total mass of the robot [kg].
+    /// Total mass of the robot \[kg\].
     pub fn total_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.mass).sum()
     }
@@ -1560,11 +1560,11 @@ struct WheelSize {
 /// Extent of a body's collision meshes about an axis through the body origin.
 #[derive(Debug, Clone, Copy)]
 struct MeshExtent {
-    /// Largest distance of a vertex from the axis [m].
+    /// Largest distance of a vertex from the axis \[m\].
     radius: f64,
-    /// Extent along the axis [m].
+    /// Extent along the axis \[m\].
     width: f64,
-    /// Middle of that extent, along the axis [m].
+    /// Middle of that extent, along the axis \[m\].
     mid: f64,
 }
 
@@ -1614,7 +1614,7 @@ fn wheel_size(body: &RobotBody, axis: Unit<Vector3<f64>>) -> Option<WheelSize> {
 /// collision cylinder: water's, the default MuJoCo uses to infer inertia from geometry.
 const WHEEL_DENSITY: f64 = 1000.0;
 
-/// Distance from the root frame's x axis below which a wheel cannot be assigned to a side [m].
+/// Distance from the root frame's x axis below which a wheel cannot be assigned to a side \[m\].
 const CENTRE_LINE_TOLERANCE: f64 = 1e-3;
 
 /// One candidate drive wheel, measured in the root frame.

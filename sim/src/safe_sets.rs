@@ -19,7 +19,7 @@
 use ftcbf_controller::{Barrier, BarrierEval, State, StateMatrix};
 use nalgebra::{Matrix2, Vector2};
 
-/// Φ (2×2) of an ellipse with semi-axes `semi` along its own axes, rotated by `angle` [rad]:
+/// Φ (2×2) of an ellipse with semi-axes `semi` along its own axes, rotated by `angle` \[rad\]:
 /// the ellipse is {p : (p − c)ᵀΦ(p − c) = 1}.
 pub fn ellipse_phi(semi: [f64; 2], angle: f64) -> Matrix2<f64> {
     let (s, c) = angle.sin_cos();
@@ -50,14 +50,14 @@ pub struct LiftedEllipse {
     phi: Matrix2<f64>,
     /// +1: inside is safe; −1: outside is safe.
     sign: f64,
-    /// Lift gain k [s].
+    /// Lift gain k \[s\].
     k: f64,
     /// Speed bound used in the h̄_γ bound [m/s].
     v_max: f64,
 }
 
 impl LiftedEllipse {
-    /// Ellipse with centre `center`, semi-axes `semi` along its own axes, rotated by `angle` [rad]
+    /// Ellipse with centre `center`, semi-axes `semi` along its own axes, rotated by `angle` \[rad\]
     /// from the world x axis; `inside` selects which side is safe. `k` ≥ 0 is the lift gain.
     pub fn new(
         name: impl Into<String>,
@@ -84,7 +84,7 @@ impl LiftedEllipse {
         self.sign * (1.0 - d.dot(&(self.phi * d)))
     }
 
-    /// Largest semi-axis [m].
+    /// Largest semi-axis \[m\].
     fn major(&self) -> f64 {
         let l = self.phi.symmetric_eigen().eigenvalues;
         1.0 / l.min().sqrt()
@@ -140,11 +140,11 @@ pub struct LiftedProp1 {
     pub inside: bool,
     /// λ̄(Φ) of the position ellipse [1/m²].
     pub lambda_max: f64,
-    /// θ̄ = max θ_ij [m].
+    /// θ̄ = max θ_ij \[m\].
     pub theta_bar: f64,
     /// Lower bound of ‖Φ^½(p̂ − c)‖² over the estimates the condition covers.
     pub z_min_sq: f64,
-    /// √(2 z_min_sq / λ̄) [m]: θ̄ must stay below it.
+    /// √(2 z_min_sq / λ̄) \[m\]: θ̄ must stay below it.
     pub bound: f64,
     /// θ̄ < bound (and z_min_sq > 0).
     pub holds: bool,

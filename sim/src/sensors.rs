@@ -61,15 +61,15 @@ const SLOT_EPS: f64 = 1e-9;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Quantity {
-    /// World-frame position x [m].
+    /// World-frame position x \[m\].
     X,
-    /// World-frame position y [m].
+    /// World-frame position y \[m\].
     Y,
     /// World-frame velocity ẋ [m/s].
     Vx,
     /// World-frame velocity ẏ [m/s].
     Vy,
-    /// Heading θ (yaw about +z) [rad]; readings are wrapped to (−π, π].
+    /// Heading θ (yaw about +z) \[rad\]; readings are wrapped to (−π, π].
     Heading,
     /// Forward body speed v [m/s].
     Speed,
@@ -129,7 +129,7 @@ impl Quantity {
         matches!(self, Quantity::WheelLeft | Quantity::WheelRight)
     }
 
-    /// The accumulated wheel rotation [rad] behind a wheel quantity (what its encoder counts).
+    /// The accumulated wheel rotation \[rad\] behind a wheel quantity (what its encoder counts).
     fn wheel_angle(self, truth: &TruthState) -> f64 {
         match self {
             Quantity::WheelLeft => truth.wheel_angle_left,
@@ -158,7 +158,7 @@ pub struct ChannelSpec {
     /// Bias random-walk intensity [unit/√s]. Default 0 (no walk).
     #[serde(default)]
     pub bias_walk_std: f64,
-    /// Sample rate [Hz]. Absent: a sample every control tick.
+    /// Sample rate \[Hz\]. Absent: a sample every control tick.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rate_hz: Option<f64>,
     /// Probability that a due sample is lost. Default 0.
@@ -600,7 +600,7 @@ pub struct Sample {
     pub clean: f64,
     /// `true` only on the tick a new sample arrived.
     pub fresh: bool,
-    /// Time since the current sample was taken [s]; 0 when fresh, `+∞` before the first sample.
+    /// Time since the current sample was taken \[s\]; 0 when fresh, `+∞` before the first sample.
     pub age: f64,
 }
 
@@ -695,7 +695,7 @@ pub struct SensorSuite {
 }
 
 impl SensorSuite {
-    /// Validates `specs` and builds the suite for a control loop of period `dt` [s] (the suite is
+    /// Validates `specs` and builds the suite for a control loop of period `dt` \[s\] (the suite is
     /// sampled once per control tick). `seed` is the run seed.
     pub fn new(specs: &[ChannelSpec], dt: f64, seed: u64) -> Result<Self, SensorError> {
         if !(dt.is_finite() && dt > 0.0) {
@@ -768,7 +768,7 @@ impl SensorSuite {
         self.specs.is_empty()
     }
 
-    /// The control period the suite was built for [s].
+    /// The control period the suite was built for \[s\].
     pub fn control_dt(&self) -> f64 {
         self.dt
     }

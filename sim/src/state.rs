@@ -4,13 +4,13 @@
 /// The robot's true planar state at one instant, world frame, SI units.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TruthState {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub t: f64,
-    /// Position of the robot's reference point (base_link origin projected on the ground) [m].
+    /// Position of the robot's reference point (base_link origin projected on the ground) \[m\].
     pub x: f64,
-    /// [m]
+    /// \[m\]
     pub y: f64,
-    /// Heading (yaw about +z) [rad], wrapped to (−π, π].
+    /// Heading (yaw about +z) \[rad\], wrapped to (−π, π].
     pub theta: f64,
     /// World-frame velocity of the reference point [m/s].
     pub vx: f64,
@@ -26,10 +26,10 @@ pub struct TruthState {
     pub wheel_left: f64,
     /// Right drive wheel's angular speed [rad/s]; NaN without wheels.
     pub wheel_right: f64,
-    /// Left wheel's accumulated rotation since the start [rad] (what an encoder counts); NaN
+    /// Left wheel's accumulated rotation since the start \[rad\] (what an encoder counts); NaN
     /// without wheels.
     pub wheel_angle_left: f64,
-    /// Right wheel's accumulated rotation [rad]; NaN without wheels.
+    /// Right wheel's accumulated rotation \[rad\]; NaN without wheels.
     pub wheel_angle_right: f64,
 }
 

@@ -15,7 +15,7 @@ pub struct NamedValue {
 /// The first contact between the robot and an obstacle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CollisionEvent {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub t: f64,
     /// Obstacle name.
     pub obstacle: String,
@@ -24,7 +24,7 @@ pub struct CollisionEvent {
 /// The first time the true state left a safe set (h(x_true) < 0).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ViolationEvent {
-    /// Simulation time [s].
+    /// Simulation time \[s\].
     pub t: f64,
     /// Safe-set name.
     pub set: String,
@@ -84,9 +84,9 @@ impl FailClosedCounts {
 pub struct AttackWindow {
     /// e.g. `attacks[0] bias on gnss2_y`.
     pub label: String,
-    /// [s]
+    /// \[s\]
     pub start: f64,
-    /// [s]; `None` = until the end of the run.
+    /// \[s\]; `None` = until the end of the run.
     pub end: Option<f64>,
     /// True when the attacked channels are not all inside one declared fault pattern
     /// (outside the paper's threat model: no guarantee applies).
@@ -104,7 +104,7 @@ pub struct Smoothness {
     pub mean_abs_domega: f64,
     /// Mean |v_k − v_(k−1)| per control step [m/s].
     pub mean_abs_dv: f64,
-    /// Length of the true path, sampled at the control rate [m].
+    /// Length of the true path, sampled at the control rate \[m\].
     pub path_length: f64,
     /// Stalls the safety filter's nominal tracker detected (each began an escape).
     pub stalls: u64,
@@ -129,7 +129,7 @@ impl SmoothnessMeter {
         self.stalls = stalls;
     }
 
-    /// One control step: the body command (v, ω) sent [m/s, rad/s] and the true position [m].
+    /// One control step: the body command (v, ω) sent [m/s, rad/s] and the true position \[m\].
     pub fn observe(&mut self, cmd: [f64; 2], pos: [f64; 2]) {
         if let Some(last) = self.last_cmd {
             self.pairs += 1;
@@ -175,13 +175,13 @@ pub struct EstimationError {
     pub honest: bool,
     /// Largest ‖x − x̂‖ over the run.
     pub max_error: f64,
-    /// Largest position part ‖(p_x, p_y) − (p̂_x, p̂_y)‖ [m].
+    /// Largest position part ‖(p_x, p_y) − (p̂_x, p̂_y)‖ \[m\].
     pub max_position_error: f64,
     /// Largest velocity part ‖(v_x, v_y) − (v̂_x, v̂_y)‖ [m/s].
     pub max_velocity_error: f64,
     /// Largest ‖x − x̂‖/γ (`None` without γ); above 1 the bound was left.
     pub max_ratio: Option<f64>,
-    /// When the largest ratio (or error, without γ) occurred [s].
+    /// When the largest ratio (or error, without γ) occurred \[s\].
     pub t_worst: f64,
     /// Control steps with ‖x − x̂‖ > γ.
     pub steps_over: u64,
@@ -195,7 +195,7 @@ impl EstimationError {
     }
 }
 
-/// Length of the final stretch of a run over which "settled in the goal" is judged [s].
+/// Length of the final stretch of a run over which "settled in the goal" is judged \[s\].
 pub const SETTLE_WINDOW: f64 = 2.0;
 
 /// Everything one run measured. The same world + seed gives the same summary, bit for bit, on
@@ -208,7 +208,7 @@ pub struct RunSummary {
     pub seed: u64,
     /// `ft-cbf-clf`, `baseline` or `nominal`.
     pub controller: String,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub duration: f64,
     /// The true state stayed in every safe set, the robot never touched an obstacle, and every
     /// barrier value and the final state are finite numbers (fail closed: see `non_finite`).
@@ -226,17 +226,17 @@ pub struct RunSummary {
     pub first_violation: Option<ViolationEvent>,
     /// Smallest h(x_true) per safe set and per obstacle barrier.
     pub min_barrier: Vec<NamedValue>,
-    /// Smallest true clearance robot–obstacle over the run [m] (`None` without obstacles).
+    /// Smallest true clearance robot–obstacle over the run \[m\] (`None` without obstacles).
     pub min_clearance: Option<f64>,
     /// The goal set was entered ("entered the goal": at least one plant tick inside it).
     pub goal_reached: bool,
-    /// First time in the goal set [s].
+    /// First time in the goal set \[s\].
     pub time_to_goal: Option<f64>,
     /// "Settled in the goal": the true state was inside the goal set at every plant tick of the
     /// last [`SETTLE_WINDOW`] seconds of the run (the whole run if it is shorter).
     #[serde(default)]
     pub goal_settled: bool,
-    /// Distance to the goal at the end, in the goal's metric (position, or full state) [m].
+    /// Distance to the goal at the end, in the goal's metric (position, or full state) \[m\].
     #[serde(default)]
     pub final_goal_distance: f64,
     /// The CLF V(x_true) at the end (eq. 6.6; `None` when the CLF could not be built).
@@ -382,7 +382,7 @@ mod tests {
 }
 
 /// The first non-finite quantity among a run's barrier minima, its smallest clearance and its
-/// final state, named for the summary ("min h(floor) = inf", "final_state[1] = NaN").
+/// final state, named for the summary ("min h(floor) = inf", "final_state\[1\] = NaN").
 pub fn first_non_finite(
     min_barrier: &[NamedValue],
     min_clearance: Option<f64>,

@@ -8,13 +8,13 @@
 //!
 //! CSV columns, in order (an empty field is "none"):
 //! `sweep_key, sweep_value` (the sweep point, empty without a sweep), `trial` (0-based index),
-//! `seed`, `controller`, `safe`, `collided` (true/false), `first_collision_t` [s],
-//! `first_collision_obstacle`, `first_violation_t` [s], `first_violation_set`,
+//! `seed`, `controller`, `safe`, `collided` (true/false), `first_collision_t` \[s\],
+//! `first_collision_obstacle`, `first_violation_t` \[s\], `first_violation_set`,
 //! `first_violation_value` (h(x_true) then), `min_barrier` (smallest h(x_true) over all sets and
-//! obstacle barriers), `min_barrier_name`, `min_clearance` [m], `goal_reached`, `time_to_goal`
-//! [s], `step1, clf_relaxed, step2, step3, infeasible` (control steps decided by each policy
-//! step), `control_steps`, `rejected_readings`, `duration` [s], `outside_fault_patterns`,
-//! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` [m],
+//! obstacle barriers), `min_barrier_name`, `min_clearance` \[m\], `goal_reached`, `time_to_goal`
+//! \[s\], `step1, clf_relaxed, step2, step3, infeasible` (control steps decided by each policy
+//! step), `control_steps`, `rejected_readings`, `duration` \[s\], `outside_fault_patterns`,
+//! `goal_settled` (inside the goal over the run's last 2 s), `final_goal_distance` \[m\],
 //! `omega_sign_change_fraction` (control steps whose commanded ω changed sign),
 //! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker), `estimation`
 //! (per filter of the bank, as a JSON array: `filter`, `honest` — it read no attacked channel —,

@@ -22,7 +22,7 @@
 //! (shard merging), `table` (human-readable tables), `cli` (clap arguments and the commands).
 
 mod cli;
-mod figure;
+pub mod figure;
 mod io;
 mod merge;
 mod plan;
@@ -37,9 +37,12 @@ pub use cli::{
     batch_command, failing_verdicts, merge_command, BatchArgs, FailOn, MergeArgs, PrepareFn,
     VerdictFailure,
 };
+pub use io::FORMAT;
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
-pub use result::{BatchResult, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict};
+pub use result::{
+    BatchResult, ControllerSummary, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict,
+};
 pub use run::{progress_bar, run_batch, run_parallel, run_sweep, worker_pool};
 
 /// Confidence level of every interval in a batch summary.

@@ -156,7 +156,7 @@ pub struct BatchPlan {
     pub shard: Option<Shard>,
     /// ε of the world's claim Pr(safe) ≥ 1 − ε, if any.
     pub epsilon: Option<f64>,
-    /// Confidence level of the intervals ([`CONFIDENCE`]).
+    /// Confidence level of the intervals ([`crate::batch::CONFIDENCE`]).
     pub confidence: f64,
     /// `ftcbf check`'s verdict line on Theorem 3 for the world (absent in older files).
     #[serde(default, skip_serializing_if = "Option::is_none")]

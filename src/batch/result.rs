@@ -22,12 +22,12 @@ pub struct TrialRecord {
     pub safe: bool,
     /// The robot touched an obstacle.
     pub collided: bool,
-    /// Time of the first contact [s].
+    /// Time of the first contact \[s\].
     #[serde(with = "io::float_or_text::option")]
     pub first_collision_t: Option<f64>,
     /// Obstacle of the first contact.
     pub first_collision_obstacle: Option<String>,
-    /// Time of the first safe-set violation [s].
+    /// Time of the first safe-set violation \[s\].
     #[serde(with = "io::float_or_text::option")]
     pub first_violation_t: Option<f64>,
     /// Safe set of the first violation.
@@ -40,7 +40,7 @@ pub struct TrialRecord {
     pub min_barrier: Option<f64>,
     /// The set or obstacle attaining `min_barrier`.
     pub min_barrier_name: Option<String>,
-    /// Smallest true robot–obstacle clearance [m].
+    /// Smallest true robot–obstacle clearance \[m\].
     #[serde(with = "io::float_or_text::option")]
     pub min_clearance: Option<f64>,
     /// The goal set was entered.
@@ -48,10 +48,10 @@ pub struct TrialRecord {
     /// Inside the goal set over the last stretch of the run (see `RunSummary::goal_settled`).
     #[serde(default)]
     pub goal_settled: bool,
-    /// Distance to the goal at the end [m].
+    /// Distance to the goal at the end \[m\].
     #[serde(default, with = "io::float_or_text")]
     pub final_goal_distance: f64,
-    /// First time in the goal set [s].
+    /// First time in the goal set \[s\].
     #[serde(with = "io::float_or_text::option")]
     pub time_to_goal: Option<f64>,
     /// Which policy step decided, per control step.
@@ -60,7 +60,7 @@ pub struct TrialRecord {
     pub control_steps: u64,
     /// Readings rejected as non-finite or absurd.
     pub rejected_readings: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     #[serde(with = "io::float_or_text")]
     pub duration: f64,
     /// At least one attack lay outside the declared fault patterns (no guarantee applies).
@@ -331,7 +331,7 @@ pub struct WorstTrial {
     pub min_barrier: Option<f64>,
     /// Set or obstacle of the smallest barrier value.
     pub min_barrier_name: Option<String>,
-    /// Smallest clearance [m].
+    /// Smallest clearance \[m\].
     pub min_clearance: Option<f64>,
 }
 
@@ -371,12 +371,12 @@ pub struct ControllerSummary {
     /// settled / n.
     #[serde(default)]
     pub settled_rate: f64,
-    /// Distance to the goal at the end: median over trials [m].
+    /// Distance to the goal at the end: median over trials \[m\].
     #[serde(default)]
     pub final_goal_distance_p50: f64,
-    /// Time to goal over the trials that reached it: p50, p90, max [s].
+    /// Time to goal over the trials that reached it: p50, p90, max \[s\].
     pub time_to_goal: Option<UpperQuantiles>,
-    /// Minimum clearance over trials with obstacles: min, p10, p50 [m].
+    /// Minimum clearance over trials with obstacles: min, p10, p50 \[m\].
     pub min_clearance: Option<LowerQuantiles>,
     /// Minimum barrier value over trials: min, p10, p50.
     pub min_barrier: Option<LowerQuantiles>,

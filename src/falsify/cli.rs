@@ -36,7 +36,7 @@ use crate::falsify::search::MIN_BUDGET;
   ftcbf falsify worlds/corridor_spoof.toml --budget 400 --jobs 2 --json corridor.json --no-record
   ftcbf falsify worlds/corridor_spoof.toml --scenario --budget 32 --range obstacle_shift=0.3 --json scen.json")]
 pub struct FalsifyArgs {
-    /// World file (TOML). Its own [[attacks]] are replaced by the searched ones.
+    /// World file (TOML). Its own `[[attacks]]` are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
     #[arg(long, value_name = "KIND", value_parser = ["ft-cbf-clf", "baseline", "nominal"])]
@@ -51,7 +51,7 @@ pub struct FalsifyArgs {
     /// Worker threads [default: all cores].
     #[arg(long, short = 'j', value_name = "J", value_parser = clap::value_parser!(u64).range(1..))]
     pub jobs: Option<u64>,
-    /// Where to write the worst run as a world file [default: runs/<world>-worst-<controller>.toml];
+    /// Where to write the worst run as a world file [default: runs/WORLD-worst-CONTROLLER.toml];
     /// its recording goes next to it (same name, .rrd).
     #[arg(long, value_name = "WORST.toml")]
     pub out: Option<PathBuf>,

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 /// The robustness ρ of one run: the minimum over time of every safety margin on the true state,
 /// namely h(x_true) of each declared safe set (the value whose sign decides a safe-set violation)
-/// and the signed robot–obstacle clearance [m] (negative = penetration). ρ < 0 means unsafe.
+/// and the signed robot–obstacle clearance \[m\] (negative = penetration). ρ < 0 means unsafe.
 ///
 /// A collision is always worse than any run without one ("collisions are the most negative"):
 /// runs are ordered first by `collided`, then by `value` (see [`Robustness::cmp_worse`]). A

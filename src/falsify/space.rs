@@ -134,7 +134,7 @@ impl Candidate {
 pub struct SearchSpace {
     /// The declared fault patterns.
     pub patterns: Vec<Pattern>,
-    /// The world's duration T [s].
+    /// The world's duration T \[s\].
     pub duration: f64,
     /// Length of z.
     pub dim: usize,

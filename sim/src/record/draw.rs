@@ -3,7 +3,7 @@
 
 use crate::observe::{Geometry, Placed, Scene};
 
-/// Margin around the scene's extent when sizing the ground [m].
+/// Margin around the scene's extent when sizing the ground \[m\].
 const GROUND_MARGIN: f32 = 0.3;
 
 /// An opaque colour (const; rerun's `Color::from_rgb` is not).
@@ -81,7 +81,7 @@ pub(crate) fn seg(name: &str) -> String {
     }
 }
 
-/// Axis-aligned rectangle on the ground, (min x, min y, max x, max y) [m].
+/// Axis-aligned rectangle on the ground, (min x, min y, max x, max y) \[m\].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Rect {
     pub lo: [f32; 2],
@@ -146,7 +146,7 @@ fn footprint(g: &Geometry, yaw: f32) -> [f32; 2] {
     }
 }
 
-/// Yaw of a quaternion (x, y, z, w) [rad].
+/// Yaw of a quaternion (x, y, z, w) \[rad\].
 fn yaw(q: [f32; 4]) -> f32 {
     let [x, y, z, w] = q;
     (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
@@ -209,7 +209,7 @@ pub(crate) fn standing(p: &Placed) -> Placed {
     q
 }
 
-/// Height of a half-space wall as drawn [m].
+/// Height of a half-space wall as drawn \[m\].
 const WALL_HEIGHT: f32 = 0.3;
 
 /// A mesh given in world coordinates (identity placement) that reaches outside the ground —

@@ -22,10 +22,10 @@ use rerun::{EntityPath, RecordingStream, RecordingStreamBuilder, StoreKind, Time
 use super::draw::{colour_name, seg, Rect};
 use crate::observe::{Geometry, Scene};
 
-/// Angle of the eye above the ground plane [rad]: steep enough that a 0.3 m wall hides at most
+/// Angle of the eye above the ground plane \[rad\]: steep enough that a 0.3 m wall hides at most
 /// 0.17 m of floor behind it, low enough to read heights.
 pub const EYE_ELEVATION: f32 = 60.0 * std::f32::consts::PI / 180.0;
-/// The viewer's vertical field of view (rerun's `Eye::DEFAULT_FOV_Y`) [rad].
+/// The viewer's vertical field of view (rerun's `Eye::DEFAULT_FOV_Y`) \[rad\].
 const FOV_Y: f32 = 55.0 * std::f32::consts::PI / 180.0;
 /// Width / height of the 3D view in the default layout (left column, upper three quarters) on a
 /// 16:10 window; a wider view only adds margin left and right.
@@ -33,7 +33,7 @@ const VIEW_ASPECT: f32 = 1.2;
 /// The ground fills at most 1 / this of the view's width or height.
 const EYE_MARGIN: f32 = 1.1;
 
-/// Height up to which the scene is kept in view (half-space walls are drawn 0.3 m high) [m].
+/// Height up to which the scene is kept in view (half-space walls are drawn 0.3 m high) \[m\].
 const FRAMED_HEIGHT: f32 = 0.3;
 
 /// The 3D view's starting eye for `ground`: position and look target (both in `world`, z up).

@@ -1,5 +1,5 @@
 //! Headless rerun recording of a run to an `.rrd` file (feature `record`), with a default
-//! blueprint so the viewer shows the run, with no clicking, as [`layout`] describes.
+//! blueprint so the viewer shows the run, with no clicking, as `layout` describes.
 //!
 //! Entity paths (stable; segments hold only ASCII letters, digits, `_` and `-`):
 //! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor;
@@ -10,7 +10,7 @@
 //! - `world/estimates/<filter>` — each estimator's position over time (colour and radius
 //!   static); `world/trails/{truth,<filter>}` — paths growing with time (a point every
 //!   [`TRAIL_EVERY`] control steps);
-//! - plots, as [`plots`] describes: `barriers/<barrier>/{truth,<filter>,zero,clipped}`,
+//! - plots, as `plots` describes: `barriers/<barrier>/{truth,<filter>,zero,clipped}`,
 //!   `sensors/<channel>/{clean,received,rejected,attack_window,clipped}`, `detector/<channel>`,
 //!   `residues/<filter>`, `clf/<filter>` (V/V₀), `estimation_error/<filter>` (‖x − x̂‖/γ against
 //!   the truth, with `estimation_error/bound` at 1), `control/{v,omega,u_x,u_y}`, `attacks/<label>`;
@@ -18,8 +18,8 @@
 //!   tightest constraint), `events/safety` (WARN: collisions and violations, naming the obstacle
 //!   or set), `events/attacks` (WARN at a window's start, INFO at its end).
 //!
-//! One colour per estimator ([`draw::palette`]) in the 3D view and in every plot. The 3D view
-//! opens looking down on the ground from its −y side ([`layout`]: eye position and target are in
+//! One colour per estimator (`draw::palette`) in the 3D view and in every plot. The 3D view
+//! opens looking down on the ground from its −y side (`layout`: eye position and target are in
 //! the blueprint), so no wall stands between the eye and the robot.
 //! Timelines: `sim_time` (seconds) and `step` (control step). The application id and the
 //! recording name are `ftcbf-<world>-<controller>-seed<N>`, so each world/controller/seed has its

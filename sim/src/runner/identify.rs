@@ -32,7 +32,7 @@ use crate::world::World;
 
 use super::plant::{drive_config, Plant};
 
-/// Length of the identification run [s].
+/// Length of the identification run \[s\].
 pub const IDENT_SECONDS: f64 = 30.0;
 /// Excitation amplitude per axis without an input box [m/s²].
 pub const DEFAULT_EXCITATION: f64 = 1.0;
@@ -44,13 +44,13 @@ pub const WINDOWS: [usize; 6] = [1, 2, 5, 10, 25, 50];
 pub struct DriveIdentification {
     /// The identified intensity q [(m/s²)²·s]: white acceleration noise per axis.
     pub q: f64,
-    /// The window [s] at which the mismatch was largest (q was read there).
+    /// The window \[s\] at which the mismatch was largest (q was read there).
     pub window: f64,
     /// RMS of the per-step velocity mismatch ‖w_k‖ [m/s].
     pub rms_step_mismatch: f64,
     /// Excitation amplitude per axis [m/s²].
     pub excitation: f64,
-    /// Length of the run [s].
+    /// Length of the run \[s\].
     pub seconds: f64,
 }
 

@@ -67,7 +67,7 @@ pub struct RunOptions {
     pub seed: Option<u64>,
     /// Controller (default: the world's `control.controller`).
     pub controller: Option<ControllerKindSpec>,
-    /// Simulated duration [s] (default: the world's).
+    /// Simulated duration \[s\] (default: the world's).
     pub duration: Option<f64>,
 }
 

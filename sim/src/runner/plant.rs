@@ -38,9 +38,9 @@ pub enum Plant {
         x: State,
         /// Input held over the control period.
         u: Input,
-        /// Time [s].
+        /// Time \[s\].
         t: f64,
-        /// Integration step [s].
+        /// Integration step \[s\].
         dt: f64,
         /// Process-noise stream.
         rng: ChaCha20Rng,
@@ -216,7 +216,7 @@ impl Plant {
         }
     }
 
-    /// True clearance to each obstacle [m].
+    /// True clearance to each obstacle \[m\].
     pub fn clearances(&self, out: &mut Vec<f64>) {
         match self {
             Plant::Rapier { physics, .. } => physics.clearances(out),

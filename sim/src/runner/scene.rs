@@ -10,7 +10,7 @@ use crate::world::{SafeSetSpec, World};
 
 use super::setup::ControlSetup;
 
-/// Half size of the patch drawn for a half-space wall [m].
+/// Half size of the patch drawn for a half-space wall \[m\].
 const HALF_SPACE_PATCH: f64 = 3.0;
 
 fn quat_xyzw(q: &UnitQuaternion<f64>) -> [f32; 4] {

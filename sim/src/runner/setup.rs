@@ -24,7 +24,7 @@ use crate::world::{
 
 use super::RunError;
 
-/// Variance floor for a channel declared noise-free, so R stays invertible [unit²].
+/// Variance floor for a channel declared noise-free, so R stays invertible \[unit²\].
 pub const MIN_VARIANCE: f64 = 1e-8;
 /// Readings larger than this are rejected by the controller as absurd [m or m/s].
 pub const MAX_ABS_READING: f64 = 1e6;
@@ -68,7 +68,7 @@ pub struct ControlSetup {
     pub gain: GainChoice,
 }
 
-/// The planner's default corridor beyond the obstacle margin [m] ([`PlannerConfig`]), and the
+/// The planner's default corridor beyond the obstacle margin \[m\] ([`PlannerConfig`]), and the
 /// band beyond h̄_γ within which `cbf_gain = "auto"` makes every obstacle row hold the robot at
 /// rest (ĥ ≥ band ⇒ u = 0 meets the row): the rate-tunable rule κ ≥ R/band at rest.
 pub const HOLD_BAND: f64 = 0.10;
@@ -100,7 +100,7 @@ pub struct GainChoice {
     pub kappa: f64,
     /// Why.
     pub source: GainSource,
-    /// h̄ + R/κ: the clearance beyond the margin where u = 0 meets every obstacle row at rest [m]
+    /// h̄ + R/κ: the clearance beyond the margin where u = 0 meets every obstacle row at rest \[m\]
     /// (0 without obstacles).
     pub hold_clearance: f64,
 }
@@ -633,7 +633,7 @@ pub fn channel_mask(q: usize, patterns: &[Vec<usize>], drop: &[usize]) -> Vec<bo
 /// smallest h(x̂_i) at which its CBF row holds with u = 0 at rest, h̄_γi + γ_i‖(K_i c̄_i)ᵀa‖/κ
 /// (steady-state gain), and the standard deviation of h(x̂_i) − h(x), √(aᵀP_i a) (steady-state
 /// posterior covariance). `ftcbf check` reports the first against the goal set; the safety
-/// filter's tracker aims where both fit (see [`viable_point`]).
+/// filter's tracker aims where both fit (see `viable_point`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RestHold {
     /// h̄_γ + γ‖(Kc̄)ᵀa‖/κ.
@@ -766,7 +766,7 @@ pub fn heading_fusion(world: &World) -> Option<(usize, odometry::HeadingFilterPa
     ))
 }
 
-/// 1σ of the start yaw the heading filter is given [rad] (0.6°): the run starts at the world's
+/// 1σ of the start yaw the heading filter is given \[rad\] (0.6°): the run starts at the world's
 /// marked start pose, as the filters' `initial_std` assumes for the position.
 pub const START_YAW_STD: f64 = 0.01;
 
@@ -781,7 +781,7 @@ pub struct HeadingSource {
     repeats: odometry::RepeatDetector,
     /// Fresh readings refused as repeats.
     stuck: u64,
-    /// The heading the drive linearises about [rad].
+    /// The heading the drive linearises about \[rad\].
     drive: f64,
 }
 
@@ -813,12 +813,12 @@ impl HeadingSource {
         self.stuck + self.fusion.as_ref().map_or(0, |(_, f)| f.rejected())
     }
 
-    /// The heading [rad] the drive linearises about ([`HeadingSource::update`] keeps it).
+    /// The heading \[rad\] the drive linearises about ([`HeadingSource::update`] keeps it).
     pub fn drive_yaw(&self) -> f64 {
         self.drive
     }
 
-    /// Takes this tick's samples as received (attacks included) and returns the yaw [rad] the
+    /// Takes this tick's samples as received (attacks included) and returns the yaw \[rad\] the
     /// odometry is turned with: the heading channel's current sample, or with fusion the
     /// filter's yaw after it integrated the gyro over `dt` and took a fresh compass reading.
     /// NaN while there is none or when it is outside [−π, π] (malformed: the odometry made with
@@ -872,7 +872,7 @@ pub enum Conversion {
 }
 
 impl Conversion {
-    /// The channel's value from its sensor's sample `v` and the heading sample `theta` [rad].
+    /// The channel's value from its sensor's sample `v` and the heading sample `theta` \[rad\].
     pub fn apply(self, v: f64, theta: f64) -> f64 {
         match self {
             Conversion::Direct => v,

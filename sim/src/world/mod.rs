@@ -214,12 +214,12 @@ impl World {
         self.path.parent().unwrap_or_else(|| Path::new("."))
     }
 
-    /// Control period [s].
+    /// Control period \[s\].
     pub fn control_dt(&self) -> f64 {
         1.0 / self.file.control.rate_hz
     }
 
-    /// Plant step [s] (physics or linear integration).
+    /// Plant step \[s\] (physics or linear integration).
     pub fn plant_dt(&self) -> f64 {
         match self.file.dynamics {
             Dynamics::Rapier => self.file.physics.dt,
@@ -303,7 +303,7 @@ impl Validator<'_> {
         } else {
             Err(self.err(
                 key,
-                format!("{n} entries; at most {max} are supported (see the README's world-file reference)"),
+                format!("{n} entries; at most {max} are supported (see the world-file reference, book/src/reference/world-file.md)"),
             ))
         }
     }
@@ -610,7 +610,7 @@ impl Validator<'_> {
             self.err(
                 "robot.urdf",
                 format!(
-                    "robot `{}`: {what} (see the README's world-file reference for the ranges)",
+                    "robot `{}`: {what} (see the world-file reference, book/src/reference/world-file.md, for the ranges)",
                     robot.name
                 ),
             )

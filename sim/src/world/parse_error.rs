@@ -1,5 +1,5 @@
 //! Reading the world schema from TOML text with errors that have a place: the dotted key path
-//! (array indices included, e.g. `obstacles[2].shape.half_extents[1]`), the line and column of
+//! (array indices included, e.g. `obstacles[2].shape.half_extents\[1\]`), the line and column of
 //! that key in the file, and serde's statement of what was found and what was expected.
 //!
 //! The key path comes from `serde_path_to_error` over toml's deserializer; inside a

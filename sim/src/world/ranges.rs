@@ -88,23 +88,23 @@ fn fmt_bound(v: f64) -> String {
 }
 
 /// A world-frame coordinate (start, goal, waypoints, centres, obstacle positions, the linear
-/// plant's x0 position) [m].
+/// plant's x0 position) \[m\].
 pub const POSITION: Range = Range::closed(-1.0e4, 1.0e4, "m");
-/// A size: half extents, radii, half heights, semi-axes, the goal radius [m].
+/// A size: half extents, radii, half heights, semi-axes, the goal radius \[m\].
 pub const SIZE: Range = Range::closed(1.0e-4, 1.0e3, "m");
-/// An angle: headings, rpy, an ellipse's rotation [rad].
+/// An angle: headings, rpy, an ellipse's rotation \[rad\].
 pub const ANGLE: Range = Range::closed(-100.0, 100.0, "rad");
 /// A velocity component of the linear plant's x0 [m/s].
 pub const VELOCITY: Range = Range::closed(-100.0, 100.0, "m/s");
-/// `duration` and `run --duration` [s].
+/// `duration` and `run --duration` \[s\].
 pub const DURATION: Range = Range::positive(3600.0, "s");
-/// `control.rate_hz` [Hz].
+/// `control.rate_hz` \[Hz\].
 pub const CONTROL_RATE: Range = Range::closed(1.0, 1.0e4, "Hz");
-/// A sensor channel's `rate_hz` [Hz].
+/// A sensor channel's `rate_hz` \[Hz\].
 pub const SENSOR_RATE: Range = Range::closed(1.0e-3, 1.0e4, "Hz");
-/// `physics.dt` [s] (rapier).
+/// `physics.dt` \[s\] (rapier).
 pub const PHYSICS_DT: Range = Range::closed(1.0e-5, 0.02, "s");
-/// `linear.dt` [s].
+/// `linear.dt` \[s\].
 pub const LINEAR_DT: Range = Range::closed(1.0e-6, 0.1, "s");
 /// Control steps of a run, duration × rate_hz (the horizon of `check`'s bounds).
 pub const MAX_CONTROL_STEPS: f64 = 5.0e5;
@@ -120,7 +120,7 @@ pub const YAW_RATE: Range = Range::positive(1.0e3, "rad/s");
 pub const WHEEL_SPEED: Range = Range::positive(1.0e4, "rad/s");
 /// An acceleration bound (`input_limit`, `dv_max`, `arrive_accel`) [m/s² or rad/s²].
 pub const ACCELERATION: Range = Range::positive(1.0e3, "m/s²");
-/// `control.gamma`, `control.theta`, `control.delta`: error and separation bounds [m].
+/// `control.gamma`, `control.theta`, `control.delta`: error and separation bounds \[m\].
 pub const ERROR_BOUND: Range = Range::closed(0.0, 1.0e4, "m");
 /// A gain (`cbf_gain`, `clf.rho`, `nominal.speed_gain`) [1/s].
 pub const GAIN: Range = Range::positive(1.0e3, "1/s");
@@ -133,19 +133,19 @@ pub const PROCESS_NOISE: Range = Range::closed(1.0e-9, 1.0e3, "unit²/s");
 pub const INITIAL_STD: Range = Range::closed(0.0, 100.0, "m or m/s");
 /// `control.clf.v_bar`.
 pub const CLF_LEVEL: Range = Range::closed(0.0, 1.0e6, "");
-/// `control.obstacle_margin` [m].
+/// `control.obstacle_margin` \[m\].
 pub const MARGIN: Range = Range::closed(0.0, 10.0, "m");
-/// A lift gain k of a relative-degree-2 barrier (`obstacle_lift`, a safe set's `lift`) [s].
+/// A lift gain k of a relative-degree-2 barrier (`obstacle_lift`, a safe set's `lift`) \[s\].
 pub const LIFT: Range = Range::closed(0.0, 100.0, "s");
-/// A length of the tracker (`lookahead`, `stall_progress`) [m].
+/// A length of the tracker (`lookahead`, `stall_progress`) \[m\].
 pub const TRACKER_LENGTH: Range = Range::positive(1.0e3, "m");
-/// A time constant or duration of the tracker (`smoothing`, `stall_time`, `escape_time`) [s].
+/// A time constant or duration of the tracker (`smoothing`, `stall_time`, `escape_time`) \[s\].
 pub const TRACKER_TIME: Range = Range::positive(3600.0, "s");
-/// `nominal.smoothing` (0: no low-pass) [s].
+/// `nominal.smoothing` (0: no low-pass) \[s\].
 pub const SMOOTHING: Range = Range::closed(0.0, 3600.0, "s");
 /// `nominal.jerk_limit` [m/s³].
 pub const JERK: Range = Range::positive(1.0e4, "m/s³");
-/// `nominal.escape_angle` [rad].
+/// `nominal.escape_angle` \[rad\].
 pub const ESCAPE_ANGLE: Range = Range::closed(-std::f64::consts::PI, std::f64::consts::PI, "rad");
 /// `drive.low_speed_scale` (v_floor, v_soft) [m/s].
 pub const LOW_SPEED_SCALE: Range = Range::positive(10.0, "m/s");
@@ -162,17 +162,17 @@ pub const BIAS: Range = Range::closed(-1.0e4, 1.0e4, "unit");
 /// A wheel encoder's `ticks_per_rev`.
 pub const TICKS_PER_REV: Range = Range::closed(1.0, 1.0e7, "");
 /// Robot geometry from the URDF: every link origin, collider extent and mesh vertex within this
-/// distance of the robot's root [m].
+/// distance of the robot's root \[m\].
 pub const ROBOT_EXTENT: f64 = 100.0;
-/// A robot collision shape's half extents, radii and half lengths [m].
+/// A robot collision shape's half extents, radii and half lengths \[m\].
 pub const ROBOT_SHAPE: Range = Range::closed(1.0e-5, 100.0, "m");
-/// A robot link's mass [kg].
+/// A robot link's mass \[kg\].
 pub const MAX_LINK_MASS: f64 = 1.0e6;
 /// A robot link's inertia entries [kg·m²].
 pub const MAX_LINK_INERTIA: f64 = 1.0e8;
 /// A `tri_mesh` obstacle's `scale`.
 pub const MESH_SCALE: Range = Range::closed(1.0e-6, 1.0e6, "");
-/// The robot's wheel radius, wheel separation and footprint radius [m].
+/// The robot's wheel radius, wheel separation and footprint radius \[m\].
 pub const ROBOT_SIZE: Range = Range::closed(1.0e-3, 100.0, "m");
 
 /// Most `[[fault_patterns]]` a world may declare (the bank holds 1 + m + m(m−1)/2 filters).

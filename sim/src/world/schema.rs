@@ -18,7 +18,7 @@ pub struct WorldFile {
     pub name: Option<String>,
     /// Free text shown by `ftcbf check`.
     pub description: Option<String>,
-    /// Simulated duration [s].
+    /// Simulated duration \[s\].
     pub duration: f64,
     /// Seed of every random source of the run (sensor noise, process noise, random attacks).
     #[serde(default)]
@@ -134,13 +134,13 @@ pub struct LimitsSpec {
 #[derive(Debug, Clone, Copy, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StartPose {
-    /// [m]
+    /// \[m\]
     #[serde(default)]
     pub x: f64,
-    /// [m]
+    /// \[m\]
     #[serde(default)]
     pub y: f64,
-    /// Heading [rad].
+    /// Heading \[rad\].
     #[serde(default)]
     pub theta: f64,
 }
@@ -149,7 +149,7 @@ pub struct StartPose {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhysicsSection {
-    /// Physics step [s] (default 0.005: 200 Hz, 4 plant steps per 50 Hz control step, so the default rates fit together).
+    /// Physics step \[s\] (default 0.005: 200 Hz, 4 plant steps per 50 Hz control step, so the default rates fit together).
     #[serde(default = "default_physics_dt")]
     pub dt: f64,
     /// Coulomb friction coefficient of wheels, ground and obstacles (default 1.0).
@@ -177,7 +177,7 @@ fn default_friction() -> f64 {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LinearSection {
-    /// Integration step [s] (default 0.001).
+    /// Integration step \[s\] (default 0.001).
     #[serde(default = "default_linear_dt")]
     pub dt: f64,
     /// Initial state (p_x, p_y, v_x, v_y).
@@ -248,7 +248,7 @@ impl<'de> Deserialize<'de> for Param {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ControlSection {
-    /// Control rate [Hz] (default 50).
+    /// Control rate \[Hz\] (default 50).
     #[serde(default = "default_rate")]
     pub rate_hz: f64,
     /// `ft-cbf-clf` (default), `baseline` or `nominal`.
@@ -290,7 +290,7 @@ pub struct ControlSection {
     /// (Q = q·I₄ on position and velocity, the paper's §6.2 setting). Default: `isotropic` for
     /// `dynamics = "linear"` (it is the plant's own noise), `acceleration` for a rapier robot.
     pub process_model: Option<ProcessModel>,
-    /// The filters' initial uncertainty: standard deviations of the start position [m] and the
+    /// The filters' initial uncertainty: standard deviations of the start position \[m\] and the
     /// start velocity [m/s] per axis, P0 = diag(σ_p², σ_p², σ_v², σ_v²) (default [0.01, 0.01]: a
     /// robot placed at a marked start, at rest). Also the start of the finite-horizon bounds
     /// of `check` for filters without a steady state.
@@ -304,10 +304,10 @@ pub struct ControlSection {
     /// The CLF (eq. 6.6).
     #[serde(default)]
     pub clf: ClfSection,
-    /// Obstacle barriers: distance margin [m] kept beyond the robot's footprint (default 0.02).
+    /// Obstacle barriers: distance margin \[m\] kept beyond the robot's footprint (default 0.02).
     #[serde(default = "default_margin")]
     pub obstacle_margin: f64,
-    /// Obstacle barriers: gain k of the relative-degree-2 lift H = d + k·ḋ [s] (default 0.5).
+    /// Obstacle barriers: gain k of the relative-degree-2 lift H = d + k·ḋ \[s\] (default 0.5).
     #[serde(default = "default_lift")]
     pub obstacle_lift: f64,
     /// Which problem the QP solves, as the file declares it: `paper` (problem 5.3, the CLF
@@ -424,19 +424,19 @@ pub struct NominalSection {
     pub speed_gain: Option<f64>,
     /// Approach deceleration [m/s²] (default 0.1).
     pub arrive_accel: Option<f64>,
-    /// Lookahead along the path [m] (default 0.3).
+    /// Lookahead along the path \[m\] (default 0.3).
     pub lookahead: Option<f64>,
-    /// Low-pass time constant of u_nom [s] (default 0.2).
+    /// Low-pass time constant of u_nom \[s\] (default 0.2).
     pub smoothing: Option<f64>,
     /// Jerk limit [m/s³] (default 2).
     pub jerk_limit: Option<f64>,
-    /// Stall: less progress than this [m] (default 0.05) ...
+    /// Stall: less progress than this \[m\] (default 0.05) ...
     pub stall_progress: Option<f64>,
-    /// ... within this time [s] (default 4).
+    /// ... within this time \[s\] (default 4).
     pub stall_time: Option<f64>,
-    /// Escape duration [s] (default 2).
+    /// Escape duration \[s\] (default 2).
     pub escape_time: Option<f64>,
-    /// Escape turn of the desired direction [rad] (default π/3).
+    /// Escape turn of the desired direction \[rad\] (default π/3).
     pub escape_angle: Option<f64>,
     /// Keep the CLF rows Υ as constraints (default false).
     #[serde(default)]
@@ -557,14 +557,14 @@ pub struct ClfSection {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GoalSection {
-    /// Goal position (x, y) [m].
+    /// Goal position (x, y) \[m\].
     pub center: [f64; 2],
-    /// Radius d [m].
+    /// Radius d \[m\].
     pub radius: f64,
     /// `position` (default: ‖p − p_g‖ ≤ d) or `state` (the paper's ‖x − x_g‖ ≤ d over all four states).
     #[serde(default)]
     pub metric: GoalMetric,
-    /// Waypoints [m] the safety filter's tracker passes before the goal (default none).
+    /// Waypoints \[m\] the safety filter's tracker passes before the goal (default none).
     #[serde(default)]
     pub waypoints: Vec<[f64; 2]>,
     /// Plan a path from the start to the goal (through the waypoints) around the declared
@@ -590,7 +590,7 @@ pub enum GoalMetric {
 
 super::tagged::kind_tagged! {
 /// A closed-form safe set over the planar state: a `[[safe_sets]]` table tagged by `kind`
-/// (read through [`super::tagged`], so an error names the key inside the table).
+/// (read through `super::tagged`, so an error names the key inside the table).
 #[derive(Debug, Clone, serde::Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum SafeSetSpec via SafeSetByKind {
@@ -607,14 +607,14 @@ pub enum SafeSetSpec via SafeSetByKind {
     EllipseInside {
         /// Name in logs.
         name: String,
-        /// Centre [m].
+        /// Centre \[m\].
         center: [f64; 2],
-        /// Semi-axes along the ellipse's own x and y [m].
+        /// Semi-axes along the ellipse's own x and y \[m\].
         semi_axes: [f64; 2],
-        /// Rotation of the ellipse's x axis from the world x axis [rad].
+        /// Rotation of the ellipse's x axis from the world x axis \[rad\].
         #[serde(default)]
         angle: f64,
-        /// Lift gain k [s] (default 0.5).
+        /// Lift gain k \[s\] (default 0.5).
         #[serde(default = "default_lift")]
         lift: f64,
     },
@@ -622,14 +622,14 @@ pub enum SafeSetSpec via SafeSetByKind {
     EllipseOutside {
         /// Name in logs.
         name: String,
-        /// Centre [m].
+        /// Centre \[m\].
         center: [f64; 2],
-        /// Semi-axes [m].
+        /// Semi-axes \[m\].
         semi_axes: [f64; 2],
-        /// [rad]
+        /// \[rad\]
         #[serde(default)]
         angle: f64,
-        /// Lift gain k [s] (default 0.5).
+        /// Lift gain k \[s\] (default 0.5).
         #[serde(default = "default_lift")]
         lift: f64,
     },

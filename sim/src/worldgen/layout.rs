@@ -29,7 +29,7 @@ pub(crate) fn pick<R: Rng>(rng: &mut R, lo: f64, hi: f64, step: f64) -> f64 {
     dec(k as f64 * step, 6)
 }
 
-/// Distance from `p` to the obstacle's footprint on the floor (negative inside) [m]: only for
+/// Distance from `p` to the obstacle's footprint on the floor (negative inside) \[m\]: only for
 /// keeping furniture off the start and goal while drawing; the acceptance test uses the
 /// project's own obstacle barriers.
 fn footprint_distance(o: &Obstacle, p: [f64; 2]) -> f64 {
@@ -120,7 +120,7 @@ impl Scene {
     }
 }
 
-/// A wall's half thickness [m]: 10 cm or 20 cm walls.
+/// A wall's half thickness \[m\]: 10 cm or 20 cm walls.
 fn wall_half_thickness<R: Rng>(rng: &mut R) -> f64 {
     if rng.random_bool(0.7) {
         0.05
@@ -129,7 +129,7 @@ fn wall_half_thickness<R: Rng>(rng: &mut R) -> f64 {
     }
 }
 
-/// A wall's half height [m].
+/// A wall's half height \[m\].
 fn wall_half_height<R: Rng>(rng: &mut R) -> f64 {
     pick(rng, 0.2, 0.5, 0.05)
 }

@@ -43,7 +43,7 @@ pub use attack::ATTACK_KINDS;
 use layout::{pick, KeepOut};
 use text::{dec, Shape, WorldText};
 
-/// Clearance [m] the robot's footprint keeps from every obstacle at the start, on the whole
+/// Clearance \[m\] the robot's footprint keeps from every obstacle at the start, on the whole
 /// goal disc and along the planned path in every generated world.
 pub const SPARE: f64 = 0.15;
 
@@ -312,27 +312,27 @@ pub enum GenError {
 /// How a world's goal is reached with [`SPARE`] (or the spare asked) to spare.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reach {
-    /// The planned points after the start, the goal last [m].
+    /// The planned points after the start, the goal last \[m\].
     pub path: Vec<[f64; 2]>,
-    /// Length of the path from the start [m].
+    /// Length of the path from the start \[m\].
     pub length: f64,
-    /// The footprint's clearance at the start [m].
+    /// The footprint's clearance at the start \[m\].
     pub start_clearance: f64,
-    /// The footprint's clearance at the goal centre [m] (the goal disc keeps this less its
+    /// The footprint's clearance at the goal centre \[m\] (the goal disc keeps this less its
     /// radius).
     pub goal_clearance: f64,
-    /// The smallest footprint clearance along the path, sampled every centimetre [m].
+    /// The smallest footprint clearance along the path, sampled every centimetre \[m\].
     pub path_clearance: f64,
 }
 
 /// Why a goal is not reachable with the spare asked.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Blocked {
-    /// The start's clearance [m] is below the spare.
+    /// The start's clearance \[m\] is below the spare.
     Start(f64),
-    /// The goal disc's clearance [m] (the centre's less the radius) is below the spare.
+    /// The goal disc's clearance \[m\] (the centre's less the radius) is below the spare.
     Goal(f64),
-    /// The planner found no path with the spare; or the smallest clearance [m] along the one
+    /// The planner found no path with the spare; or the smallest clearance \[m\] along the one
     /// it found.
     Path(Option<f64>),
 }

@@ -72,7 +72,7 @@ impl Value {
 /// An obstacle's shape, in the world file's terms.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Shape {
-    /// `cuboid`, half extents [m].
+    /// `cuboid`, half extents \[m\].
     Cuboid([f64; 3]),
     /// `cylinder` standing on the floor.
     Cylinder { radius: f64, half_height: f64 },
@@ -85,7 +85,7 @@ pub(crate) enum Shape {
 pub(crate) struct Obstacle {
     pub name: String,
     pub position: [f64; 3],
-    /// Yaw [rad]; written as `rpy` only when non-zero.
+    /// Yaw \[rad\]; written as `rpy` only when non-zero.
     pub yaw: f64,
     pub shape: Shape,
 }
