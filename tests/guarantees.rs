@@ -496,3 +496,64 @@ fn encoder_odometry_variance_is_the_quantisation() {
     assert!((sigma - want).abs() < 1e-6 * want, "{sigma} vs {want}");
     assert!((sigma - 7.3e-4).abs() < 1e-5, "{sigma}");
 }
+
+/// Issue #30, item 1: the ellipse test is Prop. 1 in position space on the running barrier
+/// (`ellipse_prop1`), with δ. The arena world gives no δ, so `auto` chooses half the largest δ
+/// Prop. 1 allows and the verdict applies; with δ = 10 every row is always active, an estimate
+/// at the centre has Λ = 0, and `check` refuses (the old test, without δ, said "applies").
+#[test]
+fn the_arena_needs_a_finite_delta_and_auto_chooses_it() {
+    let r = check_world(&world("elliptic_arena_drift.toml")).expect("check");
+    assert!(r.verdict.applies, "{r}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("condition 1 (4.4) for arena"))
+        .expect("the arena's condition 1");
+    assert_eq!(h.status, Status::Holds, "{}", h.detail);
+    assert!(h.detail.contains("δ = 0.2803 (auto"), "{}", h.detail);
+    let large = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_check/elliptic_arena_delta_large.toml");
+    let w = World::load(&large, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let r = check_world(&w).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    assert!(
+        r.verdict
+            .line()
+            .contains("with δ = 10 an estimate whose row is active may sit where Λ = k∇h ≈ 0"),
+        "{}",
+        r.verdict.line()
+    );
+}
+
+/// Issue #30, items 2, 3 and 5: with several barriers the verdict names what it assumes (the
+/// joint rows off the planned path and at speed, Step 3's saturation rule), and the joint rows
+/// at rest along the path are decided.
+#[test]
+fn several_barriers_apply_only_assuming_what_check_cannot_decide() {
+    let r = check_world(&world("corridor_spoof.toml")).expect("check");
+    let line = r.verdict.line();
+    assert!(line.starts_with("Theorem 3 applies, assuming "), "{line}");
+    assert!(
+        line.contains("case (i) jointly over the barriers"),
+        "{line}"
+    );
+    assert!(line.contains("Step 3's saturation rule"), "{line}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("case (i):"))
+        .expect("the joint rows");
+    assert_eq!(h.status, Status::Assumed, "{}", h.detail);
+    assert!(
+        h.detail.contains("decided at rest along the planned path"),
+        "{}",
+        h.detail
+    );
+    // a single half-plane assumes none of it
+    let r = check_world(&world("paper_turtlebot_sf.toml")).expect("check");
+    assert_eq!(
+        r.verdict.line(),
+        "Theorem 3 applies: Pr(safe) ≥ 1 − ε = 0.95 for any single fault pattern"
+    );
+}

@@ -906,7 +906,11 @@ mod tests {
     }
 
     /// Push separation `value(t)` at each of `times` and return the increment at each step.
-    fn increments(h: &mut SeparationHistory, times: &[f64], value: impl Fn(f64) -> f64) -> Vec<f64> {
+    fn increments(
+        h: &mut SeparationHistory,
+        times: &[f64],
+        value: impl Fn(f64) -> f64,
+    ) -> Vec<f64> {
         times
             .iter()
             .map(|&t| {
@@ -932,7 +936,10 @@ mod tests {
         // the first second: from the start (separation 0 at t = 0)
         assert!((inc[10] - times[10]).abs() < 1e-12, "{}", inc[10]);
         for (k, (&t, &d)) in times.iter().zip(&inc).enumerate().skip(50) {
-            assert!((d - 1.0).abs() < 0.011, "step {k} at t = {t}: increment {d}");
+            assert!(
+                (d - 1.0).abs() < 0.011,
+                "step {k} at t = {t}: increment {d}"
+            );
         }
         // a constant period: exactly round(1 s/dt) steps back
         let mut h = SeparationHistory::new(1);
@@ -940,7 +947,10 @@ mod tests {
         let inc = increments(&mut h, &times, |t| t * t);
         for k in 40..200 {
             let back = times[k - 33];
-            assert!((inc[k] - (times[k] * times[k] - back * back)).abs() < 1e-9, "step {k}");
+            assert!(
+                (inc[k] - (times[k] * times[k] - back * back)).abs() < 1e-9,
+                "step {k}"
+            );
         }
     }
 }

@@ -545,13 +545,15 @@ pub struct Settled {
 }
 
 /// The answer of a stage whose hard rows `hard` (scaled, with the box `limit`) the geometric
-/// test found feasible with `witness` (fail closed, issue #30): clarabel's input is used only
-/// when it meets those rows within the test's tolerance ([`admits`]) — an AlmostSolved (or any)
-/// answer that violates one is not; when clarabel's answer is not used, or it failed or
-/// reported the set infeasible, the stage decides with the witness, which is certified to meet
-/// every hard row. Dropping units because the solver failed on a set shown feasible would trade
-/// an honest filter's constraints for a numerical failure. The slack reported with the witness
-/// is the largest violation of the `soft` rows (scaled, m/s²) at it.
+/// test found feasible with `witness` (fail closed, issue #30). clarabel's input is used when it
+/// meets those rows within the test's tolerance ([`admits`]). An AlmostSolved (or any) input that
+/// violates one is moved towards the witness, along the segment between them, just far enough
+/// to meet every hard row (the set is convex and holds the witness, so the segment enters it;
+/// the input stays as near clarabel's as the rows allow). When clarabel failed or reported the
+/// set infeasible, the stage decides with the witness itself. Dropping units because the solver
+/// failed on a set shown feasible would trade an honest filter's constraints for a numerical
+/// failure. The slack reported for a replaced input is the largest violation of the `soft` rows
+/// (scaled, m/s²) at it.
 pub fn settle(
     result: QpResult,
     hard: &[Line],
@@ -559,25 +561,81 @@ pub fn settle(
     witness: Input,
     soft: &[HalfSpace],
 ) -> Settled {
-    match result {
-        QpResult::Feasible { u, .. } if admits(hard, limit, u) => Settled {
-            result,
-            witness_used: false,
-        },
-        _ => {
-            let slack = soft
-                .iter()
-                .map(|h| Line::from_half_space(h).violation([witness[0], witness[1]]))
-                .fold(0.0_f64, f64::max);
-            Settled {
-                result: QpResult::Feasible {
-                    u: witness,
-                    slack,
-                    iterations: 0,
-                },
-                witness_used: true,
+    let u = match result {
+        QpResult::Feasible { u, .. } if admits(hard, limit, u) => {
+            return Settled {
+                result,
+                witness_used: false,
             }
         }
+        QpResult::Feasible { u, .. } => toward(u, witness, hard, limit),
+        _ => witness,
+    };
+    let slack = soft
+        .iter()
+        .map(|h| Line::from_half_space(h).violation([u[0], u[1]]))
+        .fold(0.0_f64, f64::max);
+    Settled {
+        result: QpResult::Feasible {
+            u,
+            slack,
+            iterations: 0,
+        },
+        witness_used: true,
+    }
+}
+
+/// The point of the segment from `u` to `witness` (which meets every hard row and the box)
+/// nearest `u` that meets them too; the witness when `u` is not finite or the point, through
+/// rounding, is not admitted.
+fn toward(u: Input, witness: Input, hard: &[Line], limit: Option<Input>) -> Input {
+    if !(u[0].is_finite() && u[1].is_finite()) {
+        return witness;
+    }
+    let mut edges = [Line {
+        a: [0.0, 0.0],
+        b: 1.0,
+    }; 4];
+    if let Some(l) = limit {
+        edges = [
+            Line {
+                a: [1.0, 0.0],
+                b: l[0],
+            },
+            Line {
+                a: [-1.0, 0.0],
+                b: l[0],
+            },
+            Line {
+                a: [0.0, 1.0],
+                b: l[1],
+            },
+            Line {
+                a: [0.0, -1.0],
+                b: l[1],
+            },
+        ];
+    }
+    // f(t) = a·(u + t(w − u)) − b is affine in t with f(1) ≤ 0 (up to the test's tolerance):
+    // the smallest t with f(t) ≤ 0 for every row.
+    let t = hard
+        .iter()
+        .chain(&edges)
+        .map(|l| {
+            let f0 = l.violation([u[0], u[1]]);
+            let f1 = l.violation([witness[0], witness[1]]);
+            if f0 <= 0.0 || f0 - f1 <= 0.0 {
+                0.0
+            } else {
+                (f0 / (f0 - f1)).min(1.0)
+            }
+        })
+        .fold(0.0_f64, f64::max);
+    let v = u + (witness - u) * t;
+    if admits(hard, limit, v) {
+        v
+    } else {
+        witness
     }
 }
 

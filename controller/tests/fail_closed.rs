@@ -377,7 +377,7 @@ fn a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness() {
         normal: Input::new(1.0, 0.0),
         offset: -0.5, // u_x ≤ −0.5, soft
     }];
-    let witness = Input::new(0.0, 1.0);
+    let witness = Input::new(1.0, 1.5);
     let limit = Some(Input::new(2.0, 2.0));
     let bad = QpResult::Feasible {
         u: Input::new(0.0, 0.99),
@@ -386,11 +386,26 @@ fn a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness() {
     };
     let s = settle(bad, &hard, limit, witness, &soft);
     assert!(s.witness_used);
+    match s.result {
+        QpResult::Feasible { u, slack, .. } => {
+            // moved along the segment to the witness just far enough: t = 0.01/0.51
+            let t = 0.01 / 0.51;
+            assert!((u - Input::new(t, 0.99 + 0.51 * t)).norm() < 1e-9, "{u}");
+            assert!(u[1] >= 1.0 - 1e-9, "{u}");
+            assert!((slack - (t + 0.5)).abs() < 1e-9, "{slack}");
+        }
+        r => panic!("{r:?}"),
+    }
+    // a failed solve: the witness itself
+    let failed = QpResult::SolverFailure {
+        status: clarabel::solver::SolverStatus::InsufficientProgress,
+    };
+    let s = settle(failed, &hard, limit, witness, &soft);
     assert_eq!(
         s.result,
         QpResult::Feasible {
             u: witness,
-            slack: 0.5,
+            slack: 1.5,
             iterations: 0
         }
     );
@@ -407,13 +422,23 @@ fn a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness() {
             witness_used: false
         }
     );
-    // outside the box, or not finite: replaced
+    // outside the box, or not finite: replaced by an input inside both
     for u in [Input::new(2.5, 1.0), Input::new(f64::NAN, 1.0)] {
         let r = QpResult::Feasible {
             u,
             slack: 0.0,
             iterations: 1,
         };
-        assert!(settle(r, &hard, limit, witness, &soft).witness_used, "{u}");
+        let s = settle(r, &hard, limit, witness, &soft);
+        assert!(s.witness_used, "{u}");
+        match s.result {
+            QpResult::Feasible { u: v, .. } => {
+                assert!(
+                    ftcbf_controller::feasibility::admits(&hard, limit, v),
+                    "{u} → {v}"
+                )
+            }
+            r => panic!("{r:?}"),
+        }
     }
 }

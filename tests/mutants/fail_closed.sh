@@ -142,8 +142,8 @@ mutant "a solver failure on a set the exact test certified sends Step 3 dropping
   'let settled = if matches!(r, QpResult::Feasible { .. }) { settle(r, &s.lines, qp.input_limit(), witness, soft_clf) } else { Settled { result: r, witness_used: false } };' \
   a_certified_feasible_set_uses_the_witness_when_the_solver_fails
 mutant "an AlmostSolved input is not rechecked against the hard rows" controller/src/policy.rs \
-  'QpResult::Feasible { u, .. } if admits(hard, limit, u) => Settled {' \
-  'QpResult::Feasible { .. } => Settled {' \
+  'QpResult::Feasible { u, .. } if admits(hard, limit, u) => {' \
+  'QpResult::Feasible { u: _, .. } => {' \
   a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness
 mutant "a non-finite chi-square term counts as 0 (most trustworthy)" controller/src/estimator.rs \
   'let nis = if nis.is_finite() { nis } else { f64::INFINITY };' \
