@@ -147,17 +147,11 @@ fn box_half_widths(input_limit: Option<Input>) -> [f64; 2] {
     }
 }
 
-/// Decide whether `{u : a_i·u ≤ b_i ∀i}` meets the box `|u_k| ≤ limit_k` (or the
-/// [`VIRTUAL_BOX`] when `input_limit` is `None`). Allocation-free.
-pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
+/// The four edges `±u_k ≤ L_k` of the box the test uses (the real limits, capped at
+/// [`VIRTUAL_BOX`], or the virtual box).
+pub fn box_edges(input_limit: Option<Input>) -> [Line; 4] {
     let half = box_half_widths(input_limit);
-    if !(half[0] >= 0.0 && half[1] >= 0.0) {
-        return Feasibility::Infeasible; // a negative box is empty
-    }
-    let Some(tol) = tolerance(lines, input_limit) else {
-        return Feasibility::Infeasible; // 0 ≤ −1
-    };
-    let edges = [
+    [
         Line {
             a: [1.0, 0.0],
             b: half[0],
@@ -174,7 +168,20 @@ pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
             a: [0.0, -1.0],
             b: half[1],
         },
-    ];
+    ]
+}
+
+/// Decide whether `{u : a_i·u ≤ b_i ∀i}` meets the box `|u_k| ≤ limit_k` (or the
+/// [`VIRTUAL_BOX`] when `input_limit` is `None`). Allocation-free.
+pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
+    let half = box_half_widths(input_limit);
+    if !(half[0] >= 0.0 && half[1] >= 0.0) {
+        return Feasibility::Infeasible; // a negative box is empty
+    }
+    let Some(tol) = tolerance(lines, input_limit) else {
+        return Feasibility::Infeasible; // 0 ≤ −1
+    };
+    let edges = box_edges(input_limit);
     let n = lines.len();
     let line = |k: usize| if k < n { lines[k] } else { edges[k - n] };
     // `v` satisfies every row within tol (+ the rounding bound of a·v − b). The box holds

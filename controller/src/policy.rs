@@ -70,7 +70,7 @@
 use clarabel::solver::SolverStatus;
 
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
-use crate::feasibility::{admits, check_half_spaces, Feasibility, Line};
+use crate::feasibility::{admits, box_edges, check_half_spaces, Feasibility, Line};
 use crate::qp::{QpResult, QpSolver, RowMode};
 use crate::types::{Input, State, StateMatrix};
 
@@ -592,30 +592,7 @@ fn toward(u: Input, witness: Input, hard: &[Line], limit: Option<Input>) -> Inpu
     if !(u[0].is_finite() && u[1].is_finite()) {
         return witness;
     }
-    let mut edges = [Line {
-        a: [0.0, 0.0],
-        b: 1.0,
-    }; 4];
-    if let Some(l) = limit {
-        edges = [
-            Line {
-                a: [1.0, 0.0],
-                b: l[0],
-            },
-            Line {
-                a: [-1.0, 0.0],
-                b: l[0],
-            },
-            Line {
-                a: [0.0, 1.0],
-                b: l[1],
-            },
-            Line {
-                a: [0.0, -1.0],
-                b: l[1],
-            },
-        ];
-    }
+    let edges = box_edges(limit);
     // f(t) = a·(u + t(w − u)) − b is affine in t with f(1) ≤ 0 (up to the test's tolerance):
     // the smallest t with f(t) ≤ 0 for every row.
     let t = hard

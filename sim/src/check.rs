@@ -370,7 +370,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     })
 }
 
-/// 10. Case (i) of Theorem 3's proof with several rows: when the kept estimates agree within θ,
+/// Hypothesis 10, case (i) of Theorem 3's proof with several rows: when the kept estimates agree within θ,
 /// some input must meet the rows of **every** active barrier of **every** kept unit at once,
 /// inside the input box. (4.4) per barrier (item 5) and one row at rest (item 6) do not give
 /// that. The liveness prediction builds exactly those rows at rest along the planned path (every
@@ -394,16 +394,9 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
             name,
             Status::Fails,
             format!(
-                "{} at rest at ({:.2}, {:.2}), {:.2} m along the planned path, no input in the box meets every row (rows of {}): Step 1 is infeasible there and Step 3 may drop an honest filter, which the proof's case (i) excludes",
+                "{}, at rest along the planned path, the robot {}: Step 1 is infeasible there and Step 3 may drop an honest filter, which the proof's case (i) excludes",
                 c.name,
-                st.at[0],
-                st.at[1],
-                st.along,
-                if st.binding.is_empty() {
-                    "no barrier".to_string()
-                } else {
-                    st.binding.join(", ")
-                }
+                liveness::stall_text(st)
             ),
         ),
         None => {
@@ -431,7 +424,7 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
     }
 }
 
-/// 11. Departures from the thesis's setting that `check` cannot decide and the verdict rests on
+/// Hypothesis 11, departures from the thesis's setting that `check` cannot decide and the verdict rests on
 /// (see the book's "What `check` proves"): Step 3's rule of keeping a unit the box cannot
 /// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not
 /// continuously.
