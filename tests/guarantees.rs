@@ -557,3 +557,41 @@ fn several_barriers_apply_only_assuming_what_check_cannot_decide() {
         "Theorem 3 applies: Pr(safe) ≥ 1 − ε = 0.95 for any single fault pattern"
     );
 }
+
+/// Issue #30, items 2 and 3: two walls each pass (4.4) and the one-row input-limit test, but
+/// under the declared attack their rows for the units Step 2 keeps admit no input in the box at a
+/// point of the planned path: case (i) of the proof fails there, and `check` refuses (the old
+/// `check`, per barrier at the start estimate, said "applies").
+#[test]
+fn a_narrow_corridor_fails_case_i_jointly_although_each_wall_passes() {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/worlds_check/corridor_narrow_spoof.toml");
+    let w = World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let r = check_world(&w).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("case (i):"))
+        .expect("the joint rows");
+    assert_eq!(h.status, Status::Fails, "{}", h.detail);
+    assert!(
+        h.detail.contains("under the declared attack"),
+        "{}",
+        h.detail
+    );
+    assert!(
+        h.detail.contains("no input in the box satisfies every row"),
+        "{}",
+        h.detail
+    );
+    // each wall on its own passes the old tests
+    for wall in ["left_wall", "right_wall"] {
+        let one = r
+            .hypotheses
+            .iter()
+            .find(|h| h.name == format!("condition 1 under the input limit for obstacle:{wall}"))
+            .expect("input-limit test");
+        assert_ne!(one.status, Status::Fails, "{}", one.detail);
+    }
+}
