@@ -113,3 +113,26 @@ fn a_law_that_cannot_be_built_is_a_typed_error() {
         Some(RunError::Option(_))
     ));
 }
+
+/// Issue #30: γ, θ and η are computed for the world's duration (a union bound over its
+/// samples); a run past it is refused with the way to extend the horizon, not run past it.
+#[test]
+fn a_run_past_the_horizon_of_gamma_theta_eta_is_refused() {
+    let w = World::load(&PathBuf::from("worlds/corridor_spoof.toml"), &[]).expect("world");
+    let longer = RunOptions {
+        duration: Some(w.file.duration + 1.0),
+        ..RunOptions::default()
+    };
+    match Simulation::new(&w, &longer).err() {
+        Some(RunError::Option(m)) => {
+            assert!(m.contains("past the world's duration (25 s)"), "{m}");
+            assert!(m.contains("--set duration=26"), "{m}");
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    let shorter = RunOptions {
+        duration: Some(w.file.duration - 1.0),
+        ..RunOptions::default()
+    };
+    assert!(Simulation::new(&w, &shorter).is_ok());
+}

@@ -198,11 +198,9 @@ pub struct Controller {
     pattern_of_channel: Vec<Option<usize>>,
     u: Input,
     output: ControlOutput,
-    /// Ring of the separations x̂_a − x̂_aj of the last `sep_window` steps (slot-major, each
-    /// slot `units²` entries), for the increments of Step 2.
-    sep_ring: Vec<State>,
-    sep_window: usize,
-    sep_head: usize,
+    /// The separations x̂_a − x̂_aj of the last steps with their times, for the increments of
+    /// Step 2.
+    separations: SeparationHistory,
     last_dt: f64,
     /// θ_ij(t) and the time since the first step (sum of the valid dt).
     theta_schedule: Option<ThetaSchedule>,
@@ -568,9 +566,7 @@ impl Controller {
             pattern_of_channel,
             u: Input::zeros(),
             output,
-            sep_ring: vec![State::zeros(); (RESIDUE_WINDOW_MAX_STEPS + 1) * units * units],
-            sep_window: 0,
-            sep_head: 0,
+            separations: SeparationHistory::new(units * units),
             last_dt: 0.0,
             theta_schedule: cfg.theta_schedule,
             elapsed: 0.0,
@@ -807,26 +803,94 @@ impl Controller {
     /// Step 2's increments Δ(x̂_a − x̂_aj) over the last [`STEP2_WINDOW`] seconds (from the start,
     /// where x̂_a = x̂_aj = x0, during the first window).
     fn update_increments(&mut self, m: usize) {
-        let w = ((STEP2_WINDOW / self.last_dt).round() as usize).clamp(1, RESIDUE_WINDOW_MAX_STEPS);
-        let n = m * m;
-        if w != self.sep_window {
-            self.sep_ring.iter_mut().for_each(|s| *s = State::zeros());
-            self.sep_window = w;
-            self.sep_head = 0;
-        }
-        let slot = self.sep_head * n;
+        let h = &mut self.separations;
+        let reference = h.reference(self.elapsed);
         for a in 0..m {
             for j in 0..m {
                 if a == j {
                     continue;
                 }
-                let s = self.problem.estimates[a] - self.problem.pair_estimates[a * m + j];
                 let k = a * m + j;
-                self.problem.separation_increment[k] = s - self.sep_ring[slot + k];
-                self.sep_ring[slot + k] = s;
+                let s = self.problem.estimates[a] - self.problem.pair_estimates[a * m + j];
+                self.problem.separation_increment[k] = s - h.get(reference, k);
+                h.store(k, s);
             }
         }
-        self.sep_head = (self.sep_head + 1) % w;
+        h.push(self.elapsed);
+    }
+}
+
+/// The separations of the last [`RESIDUE_WINDOW_MAX_STEPS`] control steps, each with the time
+/// it was taken, in a ring allocated once. The increment's reference is the stored separation
+/// taken nearest to [`STEP2_WINDOW`] before now (ties: the older), or the start (all zero at
+/// t = 0) while it is nearer and no more than [`RESIDUE_WINDOW_MAX_STEPS`] steps back. With a
+/// constant period this is the separation `round(1 s/dt)` steps back, as before; a change of
+/// period keeps the history (issue #30: the ring used to restart from zero, so for a second
+/// the increment was the whole separation, and Step 2 could drop the honest filter).
+#[derive(Debug, Clone)]
+struct SeparationHistory {
+    /// Entries per slot.
+    n: usize,
+    /// Slot-major separations, `RESIDUE_WINDOW_MAX_STEPS` slots of `n`, the scratch slot last.
+    ring: Vec<State>,
+    /// The time of each slot's separations.
+    time: Vec<f64>,
+    /// The slot the next push fills.
+    head: usize,
+    /// Steps pushed so far.
+    steps: usize,
+}
+
+impl SeparationHistory {
+    fn new(n: usize) -> Self {
+        Self {
+            n,
+            ring: vec![State::zeros(); (RESIDUE_WINDOW_MAX_STEPS + 1) * n],
+            time: vec![0.0; RESIDUE_WINDOW_MAX_STEPS],
+            head: 0,
+            steps: 0,
+        }
+    }
+
+    /// The slot of the reference separations for a step at time `now` (`None`: the start's).
+    fn reference(&self, now: f64) -> Option<usize> {
+        let cap = RESIDUE_WINDOW_MAX_STEPS;
+        let target = now - STEP2_WINDOW;
+        let mut best: Option<(usize, f64)> = None;
+        for lag in 1..=self.steps.min(cap) {
+            let slot = (self.head + cap - lag) % cap;
+            let d = (self.time[slot] - target).abs();
+            match best {
+                Some((_, bd)) if d > bd => break, // times fall with the lag: past the nearest
+                _ => best = Some((slot, d)),
+            }
+        }
+        let start_in_reach = self.steps < cap;
+        match best {
+            Some((_, bd)) if start_in_reach && target.abs() <= bd => None,
+            Some((slot, _)) => Some(slot),
+            None => None,
+        }
+    }
+
+    /// Entry `k` of the reference (zero for the start).
+    fn get(&self, reference: Option<usize>, k: usize) -> State {
+        reference.map_or_else(State::zeros, |slot| self.ring[slot * self.n + k])
+    }
+
+    /// Put entry `k` of this step's separations in the scratch slot (stored by [`Self::push`]).
+    fn store(&mut self, k: usize, s: State) {
+        self.ring[RESIDUE_WINDOW_MAX_STEPS * self.n + k] = s;
+    }
+
+    /// Store the scratch slot as the separations taken at `now`.
+    fn push(&mut self, now: f64) {
+        let k = RESIDUE_WINDOW_MAX_STEPS * self.n;
+        let h = self.head * self.n;
+        self.ring.copy_within(k..k + self.n, h);
+        self.time[self.head] = now;
+        self.head = (self.head + 1) % RESIDUE_WINDOW_MAX_STEPS;
+        self.steps += 1;
     }
 }
 
@@ -839,5 +903,54 @@ mod tests {
     #[test]
     fn controller_is_send() {
         assert_send::<Controller>();
+    }
+
+    /// Push separation `value(t)` at each of `times` and return the increment at each step.
+    fn increments(
+        h: &mut SeparationHistory,
+        times: &[f64],
+        value: impl Fn(f64) -> f64,
+    ) -> Vec<f64> {
+        times
+            .iter()
+            .map(|&t| {
+                let s = State::new(value(t), 0.0, 0.0, 0.0);
+                let r = h.get(h.reference(t), 0)[0];
+                h.store(0, s);
+                h.push(t);
+                s[0] - r
+            })
+            .collect()
+    }
+
+    /// Issue #30: a change of the control period keeps the separation history. A separation
+    /// growing at 1 m/s has an increment of 1 m over any second; the old ring restarted at the
+    /// change, so the increment became the whole separation (here up to 4 m).
+    #[test]
+    fn a_changed_period_keeps_the_increment_history() {
+        let mut h = SeparationHistory::new(1);
+        let mut times: Vec<f64> = (1..=150).map(|k| k as f64 * 0.02).collect(); // 3 s at 50 Hz
+        let t0 = 3.0;
+        times.extend((1..=100).map(|k| t0 + k as f64 * 0.01)); // then 1 s at 100 Hz
+        let inc = increments(&mut h, &times, |t| t);
+        // the first second: from the start (separation 0 at t = 0)
+        assert!((inc[10] - times[10]).abs() < 1e-12, "{}", inc[10]);
+        for (k, (&t, &d)) in times.iter().zip(&inc).enumerate().skip(50) {
+            assert!(
+                (d - 1.0).abs() < 0.011,
+                "step {k} at t = {t}: increment {d}"
+            );
+        }
+        // a constant period: exactly round(1 s/dt) steps back
+        let mut h = SeparationHistory::new(1);
+        let times: Vec<f64> = (1..=200).map(|k| k as f64 * 0.03).collect();
+        let inc = increments(&mut h, &times, |t| t * t);
+        for k in 40..200 {
+            let back = times[k - 33];
+            assert!(
+                (inc[k] - (times[k] * times[k] - back * back)).abs() < 1e-9,
+                "step {k}"
+            );
+        }
     }
 }

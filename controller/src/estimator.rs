@@ -250,7 +250,9 @@ impl KalmanFilter {
             self.win_len = want;
             self.win_head = 0;
         }
-        let nis = if nis.is_finite() { nis } else { 0.0 };
+        // A term that is not finite (a NaN reading or estimate) is evidence against the
+        // filter, never for it: it ranks the filter last for the whole window (issue #30).
+        let nis = if nis.is_finite() { nis } else { f64::INFINITY };
         self.win[self.win_head] = (nis, count as u32);
         self.win_head = (self.win_head + 1) % self.win_len;
         self.win_nis = self.win.iter().map(|w| w.0).sum();
@@ -610,6 +612,30 @@ mod tests {
             f.update(&model, &y, &[true; 6], &[false; 6], 0.01);
             assert_eq!((f.skipped_updates(), f.flagged()), (0, false));
         }
+    }
+
+    #[test]
+    fn a_non_finite_innovation_ranks_the_filter_least_trustworthy() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        let uses = vec![true, true, false, false, false, false];
+        let mut f = KalmanFilter::new(
+            "f".into(),
+            FilterRole::Baseline,
+            uses,
+            State::zeros(),
+            StateMatrix::identity(),
+        );
+        // one NaN reading: S_k is finite (P and R are), the innovation is not
+        let y = [f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0];
+        f.update(&model, &y, &[true; 6], &[false; 6], 0.01);
+        assert!(!f.flagged());
+        assert_eq!(f.residue_rank_key(), f64::INFINITY);
+        // the NaN went into x̂: every later innovation is NaN and the filter stays last
+        for _ in 0..150 {
+            f.update(&model, &[0.0; 6], &[true; 6], &[false; 6], 0.01);
+        }
+        assert!(f.estimate()[0].is_nan());
+        assert_eq!(f.residue_rank_key(), f64::INFINITY);
     }
 
     #[test]

@@ -147,29 +147,11 @@ fn box_half_widths(input_limit: Option<Input>) -> [f64; 2] {
     }
 }
 
-/// Decide whether `{u : a_i·u ≤ b_i ∀i}` meets the box `|u_k| ≤ limit_k` (or the
-/// [`VIRTUAL_BOX`] when `input_limit` is `None`). Allocation-free.
-pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
+/// The four edges `±u_k ≤ L_k` of the box the test uses (the real limits, capped at
+/// [`VIRTUAL_BOX`], or the virtual box).
+pub fn box_edges(input_limit: Option<Input>) -> [Line; 4] {
     let half = box_half_widths(input_limit);
-    if !(half[0] >= 0.0 && half[1] >= 0.0) {
-        return Feasibility::Infeasible; // a negative box is empty
-    }
-    // tolerance: relative to the data clarabel sees (rows and the real box)
-    let mut scale = 1.0_f64;
-    for l in lines {
-        if l.is_degenerate() {
-            if l.b < 0.0 {
-                return Feasibility::Infeasible; // 0 ≤ −1
-            }
-        } else {
-            scale = scale.max(l.b.abs());
-        }
-    }
-    if input_limit.is_some() {
-        scale = scale.max(half[0]).max(half[1]);
-    }
-    let tol = FEASIBILITY_TOL * scale;
-    let edges = [
+    [
         Line {
             a: [1.0, 0.0],
             b: half[0],
@@ -186,19 +168,26 @@ pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
             a: [0.0, -1.0],
             b: half[1],
         },
-    ];
+    ]
+}
+
+/// Decide whether `{u : a_i·u ≤ b_i ∀i}` meets the box `|u_k| ≤ limit_k` (or the
+/// [`VIRTUAL_BOX`] when `input_limit` is `None`). Allocation-free.
+pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
+    let half = box_half_widths(input_limit);
+    if !(half[0] >= 0.0 && half[1] >= 0.0) {
+        return Feasibility::Infeasible; // a negative box is empty
+    }
+    let Some(tol) = tolerance(lines, input_limit) else {
+        return Feasibility::Infeasible; // 0 ≤ −1
+    };
+    let edges = box_edges(input_limit);
     let n = lines.len();
     let line = |k: usize| if k < n { lines[k] } else { edges[k - n] };
     // `v` satisfies every row within tol (+ the rounding bound of a·v − b). The box holds
     // exactly at its own vertices and is checked with the same rule elsewhere.
     let admissible = |v: [f64; 2]| {
-        let ok = |l: &Line| {
-            let r = l.violation(v);
-            let round = 4.0
-                * f64::EPSILON
-                * (l.a[0].abs() * v[0].abs() + l.a[1].abs() * v[1].abs() + l.b.abs());
-            r <= tol + round
-        };
+        let ok = |l: &Line| within(l, v, tol);
         lines.iter().all(ok) && edges.iter().all(ok)
     };
     if admissible([0.0, 0.0]) {
@@ -230,6 +219,50 @@ pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
         }
     }
     Feasibility::Infeasible
+}
+
+/// Whether `u` satisfies every row of `lines` and the box `|u_k| ≤ limit_k` within the
+/// tolerance [`check`] accepts its witnesses with (a NaN or infinite `u` never does). The
+/// policy checks clarabel's answers with it: a solve reported as Solved or AlmostSolved is
+/// used only when its input meets the hard rows the test certified (issue #30).
+pub fn admits(lines: &[Line], input_limit: Option<Input>, u: Input) -> bool {
+    let v = [u[0], u[1]];
+    let half = box_half_widths(input_limit);
+    let Some(tol) = tolerance(lines, input_limit) else {
+        return false;
+    };
+    v[0].is_finite()
+        && v[1].is_finite()
+        && lines.iter().all(|l| within(l, v, tol))
+        && v[0].abs() <= half[0] + tol
+        && v[1].abs() <= half[1] + tol
+}
+
+/// The tolerance of [`check`]: [`FEASIBILITY_TOL`] relative to the data clarabel sees (rows and
+/// the real box); `None` when a degenerate row is `0 ≤ −1`.
+fn tolerance(lines: &[Line], input_limit: Option<Input>) -> Option<f64> {
+    let mut scale = 1.0_f64;
+    for l in lines {
+        if l.is_degenerate() {
+            if l.b < 0.0 {
+                return None;
+            }
+        } else {
+            scale = scale.max(l.b.abs());
+        }
+    }
+    if input_limit.is_some() {
+        let half = box_half_widths(input_limit);
+        scale = scale.max(half[0]).max(half[1]);
+    }
+    Some(FEASIBILITY_TOL * scale)
+}
+
+/// `v` satisfies `l` within `tol`, plus the floating-point bound of evaluating `a·v − b`.
+fn within(l: &Line, v: [f64; 2], tol: f64) -> bool {
+    let round =
+        4.0 * f64::EPSILON * (l.a[0].abs() * v[0].abs() + l.a[1].abs() * v[1].abs() + l.b.abs());
+    l.violation(v) <= tol + round
 }
 
 /// Scale the rows of `first` and `second` into `lines` (cleared first; allocation-free once

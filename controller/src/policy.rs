@@ -61,14 +61,16 @@
 //! in [`DecisionRecord::solver_failures`] (after [`QpSolver`]'s one rebuild); a solve that
 //! reports the set infeasible although the test found it feasible (only possible within the
 //! tolerance band at the boundary) is counted in
-//! [`DecisionRecord::feasibility_disagreements`]. In both cases the stage does not decide
-//! and the policy goes on to the next stage — exactly what it did when clarabel's status
-//! alone decided.
+//! [`DecisionRecord::feasibility_disagreements`]. In both cases, and when clarabel's input
+//! (Solved or AlmostSolved) violates a hard row beyond the test's tolerance, the stage decides
+//! with the test's witness, which is certified to meet every hard row ([`settle`], counted in
+//! [`DecisionRecord::witness_inputs`]): a numerical failure on a set shown feasible never makes
+//! Step 3 drop a unit (issue #30).
 
 use clarabel::solver::SolverStatus;
 
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
-use crate::feasibility::{check_half_spaces, Line};
+use crate::feasibility::{admits, box_edges, check_half_spaces, Feasibility, Line};
 use crate::qp::{QpResult, QpSolver, RowMode};
 use crate::types::{Input, State, StateMatrix};
 
@@ -208,6 +210,10 @@ pub struct DecisionRecord {
     /// Imposed rows (CBF rows in X_t(δ), CLF rows in Y_t(V̄)) of any unit whose normal or
     /// offset is not finite this step. Each is treated as violated (fail closed).
     pub non_finite_rows: u32,
+    /// Stages decided with the geometric test's witness because clarabel failed, reported the
+    /// certified set infeasible, or returned an input that violates a hard row (see
+    /// [`settle`]).
+    pub witness_inputs: u32,
     /// Set when Step 2's pair tests would have dropped every unit that has CBF rows: the unit
     /// kept instead (the one Step 3 would keep) and the test it failed.
     pub step2_retained: Option<Step2Retained>,
@@ -237,6 +243,7 @@ impl DecisionRecord {
             solver_failures: 0,
             feasibility_disagreements: 0,
             non_finite_rows: 0,
+            witness_inputs: 0,
             step2_retained: None,
             step3_saturated: None,
         }
@@ -496,9 +503,9 @@ fn solve(
 }
 
 /// Decide a stage: the geometric test of the CBF rows (and the CLF rows when they are hard)
-/// with the box; clarabel only when the test finds them feasible. Returns
-/// `QpResult::Infeasible { iterations: 0 }` without a solve when the test finds them
-/// infeasible.
+/// with the box; clarabel only when the test finds them feasible, and its answer through
+/// [`settle`]. Returns `QpResult::Infeasible { iterations: 0 }` without a solve when the test
+/// finds them infeasible.
 fn attempt(
     qp: &mut QpSolver,
     s: &mut PolicyScratch,
@@ -510,14 +517,103 @@ fn attempt(
         RowMode::Soft => &[],
     };
     let verdict = check_half_spaces(&s.cbf_rows, hard_clf, qp.input_limit(), &mut s.lines);
-    if !verdict.is_feasible() {
+    let Feasibility::Feasible { witness } = verdict else {
         return QpResult::Infeasible { iterations: 0 };
-    }
+    };
     let r = solve(qp, s, RowMode::Hard, clf, rec);
     if matches!(r, QpResult::Infeasible { .. }) {
         rec.feasibility_disagreements += 1;
     }
-    r
+    let soft_clf: &[HalfSpace] = match clf {
+        RowMode::Hard => &[],
+        RowMode::Soft => &s.clf_rows,
+    };
+    let settled = settle(r, &s.lines, qp.input_limit(), witness, soft_clf);
+    if settled.witness_used {
+        rec.witness_inputs += 1;
+    }
+    settled.result
+}
+
+/// A stage's solver answer, settled against the hard rows the geometric test certified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settled {
+    /// The result the stage decides with.
+    pub result: QpResult,
+    /// The test's witness replaced the solver's answer.
+    pub witness_used: bool,
+}
+
+/// The answer of a stage whose hard rows `hard` (scaled, with the box `limit`) the geometric
+/// test found feasible with `witness` (fail closed, issue #30). clarabel's input is used when it
+/// meets those rows within the test's tolerance ([`admits`]). An AlmostSolved (or any) input that
+/// violates one is moved towards the witness, along the segment between them, just far enough
+/// to meet every hard row (the set is convex and holds the witness, so the segment enters it;
+/// the input stays as near clarabel's as the rows allow). When clarabel failed or reported the
+/// set infeasible, the stage decides with the witness itself. Dropping units because the solver
+/// failed on a set shown feasible would trade an honest filter's constraints for a numerical
+/// failure. The slack reported for a replaced input is the largest violation of the `soft` rows
+/// (scaled, m/s²) at it.
+pub fn settle(
+    result: QpResult,
+    hard: &[Line],
+    limit: Option<Input>,
+    witness: Input,
+    soft: &[HalfSpace],
+) -> Settled {
+    let u = match result {
+        QpResult::Feasible { u, .. } if admits(hard, limit, u) => {
+            return Settled {
+                result,
+                witness_used: false,
+            }
+        }
+        QpResult::Feasible { u, .. } => toward(u, witness, hard, limit),
+        _ => witness,
+    };
+    let slack = soft
+        .iter()
+        .map(|h| Line::from_half_space(h).violation([u[0], u[1]]))
+        .fold(0.0_f64, f64::max);
+    Settled {
+        result: QpResult::Feasible {
+            u,
+            slack,
+            iterations: 0,
+        },
+        witness_used: true,
+    }
+}
+
+/// The point of the segment from `u` to `witness` (which meets every hard row and the box)
+/// nearest `u` that meets them too; the witness when `u` is not finite or the point, through
+/// rounding, is not admitted.
+fn toward(u: Input, witness: Input, hard: &[Line], limit: Option<Input>) -> Input {
+    if !(u[0].is_finite() && u[1].is_finite()) {
+        return witness;
+    }
+    let edges = box_edges(limit);
+    // f(t) = a·(u + t(w − u)) − b is affine in t with f(1) ≤ 0 (up to the test's tolerance):
+    // the smallest t with f(t) ≤ 0 for every row.
+    let t = hard
+        .iter()
+        .chain(&edges)
+        .map(|l| {
+            let f0 = l.violation([u[0], u[1]]);
+            let f1 = l.violation([witness[0], witness[1]]);
+            if f0 <= 0.0 || f0 - f1 <= 0.0 {
+                0.0
+            } else {
+                (f0 / (f0 - f1)).min(1.0)
+            }
+        })
+        .fold(0.0_f64, f64::max);
+    let v = u + (witness - u) * t;
+    if admits(hard, limit, v) {
+        v
+    } else {
+        witness
+    }
 }
 
 /// Where the stages have got to: the stage that ran last, whether the CLF rows of its
@@ -613,6 +709,7 @@ fn start(p: &PolicyProblem, s: &mut PolicyScratch, record: &mut DecisionRecord) 
     record.solver_failures = 0;
     record.feasibility_disagreements = 0;
     record.non_finite_rows = 0;
+    record.witness_inputs = 0;
     record.step2_retained = None;
     record.step3_saturated = None;
     s.alive.clear();

@@ -5,10 +5,14 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::{Barrier, BarrierEval, HalfPlane};
+use ftcbf_controller::constraints::HalfSpace;
+use ftcbf_controller::feasibility::Line;
 use ftcbf_controller::policy::{
-    BrakeReason, BrakeVelocity, ConstraintKind, DecisionRecord, DropReason, QpOutcome, SafeAction,
-    Stage, Step2Retained, Verdict, BRAKE_TIME_CONSTANT,
+    resolve, settle, BrakeReason, BrakeVelocity, ConstraintKind, DecisionRecord, DropReason,
+    PolicyScratch, QpOutcome, SafeAction, Settled, Stage, Step2Retained, Verdict,
+    BRAKE_TIME_CONSTANT,
 };
+use ftcbf_controller::qp::{QpResult, QpSolver};
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
 };
@@ -328,4 +332,113 @@ fn step3_does_not_drop_an_estimator_the_box_cannot_satisfy() {
     assert_eq!(cbf_verdict(&rec, 1), Verdict::Relaxed);
     // min over |u| ≤ 1 of max(1.5 − u_y, u_y − 0.2) (unit-norm rows): u_y = 0.85
     assert!((u[1] - 0.85).abs() < 1e-3, "{u}");
+}
+
+/// Issue #30: when the exact 2-D test certifies a feasible set, a solver failure on it must not
+/// send the policy on to Step 3 (which drops a unit, possibly the honest one): the stage decides
+/// with the test's witness. A solver built for one CBF row fails (`TooManyRows`) on Step 1's two.
+#[test]
+fn a_certified_feasible_set_uses_the_witness_when_the_solver_fails() {
+    // u_y ≥ 1 (unit 0) and u_x ≥ 1 (unit 1): feasible together in |u| ≤ 2.
+    let mut p = two_units([cbf(0.0, 1.0, 1.0), cbf(1.0, 0.0, 1.0)]);
+    p.residue_key = vec![2.0, 0.5];
+    let limit = Some(Input::new(2.0, 2.0));
+    let mut qp = QpSolver::new(1, 0, Matrix2::identity(), 1e4, limit);
+    let mut s = PolicyScratch::new(2, 1);
+    let mut rec = DecisionRecord::with_capacity(4);
+    let (u, o) = resolve(&p, &mut qp, &mut s, &mut rec);
+    assert!(
+        matches!(
+            o,
+            QpOutcome::Feasible {
+                stage: Stage::Step1,
+                ..
+            }
+        ),
+        "{o:?}"
+    );
+    assert_eq!((rec.solver_failures, rec.witness_inputs), (1, 1));
+    assert!(u[0] >= 1.0 - 1e-7 && u[1] >= 1.0 - 1e-7, "{u}");
+    assert!(u[0] <= 2.0 + 1e-7 && u[1] <= 2.0 + 1e-7, "{u}");
+    assert_eq!(cbf_verdict(&rec, 0), Verdict::Kept);
+    assert_eq!(cbf_verdict(&rec, 1), Verdict::Kept);
+}
+
+/// Issue #30: clarabel's AlmostSolved (or any) answer is rechecked against the hard rows the
+/// test certified; one that violates a row is replaced by the witness, and the reported slack is
+/// the soft rows' largest violation at the witness.
+#[test]
+fn a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness() {
+    let hard = [Line::from_half_space(&HalfSpace {
+        normal: Input::new(0.0, -2.0),
+        offset: -2.0, // u_y ≥ 1
+    })];
+    let soft = [HalfSpace {
+        normal: Input::new(1.0, 0.0),
+        offset: -0.5, // u_x ≤ −0.5, soft
+    }];
+    let witness = Input::new(1.0, 1.5);
+    let limit = Some(Input::new(2.0, 2.0));
+    let bad = QpResult::Feasible {
+        u: Input::new(0.0, 0.99),
+        slack: 0.0,
+        iterations: 7,
+    };
+    let s = settle(bad, &hard, limit, witness, &soft);
+    assert!(s.witness_used);
+    match s.result {
+        QpResult::Feasible { u, slack, .. } => {
+            // moved along the segment to the witness just far enough: t = 0.01/0.51
+            let t = 0.01 / 0.51;
+            assert!((u - Input::new(t, 0.99 + 0.51 * t)).norm() < 1e-9, "{u}");
+            assert!(u[1] >= 1.0 - 1e-9, "{u}");
+            assert!((slack - (t + 0.5)).abs() < 1e-9, "{slack}");
+        }
+        r => panic!("{r:?}"),
+    }
+    // a failed solve: the witness itself
+    let failed = QpResult::SolverFailure {
+        status: clarabel::solver::SolverStatus::InsufficientProgress,
+    };
+    let s = settle(failed, &hard, limit, witness, &soft);
+    assert_eq!(
+        s.result,
+        QpResult::Feasible {
+            u: witness,
+            slack: 1.5,
+            iterations: 0
+        }
+    );
+    // an answer inside the rows (within the test's tolerance) is kept as it is
+    let good = QpResult::Feasible {
+        u: Input::new(-0.5, 1.0 - 1e-9),
+        slack: 0.0,
+        iterations: 7,
+    };
+    assert_eq!(
+        settle(good, &hard, limit, witness, &soft),
+        Settled {
+            result: good,
+            witness_used: false
+        }
+    );
+    // outside the box, or not finite: replaced by an input inside both
+    for u in [Input::new(2.5, 1.0), Input::new(f64::NAN, 1.0)] {
+        let r = QpResult::Feasible {
+            u,
+            slack: 0.0,
+            iterations: 1,
+        };
+        let s = settle(r, &hard, limit, witness, &soft);
+        assert!(s.witness_used, "{u}");
+        match s.result {
+            QpResult::Feasible { u: v, .. } => {
+                assert!(
+                    ftcbf_controller::feasibility::admits(&hard, limit, v),
+                    "{u} → {v}"
+                )
+            }
+            r => panic!("{r:?}"),
+        }
+    }
 }

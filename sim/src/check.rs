@@ -44,16 +44,15 @@
 use std::fmt;
 
 use ftcbf_controller::params::{
-    check_lemma1, check_prop1, check_theorem5, detectability, steady_state_gain_product,
-    Detectability,
+    check_lemma1, check_theorem5, detectability, steady_state_gain_product, Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
-    channel_mask, controller_name, heading_fusion, heading_sensor, initial_covariance,
-    process_model, process_noise, rest_hold, sensor_dependents, ControlSetup, Conversion,
-    NoiseSource, MIN_VARIANCE,
+    channel_mask, controller_name, ellipse_prop1, heading_fusion, heading_sensor,
+    initial_covariance, process_model, process_noise, rest_hold, sensor_dependents, ControlSetup,
+    Conversion, NoiseSource, MIN_VARIANCE,
 };
 use crate::runner::RunError;
 use crate::safe_sets::ellipse_phi_state;
@@ -171,8 +170,13 @@ impl Verdict {
             let over = self
                 .horizon
                 .map_or(String::new(), |t| format!(" over the run's {t} s"));
+            let assuming = if self.assumptions.is_empty() {
+                String::new()
+            } else {
+                format!(", assuming {}", self.assumptions.join("; "))
+            };
             format!(
-                "Theorem 3 applies: Pr(safe) ≥ 1 − ε = {} for any single fault pattern{over}",
+                "Theorem 3 applies{assuming}: Pr(safe) ≥ 1 − ε = {} for any single fault pattern{over}",
                 1.0 - self.epsilon
             )
         } else {
@@ -180,11 +184,14 @@ impl Verdict {
         }
     }
 
-    /// One word for tables: `applies`, `applies (T s)` or `no`.
+    /// One word for tables: `applies`, `applies (T s)`, either with `, assuming N` (N conditions
+    /// `check` cannot decide), or `no`.
     pub fn short(&self) -> String {
         match (self.applies, self.horizon) {
-            (true, None) => "applies".to_string(),
-            (true, Some(t)) => format!("applies ({t} s)"),
+            (true, None) if self.assumptions.is_empty() => "applies".to_string(),
+            (true, None) => format!("applies, assuming {}", self.assumptions.len()),
+            (true, Some(t)) if self.assumptions.is_empty() => format!("applies ({t} s)"),
+            (true, Some(t)) => format!("applies ({t} s), assuming {}", self.assumptions.len()),
             (false, _) => "no".to_string(),
         }
     }
@@ -341,8 +348,11 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
     check_start_and_goal(world, &setup, &mut found); // 9
     check_finite_report(&context[usize::from(f.description.is_some())..], &mut found); // fail closed on NaN / ∞
 
-    let applies = found.reasons.is_empty();
     let liveness = liveness::predict(world, &setup);
+    check_joint_rows(world, &liveness, &mut found); // 10
+    check_departures(world, &mut found); // 11
+
+    let applies = found.reasons.is_empty();
     Ok(CheckReport {
         world: world.name.clone(),
         context,
@@ -358,6 +368,80 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         },
         liveness,
     })
+}
+
+/// Hypothesis 10, case (i) of Theorem 3's proof with several rows: when the kept estimates agree within θ,
+/// some input must meet the rows of **every** active barrier of **every** kept unit at once,
+/// inside the input box. (4.4) per barrier (item 5) and one row at rest (item 6) do not give
+/// that. The liveness prediction builds exactly those rows at rest along the planned path (every
+/// unit, every barrier with ĥ < δ, the box; under the declared attack with the spoofed estimates
+/// where Step 2 keeps them) and decides them in 2-D: a point where no input meets them all is a
+/// state the robot is planned to reach where the proof's case (i) fails, so the hypothesis
+/// fails. Where they are met at rest, the same rows at speed (the drift term ∂H/∂p·v), off the
+/// path and with the other units' ĥ up to ‖∂H‖θ lower are not decided: assumed.
+fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findings) {
+    if liveness.skipped.is_some() || liveness.cases.is_empty() {
+        return;
+    }
+    let barriers = world.file.safe_sets.len() + world.obstacles.len();
+    let name = "case (i): the rows of every kept unit and every active barrier met by one input in the box".to_string();
+    let stalled = liveness.cases.iter().find_map(|c| match &c.stall {
+        Some(st) if st.blocked == liveness::Blocked::Infeasible => Some((c, st)),
+        _ => None,
+    });
+    match stalled {
+        Some((c, st)) => found.record(
+            name,
+            Status::Fails,
+            format!(
+                "{}, at rest along the planned path, the robot {}: Step 1 is infeasible there and Step 3 may drop an honest filter, which the proof's case (i) excludes",
+                c.name,
+                liveness::stall_text(st)
+            ),
+        ),
+        None => {
+            found.hypotheses.push(Hypothesis {
+                name,
+                status: Status::Assumed,
+                detail: format!(
+                    "decided at rest along the planned path ({:.2} m, {} points; {}): an input meets all rows of the {barriers} barrier(s) there; at speed, off the path and with the other kept units' ĥ up to ‖∂H‖θ lower it is assumed",
+                    liveness.path_length,
+                    liveness.samples,
+                    liveness
+                        .cases
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(" and ")
+                ),
+            });
+            if barriers > 1 {
+                found.assumptions.push(
+                    "case (i) jointly over the barriers at speed and off the planned path (decided at rest along it)".to_string(),
+                );
+            }
+        }
+    }
+}
+
+/// Hypothesis 11, departures from the thesis's setting that `check` cannot decide and the verdict rests on
+/// (see the book's "What `check` proves"): Step 3's rule of keeping a unit the box cannot
+/// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not
+/// continuously.
+fn check_departures(world: &World, found: &mut Findings) {
+    let half_planes = world
+        .file
+        .safe_sets
+        .iter()
+        .filter(|s| matches!(s, SafeSetSpec::HalfPlane { .. }))
+        .count();
+    let barriers = world.file.safe_sets.len() + world.obstacles.len();
+    if barriers > 1 || half_planes < barriers {
+        found.assumptions.push(format!(
+            "Step 3's saturation rule (keep a unit whose rows the box cannot meet) does not pull the fallback against an honest row ({barriers} barrier(s), {} curved): outside the theorem",
+            barriers - half_planes
+        ));
+    }
 }
 
 /// The description lines: plant, control, channels and patterns, filters, parameters.
@@ -524,11 +608,16 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         None => context.push("parameters given in the world file".to_string()),
     }
     context.push(format!(
-        "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}",
+        "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}{}",
         fmt_list(&p.gamma),
         p.gamma_baseline,
         fmt_list(&p.theta),
-        p.delta
+        p.delta,
+        if p.delta_auto {
+            " (auto: half the largest δ Prop. 1 allows for the arena)"
+        } else {
+            ""
+        }
     ));
     context.push(format!("CBF gain: {}", setup.gain));
     for b in &setup.config.barriers {
@@ -980,13 +1069,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
 fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
     let theta_bar = p.theta.iter().copied().fold(0.0, f64::max);
-    for (bi, s) in world.file.safe_sets.iter().enumerate() {
-        let barrier = &setup.config.barriers[bi];
-        let h_bar = p
-            .gamma
-            .iter()
-            .map(|g| barrier.h_bar(*g))
-            .fold(0.0, f64::max);
+    for s in &world.file.safe_sets {
         match s {
             SafeSetSpec::HalfPlane { name, a, .. } => {
                 check_half_plane(setup, name, a, found);
@@ -1012,7 +1095,8 @@ fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
                     angle: *angle,
                     inside: matches!(s, SafeSetSpec::EllipseInside { .. }),
                 };
-                check_ellipse(setup, &ellipse, theta_bar, h_bar, found);
+                let prop1 = ellipse_prop1(world, setup, s);
+                check_ellipse(setup, &ellipse, prop1, found);
             }
         }
     }
@@ -1063,42 +1147,48 @@ struct Ellipse<'a> {
     inside: bool,
 }
 
-/// Condition 1 for a lifted ellipse: Prop. 1 on the position part; Thm. 5 at the start for
-/// an inside ellipse (reported).
+/// Condition 1 for a lifted ellipse: Prop. 1 in position space on the barrier that runs
+/// ([`ellipse_prop1`], i.e. [`crate::safe_sets::LiftedEllipse::prop1`]: rank G = 2 < n = 4, so
+/// the paper's Prop. 1 applies to the position part only, where the lift makes Λ = k∇h(p); for
+/// an arena it needs a finite δ, which `auto` chooses when none is given); Thm. 5 at the start
+/// for an inside ellipse (reported).
 fn check_ellipse(
     setup: &ControlSetup,
     e: &Ellipse,
-    theta_bar: f64,
-    h_bar: f64,
+    prop1: Option<crate::safe_sets::LiftedProp1>,
     found: &mut Findings,
 ) {
     let model = &setup.config.model;
     let name = e.name;
     let phi = ellipse_phi_state(e.semi_axes, e.angle);
-    // Prop. 1 on the position part: the lift makes ∂H/∂v = k∇h(p), a full-rank
-    // action on the position gradient, so its law-of-cosines argument applies.
-    // rank G = 2 < n, so Prop. 1 is applied to the position gradient only.
-    let mut v = check_prop1(&phi, &model.g, theta_bar, h_bar.min(1.0));
-    v.holds = theta_bar <= v.bound;
-    if !v.holds {
-        found.reasons.push(format!(
-            "{name}: θ̄ = {theta_bar:.4} exceeds Prop. 1's bound {:.4}: two estimates within θ̄ may need opposite inputs",
-            v.bound
-        ));
+    let delta = setup.params.delta;
+    let (holds, detail) = match &prop1 {
+        // δ enters an arena's test only (a keep-out ellipse's holds for any δ)
+        Some(v) if v.inside && setup.params.delta_auto => (
+            v.holds,
+            format!("{v}; δ = {delta:.4} (auto: half of Prop. 1's largest)"),
+        ),
+        Some(v) if v.inside => (v.holds, format!("{v}; δ = {delta}")),
+        Some(v) => (v.holds, v.to_string()),
+        None => (false, "not a lifted ellipse".to_string()),
+    };
+    if !holds {
+        let why = match &prop1 {
+            Some(v) if v.inside && v.z_min_sq <= 0.0 => format!(
+                "with δ = {delta} an estimate whose row is active may sit where Λ = k∇h ≈ 0 (the centre); Prop. 1 needs δ + h̄ + 2k√λ̄·v_max < 1 (leave `delta` out for `auto`, or lower the lift or v_max)"
+            ),
+            Some(v) => format!(
+                "θ̄ = {:.4} m exceeds Prop. 1's bound {:.4} m: two estimates within θ̄ may need opposite inputs",
+                v.theta_bar, v.bound
+            ),
+            None => "Prop. 1 could not be evaluated".to_string(),
+        };
+        found.reasons.push(format!("{name}: {why}"));
     }
     found.hypotheses.push(Hypothesis {
-        name: format!(
-            "condition 1 (4.4) for {name} (lifted ellipse, Prop. 1 on the position part)"
-        ),
-        status: if v.holds {
-            Status::Holds
-        } else {
-            Status::Fails
-        },
-        detail: format!(
-            "θ̄ = {theta_bar:.6} vs √(2(1 − h̄)/λ̄(Φ)) = {:.6} (h̄ = {:.6}, λ̄ = {:.6})",
-            v.bound, v.h_bar, v.lambda_max
-        ),
+        name: format!("condition 1 (4.4) for {name} (lifted ellipse, Prop. 1 in position space)"),
+        status: if holds { Status::Holds } else { Status::Fails },
+        detail,
     });
     if e.inside {
         let centre = State::new(e.center[0], e.center[1], 0.0, 0.0);

@@ -205,7 +205,8 @@ impl LivenessReport {
     }
 }
 
-fn stall_text(st: &Stall) -> String {
+/// Where and why a stall blocks the path, in one phrase (also `check`'s joint-rows finding).
+pub fn stall_text(st: &Stall) -> String {
     let why = match st.blocked {
         Blocked::Infeasible => {
             "no input in the box satisfies every row (Step 3 decides by residue there)".to_string()

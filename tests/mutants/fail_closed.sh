@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issues #16 and #29: each fail-closed fix has a test that fails without it. This script puts each
+# Issues #16, #29 and #30: each fail-closed fix has a test that fails without it. This script puts each
 # fix's old behaviour back, one at a time, in a scratch copy of the tree, runs the tests that
 # guard it, and checks that the named test fails. It exits 1 if any old behaviour passes the
 # tests (or no longer compiles, or fails only other tests).
@@ -135,5 +135,27 @@ mutant "a closed output pipe is reported as an internal error (exit 70)" src/mai
   '    default_sigpipe();' '' \
   a_closed_output_pipe_ends_the_command_like_any_unix_tool \
   --test reliability a_closed_output_pipe_ends_the_command_like_any_unix_tool
+# Issue #30: the controller's smaller fail-open paths, and a run past the parameters' horizon.
+mutant "a solver failure on a set the exact test certified sends Step 3 dropping units" \
+  controller/src/policy.rs \
+  'let settled = settle(r, &s.lines, qp.input_limit(), witness, soft_clf);' \
+  'let settled = if matches!(r, QpResult::Feasible { .. }) { settle(r, &s.lines, qp.input_limit(), witness, soft_clf) } else { Settled { result: r, witness_used: false } };' \
+  a_certified_feasible_set_uses_the_witness_when_the_solver_fails
+mutant "an AlmostSolved input is not rechecked against the hard rows" controller/src/policy.rs \
+  'QpResult::Feasible { u, .. } if admits(hard, limit, u) => {' \
+  'QpResult::Feasible { u: _, .. } => {' \
+  a_solver_answer_that_violates_a_hard_row_is_replaced_by_the_witness
+mutant "a non-finite chi-square term counts as 0 (most trustworthy)" controller/src/estimator.rs \
+  'let nis = if nis.is_finite() { nis } else { f64::INFINITY };' \
+  'let nis = if nis.is_finite() { nis } else { 0.0 };' \
+  a_non_finite_innovation_ranks_the_filter_least_trustworthy
+mutant "the increment history restarts when the control period changes" controller/src/controller.rs \
+  '        self.steps += 1;' \
+  '        let c = RESIDUE_WINDOW_MAX_STEPS; let t = |lag: usize| self.time[(self.head + c - lag) % c]; let changed = self.steps >= 2 && ((t(1) - t(2)) - (t(2) - t(3))).abs() > 1e-9; self.steps = if changed { 0 } else { self.steps + 1 };' \
+  a_changed_period_keeps_the_increment_history
+mutant "run --duration runs past the horizon gamma, theta, eta were computed for" sim/src/runner/mod.rs \
+  'if duration > file.duration {' 'if false {' \
+  a_run_past_the_horizon_of_gamma_theta_eta_is_refused \
+  --test simulation a_run_past_the_horizon_of_gamma_theta_eta_is_refused
 echo "$survivors mutant(s) survived"
 [ "$survivors" -eq 0 ]

@@ -224,6 +224,14 @@ impl<'w> Simulation<'w> {
                 r.describe()
             )));
         }
+        if duration > file.duration {
+            // γ, θ, η (and the dead-reckoning bounds) are computed for the world's duration:
+            // their union bound is over its samples, so a longer run is past their horizon.
+            return Err(RunError::Option(format!(
+                "--duration {duration}: past the world's duration ({} s), the horizon its γ, θ and η are computed for; give the world that duration (`--set duration={duration}`) so they are computed for it",
+                file.duration
+            )));
+        }
         let steps = duration * file.control.rate_hz;
         let plant_steps = duration / world.plant_dt();
         if steps > crate::world::ranges::MAX_CONTROL_STEPS

@@ -242,6 +242,8 @@ pub struct ParamReport {
     pub theta_schedule: Option<ThetaSchedule>,
     /// δ (∞ = constraints always active).
     pub delta: f64,
+    /// δ was not given and was chosen for Prop. 1 ([`auto_delta`]).
+    pub delta_auto: bool,
     /// Computed by §4.3 (`auto`), with the details.
     pub computed: Option<FtParameters>,
     /// ε the computed parameters are for.
@@ -1232,6 +1234,10 @@ fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> Pa
         ),
         _ => (Vec::new(), Vec::new(), None),
     };
+    let auto = match file.control.delta {
+        Some(_) => None,
+        None => auto_delta(world, &theta, &gamma),
+    };
     ParamReport {
         gamma,
         gamma_baseline,
@@ -1239,10 +1245,35 @@ fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> Pa
         theta_increment,
         increment_metric,
         theta_schedule,
-        delta: file.control.delta.unwrap_or(f64::INFINITY),
+        delta: file.control.delta.or(auto).unwrap_or(f64::INFINITY),
+        delta_auto: auto.is_some(),
         computed,
         epsilon: file.control.epsilon,
     }
+}
+
+/// δ for a world that gives none and has an inside (arena) ellipse: Prop. 1 needs the estimates
+/// whose rows are active to stay away from the centre, where Λ = k∇h = 0, so with δ = ∞ it
+/// cannot hold ([`LiftedEllipse::prop1`]). Its proof takes any
+/// δ < 1 − h̄ − 2k√λ̄·v_max − ½λ̄θ̄² (the lift's term included); this is half the smallest such
+/// bound over the arenas, leaving the other half as the law of cosines' margin. `None` when the
+/// world has no arena or no δ > 0 works (then `check` reports Prop. 1 failing).
+pub fn auto_delta(world: &World, theta: &[f64], gamma: &[f64]) -> Option<f64> {
+    let theta_bar = theta.iter().copied().fold(0.0_f64, f64::max);
+    let bound = world
+        .file
+        .safe_sets
+        .iter()
+        .filter_map(|spec| lifted_ellipse(world, spec))
+        .filter(LiftedEllipse::is_inside)
+        .map(|e| {
+            let h_bar = gamma.iter().map(|&g| e.h_bar(g)).fold(0.0_f64, f64::max);
+            let full = e.prop1(theta_bar, h_bar, 0.0, 0.0);
+            // z_min² at δ = 0 is 1 − h̄ − 2k√λ̄·v_max; δ may take what exceeds ½λ̄θ̄²
+            full.z_min_sq - 0.5 * full.lambda_max * theta_bar * theta_bar
+        })
+        .reduce(f64::min)?;
+    (bound > 0.0 && bound.is_finite()).then_some(0.5 * bound)
 }
 
 /// The filters' initial estimate: the linear plant's x0, or the robot's start at rest.
