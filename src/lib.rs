@@ -8,9 +8,11 @@
 //! search for the worst attack inside a world's threat model (a cross-entropy method on the
 //! batch engine's thread pool, compared with random search); and [`regress`], the world
 //! catalogue as a regression suite: every world's `[expect]` over its regression seeds, in
-//! parallel, with a table (`ftcbf regress`). The binary (`src/main.rs`) is a thin shell over
+//! parallel, with a table (`ftcbf regress`); and [`runner`], the trial runner of a world file
+//! that `ftcbf batch`, the examples and the Python package share. The binary (`src/main.rs`) is a thin shell over
 //! them and over `ftcbf-sim`.
 
 pub mod batch;
 pub mod falsify;
 pub mod regress;
+pub mod runner;
