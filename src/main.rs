@@ -60,17 +60,11 @@ fn invalid(e: WorldError) -> Failure {
     }
 }
 
-/// Whether a run error says the world does not fit the controller or plant (a world `check`
-/// and `run` both refuse: exit 2), as opposed to a failure while running.
-fn is_invalid_world(e: &RunError) -> bool {
-    matches!(e, RunError::Setup { .. } | RunError::Start { .. })
-}
-
 /// A run error as a failure: an invalid world exits 2, an option out of range 64.
 fn run_failure(e: RunError, what: &'static str) -> Failure {
     let code = match &e {
         RunError::Option(_) => EXIT_USAGE,
-        e if is_invalid_world(e) => EXIT_INVALID,
+        e if e.is_invalid_world() => EXIT_INVALID,
         _ => 1,
     };
     let context = if code == EXIT_INVALID {
@@ -88,10 +82,11 @@ fn run_failure(e: RunError, what: &'static str) -> Failure {
 fn code_of(e: &anyhow::Error) -> u8 {
     if e.is::<batch::VerdictFailure>() {
         EXIT_VERDICT
-    } else if e
-        .chain()
-        .any(|c| c.is::<WorldError>() || c.downcast_ref::<RunError>().is_some_and(is_invalid_world))
-    {
+    } else if e.chain().any(|c| {
+        c.is::<WorldError>()
+            || c.downcast_ref::<RunError>()
+                .is_some_and(RunError::is_invalid_world)
+    }) {
         EXIT_INVALID
     } else {
         1
