@@ -12,12 +12,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{anyhow, Context};
+use anyhow::Context;
 use ftcbf::batch::{self, BatchPlan, Execution, TrialRunner, CONFIDENCE};
+use ftcbf::runner::WorldRunner;
 use ftcbf_sim::ftcbf_controller::{ControlLaw, ControllerConfig, Decision, Input, Readings, State};
 use ftcbf_sim::runner::{RunOptions, Simulation};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ControllerKindSpec, World};
+use ftcbf_sim::world::World;
 
 /// Proportional gain [1/s²] and damping gain [1/s] of the PD law.
 const KP: f64 = 0.6;
@@ -95,25 +96,22 @@ impl ControlLaw for MedianPd {
     }
 }
 
-/// Runs trials of one world: "median-pd" is the law above, anything else a built-in controller.
-struct Runner(World);
+/// Runs trials of one world: "median-pd" is the law above, anything else a built-in controller
+/// (run as `ftcbf batch` runs it).
+struct Runner(WorldRunner);
 
 impl TrialRunner for Runner {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
-        let mut opts = RunOptions {
+        if controller != "median-pd" {
+            return self.0.run_trial(controller, seed);
+        }
+        let opts = RunOptions {
             seed: Some(seed),
             ..RunOptions::default()
         };
-        let mut sim = match controller {
-            "median-pd" => Simulation::with_law(&self.0, &opts, |cfg| {
-                Ok(Box::new(MedianPd::new(cfg)) as Box<dyn ControlLaw>)
-            })?,
-            "ft-cbf-clf" => {
-                opts.controller = Some(ControllerKindSpec::FtCbfClf);
-                Simulation::new(&self.0, &opts)?
-            }
-            other => return Err(anyhow!("unknown controller `{other}`")),
-        };
+        let mut sim = Simulation::with_law(&self.0 .0, &opts, |cfg| {
+            Ok(Box::new(MedianPd::new(cfg)) as Box<dyn ControlLaw>)
+        })?;
         sim.run_to_end();
         Ok(sim.summary())
     }
@@ -163,7 +161,7 @@ fn main() -> anyhow::Result<()> {
         jobs: None,
         progress: false,
     };
-    let result = batch::run_batch(&Runner(world), &plan, exec)?;
+    let result = batch::run_batch(&Runner(WorldRunner(world)), &plan, exec)?;
     for c in &result.summaries {
         println!(
             "{:>11}: safe {}/{} = {:.3}, 95 % CI [{:.3}, {:.3}], goal rate {:.3}",

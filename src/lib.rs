@@ -6,10 +6,12 @@
 //! [`batch::TrialRunner`], so a program can certify its own controller or simulator with the
 //! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`); [`falsify`], the
 //! search for the worst attack inside a world's threat model (a cross-entropy method on the
-//! batch engine's thread pool, compared with random search); and [`regress`], the world
+//! batch engine's thread pool, compared with random search); [`regress`], the world
 //! catalogue as a regression suite: every world's `[expect]` over its regression seeds, in
-//! parallel, with a table (`ftcbf regress`); and [`report`], the book's results pages rendered
-//! from the stored batch and falsify JSON (`ftcbf report`). The binary (`src/main.rs`) is a thin shell over
+//! parallel, with a table (`ftcbf regress`); [`report`], the book's results pages rendered
+//! from the stored batch and falsify JSON (`ftcbf report`); and [`runner`], the trial runner of a
+//! world file that `ftcbf batch`, the examples and the Python package share. The binary
+//! (`src/main.rs`) is a thin shell over
 //! them and over `ftcbf-sim`.
 
 #![warn(missing_docs)]
@@ -18,3 +20,4 @@ pub mod batch;
 pub mod falsify;
 pub mod regress;
 pub mod report;
+pub mod runner;

@@ -1,5 +1,6 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
+use ftcbf::runner::prepare_batch;
 use ftcbf::{batch, falsify, regress, report};
 mod cli;
 
@@ -18,7 +19,7 @@ use ftcbf_sim::record::Recorder;
 use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
 use ftcbf_sim::runner::{preflight, run, run_observed, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, Param, World, WorldError};
+use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
 
 use cli::{
     CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg,
@@ -59,17 +60,11 @@ fn invalid(e: WorldError) -> Failure {
     }
 }
 
-/// Whether a run error says the world does not fit the controller or plant (a world `check`
-/// and `run` both refuse: exit 2), as opposed to a failure while running.
-fn is_invalid_world(e: &RunError) -> bool {
-    matches!(e, RunError::Setup { .. } | RunError::Start { .. })
-}
-
 /// A run error as a failure: an invalid world exits 2, an option out of range 64.
 fn run_failure(e: RunError, what: &'static str) -> Failure {
     let code = match &e {
         RunError::Option(_) => EXIT_USAGE,
-        e if is_invalid_world(e) => EXIT_INVALID,
+        e if e.is_invalid_world() => EXIT_INVALID,
         _ => 1,
     };
     let context = if code == EXIT_INVALID {
@@ -87,10 +82,11 @@ fn run_failure(e: RunError, what: &'static str) -> Failure {
 fn code_of(e: &anyhow::Error) -> u8 {
     if e.is::<batch::VerdictFailure>() {
         EXIT_VERDICT
-    } else if e
-        .chain()
-        .any(|c| c.is::<WorldError>() || c.downcast_ref::<RunError>().is_some_and(is_invalid_world))
-    {
+    } else if e.chain().any(|c| {
+        c.is::<WorldError>()
+            || c.downcast_ref::<RunError>()
+                .is_some_and(RunError::is_invalid_world)
+    }) {
         EXIT_INVALID
     } else {
         1
@@ -218,17 +214,6 @@ fn kind_of(c: ControllerArg) -> ControllerKindSpec {
         ControllerArg::FtCbfClf => ControllerKindSpec::FtCbfClf,
         ControllerArg::Baseline => ControllerKindSpec::Baseline,
         ControllerArg::Nominal => ControllerKindSpec::Nominal,
-    }
-}
-
-fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
-    match name {
-        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
-        "baseline" => Ok(ControllerKindSpec::Baseline),
-        "nominal" => Ok(ControllerKindSpec::Nominal),
-        other => {
-            anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)")
-        }
     }
 }
 
@@ -687,48 +672,5 @@ fn cmd_regress(a: &RegressArgs) -> Result<(), Failure> {
         })
     } else {
         Ok(())
-    }
-}
-
-/// The closed-loop runner of one world, for `ftcbf batch`.
-struct WorldRunner(World);
-
-impl batch::TrialRunner for WorldRunner {
-    fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
-        let opts = RunOptions {
-            seed: Some(seed),
-            controller: Some(parse_kind(controller)?),
-            duration: None,
-        };
-        Ok(run(&self.0, &opts)?)
-    }
-}
-
-fn prepare_batch(
-    path: &Path,
-) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
-    move |ovr: &[batch::ParamOverride]| {
-        let overrides: Vec<Override> = ovr
-            .iter()
-            .map(|o| Override {
-                key: o.key.clone(),
-                value: o.value,
-            })
-            .collect();
-        let world = World::load(path, &overrides)?;
-        let c = &world.file.control;
-        let auto = matches!(c.gamma, Param::Auto) || matches!(c.theta, Param::Auto);
-        let report = check::check_world(&world).ok();
-        let info = batch::WorldInfo {
-            name: world.name.clone(),
-            seed: world.file.seed,
-            epsilon: auto.then_some(c.epsilon),
-            theorem3: report.as_ref().map(|r| r.verdict.line()),
-            liveness: report.as_ref().map(|r| r.liveness.line()),
-        };
-        Ok(batch::PreparedWorld {
-            info,
-            runner: Box::new(WorldRunner(world)),
-        })
     }
 }

@@ -179,8 +179,9 @@ fn report(results: &[BatchResult]) -> String {
     }
 }
 
-/// Run the batch described by `args` and return the results and the printed report.
-pub(crate) fn run_batch_args(
+/// Run the batch described by `args` and return the results and the report `ftcbf batch`
+/// prints (the `--out` files are not written; `progress` shows a bar on a terminal).
+pub fn run_batch_args(
     args: &BatchArgs,
     prepare: &PrepareFn<'_>,
     progress: bool,

@@ -34,10 +34,10 @@ mod table;
 use ftcbf_sim::summary::RunSummary;
 
 pub use cli::{
-    batch_command, failing_verdicts, merge_command, BatchArgs, FailOn, MergeArgs, PrepareFn,
-    VerdictFailure,
+    batch_command, failing_verdicts, merge_command, run_batch_args, BatchArgs, FailOn, MergeArgs,
+    PrepareFn, VerdictFailure,
 };
-pub use io::FORMAT;
+pub use io::{to_json, FORMAT};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{

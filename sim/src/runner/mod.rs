@@ -99,6 +99,14 @@ pub enum RunError {
     Option(String),
 }
 
+impl RunError {
+    /// Whether it says the world does not fit the controller or plant (a world `check` and
+    /// `run` both refuse: the CLI's exit 2), as opposed to a run option out of range.
+    pub fn is_invalid_world(&self) -> bool {
+        matches!(self, RunError::Setup { .. } | RunError::Start { .. })
+    }
+}
+
 /// Builds everything a run of `world` with its own controller builds at its start (controller
 /// setup, sensors, attacks, the control law, the plant) and drops it: `Ok` exactly when
 /// [`run`] would start. `ftcbf check` calls it so that it refuses what `run` refuses.

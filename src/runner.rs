@@ -1,0 +1,88 @@
+//! The closed-loop trial runner of one world file, shared by `ftcbf batch`, the examples and the
+//! Python package: a [`WorldRunner`] runs the built-in controllers by name, and
+//! [`prepare_batch`] loads a world (with a sweep point's overrides) into the
+//! [`batch::PreparedWorld`] that [`batch::run_sweep`] runs.
+
+use std::path::Path;
+
+use ftcbf_sim::check;
+use ftcbf_sim::runner::{run, RunOptions};
+use ftcbf_sim::summary::RunSummary;
+use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
+
+use crate::batch;
+
+/// The built-in controllers' names.
+pub const CONTROLLERS: [&str; 3] = ["ft-cbf-clf", "baseline", "nominal"];
+
+/// The built-in controller named `name` (one of [`CONTROLLERS`]).
+pub fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
+    match name {
+        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
+        "baseline" => Ok(ControllerKindSpec::Baseline),
+        "nominal" => Ok(ControllerKindSpec::Nominal),
+        other => {
+            anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)")
+        }
+    }
+}
+
+/// The closed-loop runner of one world with the built-in controllers.
+pub struct WorldRunner(pub World);
+
+impl batch::TrialRunner for WorldRunner {
+    fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
+        let opts = RunOptions {
+            seed: Some(seed),
+            controller: Some(parse_kind(controller)?),
+            duration: None,
+        };
+        Ok(run(&self.0, &opts)?)
+    }
+}
+
+/// The batch's view of a loaded world: its name, seed, the ε of its claim (when γ or θ is
+/// derived from it) and `ftcbf check`'s Theorem 3 and liveness verdict lines.
+pub fn world_info(world: &World) -> batch::WorldInfo {
+    let c = &world.file.control;
+    let auto = matches!(c.gamma, Param::Auto) || matches!(c.theta, Param::Auto);
+    let report = check::check_world(world).ok();
+    batch::WorldInfo {
+        name: world.name.clone(),
+        seed: world.file.seed,
+        epsilon: auto.then_some(c.epsilon),
+        theorem3: report.as_ref().map(|r| r.verdict.line()),
+        liveness: report.as_ref().map(|r| r.liveness.line()),
+    }
+}
+
+/// Loads the world at `path` with `base` overrides, then a sweep point's `point` overrides.
+pub fn load_point(
+    path: &Path,
+    base: &[Override],
+    point: &[batch::ParamOverride],
+) -> Result<World, WorldError> {
+    let overrides: Vec<Override> = base
+        .iter()
+        .cloned()
+        .chain(point.iter().map(|o| Override {
+            key: o.key.clone(),
+            value: o.value,
+        }))
+        .collect();
+    World::load(path, &overrides)
+}
+
+/// What `ftcbf batch` runs for `path`: the world loaded with each sweep point's overrides,
+/// its trials run by a [`WorldRunner`].
+pub fn prepare_batch(
+    path: &Path,
+) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
+    move |point: &[batch::ParamOverride]| {
+        let world = load_point(path, &[], point)?;
+        Ok(batch::PreparedWorld {
+            info: world_info(&world),
+            runner: Box::new(WorldRunner(world)),
+        })
+    }
+}
