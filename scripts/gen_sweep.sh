@@ -120,6 +120,9 @@ END {
     echo "no \`[control]\` table), \`ftcbf check\` on each, then \`ftcbf batch --trials $trials"
     echo "--controller ft-cbf-clf\`. Commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD 2>/dev/null || echo ' (with local changes)'),"
     echo "$(date -u +%Y-%m-%d), $(uname -m), $(nproc) cores."
+    if [[ ${REUSE:-0} == 1 ]]; then
+        echo "Batch results reused from an earlier run (REUSE=1)${SWEEP_NOTE:+: $SWEEP_NOTE}; \`check\` ran again at this commit."
+    fi
     echo
     echo "Columns: verdict = Theorem 3 applies / no; safe, entered, settled = trials of $trials;"
     echo "ω flips = mean % of control steps in which the commanded ω changes sign; infeas = % of"

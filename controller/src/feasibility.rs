@@ -221,6 +221,52 @@ pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
     Feasibility::Infeasible
 }
 
+/// The input of `{u : every row of lines, the box}` nearest `target` (Euclidean), or `None`
+/// when no candidate is admitted. The nearest point of a convex polygon is the target itself,
+/// its projection on an edge, or a vertex: every one of those is tried and the nearest that
+/// [`admits`] accepts is returned. The policy decides with it when clarabel fails on a set the
+/// test certified feasible (issue #30): the witness of [`check`] is any vertex, which can stop
+/// the robot where the solver's optimum, near the nominal input, would not.
+pub fn nearest(lines: &[Line], input_limit: Option<Input>, target: Input) -> Option<Input> {
+    if admits(lines, input_limit, target) {
+        return Some(target);
+    }
+    let edges = box_edges(input_limit);
+    let n = lines.len();
+    let line = |k: usize| if k < n { lines[k] } else { edges[k - n] };
+    let total = n + edges.len();
+    let mut best: Option<(f64, Input)> = None;
+    let mut consider = |v: [f64; 2]| {
+        let u = Input::new(v[0], v[1]);
+        if admits(lines, input_limit, u) {
+            let d = (u - target).norm();
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, u));
+            }
+        }
+    };
+    for i in 0..total {
+        let li = line(i);
+        if li.is_degenerate() {
+            continue;
+        }
+        let f = li.violation([target[0], target[1]]);
+        consider([target[0] - f * li.a[0], target[1] - f * li.a[1]]);
+        for j in (i + 1)..total {
+            let lj = line(j);
+            let det = li.a[0] * lj.a[1] - li.a[1] * lj.a[0];
+            if det == 0.0 {
+                continue;
+            }
+            consider([
+                (li.b * lj.a[1] - lj.b * li.a[1]) / det,
+                (li.a[0] * lj.b - lj.a[0] * li.b) / det,
+            ]);
+        }
+    }
+    best.map(|(_, u)| u)
+}
+
 /// Whether `u` satisfies every row of `lines` and the box `|u_k| ≤ limit_k` within the
 /// tolerance [`check`] accepts its witnesses with (a NaN or infinite `u` never does). The
 /// policy checks clarabel's answers with it: a solve reported as Solved or AlmostSolved is
@@ -476,5 +522,21 @@ mod tests {
         more.push(hs(0.0, -1.0, -1.0)); // u_y ≥ 1: the apex only
         let w = assert_witness(&more, None);
         assert!((w - Input::new(0.0, 1.0)).norm() < 1e-12, "{w}");
+    }
+
+    /// The nearest admitted point: the target itself when feasible, its projection on the one
+    /// violated row, a vertex when the projection leaves the set, None for an empty set.
+    #[test]
+    fn nearest_is_the_target_its_projection_or_a_vertex() {
+        let lim = Some(Input::new(1.0, 1.0));
+        let rows = [Line::from_half_space(&hs(1.0, 0.0, 0.5))]; // u_x ≤ 0.5
+        let t = Input::new(0.2, 0.3);
+        assert_eq!(nearest(&rows, lim, t), Some(t));
+        let p = nearest(&rows, lim, Input::new(0.9, 0.3)).unwrap();
+        assert!((p - Input::new(0.5, 0.3)).norm() < 1e-12, "{p}");
+        let v = nearest(&rows, lim, Input::new(0.9, 3.0)).unwrap();
+        assert!((v - Input::new(0.5, 1.0)).norm() < 1e-12, "{v}");
+        let empty = [Line::from_half_space(&hs(1.0, 0.0, -2.0))]; // u_x ≤ −2 outside the box
+        assert_eq!(nearest(&empty, lim, t), None);
     }
 }

@@ -70,7 +70,7 @@
 use clarabel::solver::SolverStatus;
 
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
-use crate::feasibility::{admits, box_edges, check_half_spaces, Feasibility, Line};
+use crate::feasibility::{admits, box_edges, check_half_spaces, nearest, Feasibility, Line};
 use crate::qp::{QpResult, QpSolver, RowMode};
 use crate::types::{Input, State, StateMatrix};
 
@@ -524,6 +524,12 @@ fn attempt(
     if matches!(r, QpResult::Infeasible { .. }) {
         rec.feasibility_disagreements += 1;
     }
+    // When clarabel's answer is not usable, the certified set's point nearest the cost's
+    // reference (u_nom in the safety-filter form, 0 in problem 5.3) stands in for its optimum.
+    let witness = match r {
+        QpResult::Feasible { u, .. } if admits(&s.lines, qp.input_limit(), u) => witness,
+        _ => nearest(&s.lines, qp.input_limit(), qp.reference()).unwrap_or(witness),
+    };
     let soft_clf: &[HalfSpace] = match clf {
         RowMode::Hard => &[],
         RowMode::Soft => &s.clf_rows,

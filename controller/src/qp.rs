@@ -92,6 +92,8 @@ pub struct QpSolver {
     b: Vec<f64>,
     q: Vec<f64>,
     input_limit: Option<Input>,
+    /// The reference input u_ref of the cost (0 until [`QpSolver::set_reference`]).
+    reference: Input,
     solver: Option<DefaultSolver<f64>>,
     last_x: [f64; NV],
     last_z: Vec<f64>,
@@ -160,6 +162,7 @@ impl QpSolver {
             b: vec![1.0; rows],
             q: vec![0.0; NV],
             input_limit,
+            reference: Input::zeros(),
             solver: None,
             last_x: [0.0; NV],
             last_z: vec![0.0; rows],
@@ -176,6 +179,11 @@ impl QpSolver {
     pub fn input_limit(&self) -> Option<Input> {
         self.input_limit
     }
+    /// The reference input u_ref of the cost (0 for problem 5.3).
+    pub fn reference(&self) -> Input {
+        self.reference
+    }
+
     /// Sets the reference input u_ref of the cost: from the next solve on the problem is
     /// `min (u − u_ref)ᵀR(u − u_ref) + w s²` (the safety-filter form; u_ref = 0 is problem 5.3).
     /// A non-finite reference is ignored (the previous one stays).
@@ -183,6 +191,7 @@ impl QpSolver {
         if !(u_ref[0].is_finite() && u_ref[1].is_finite()) {
             return;
         }
+        self.reference = u_ref;
         // ½zᵀPz + qᵀz with P = 2R: q = −2R·u_ref = −P·u_ref.
         self.q[0] = -(self.p_values[0] * u_ref[0] + self.p_values[1] * u_ref[1]);
         self.q[1] = -(self.p_values[1] * u_ref[0] + self.p_values[2] * u_ref[1]);
