@@ -54,7 +54,7 @@ pub struct StampedRun {
     pub json: String,
     /// The command line, with `ftcbf` for the binary.
     pub command: String,
-    /// Its wall time [s].
+    /// Its wall time \[s\].
     pub seconds: u64,
 }
 

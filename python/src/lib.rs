@@ -1,9 +1,9 @@
 //! `ftcbf._ftcbf`: the Python extension module over the ftcbf libraries (issue #34).
 //!
-//! - [`world::World`]: a world file loaded with overrides, and `check()`'s structured verdict;
-//! - [`sim::Simulation`]: the closed loop of `ftcbf_sim::runner::Simulation`, stepped from
-//!   Python, with a built-in controller or a control law written in Python ([`law`]);
-//! - [`batch::batch`]: `ftcbf batch` (the same plan, runner, numbers and report), run with the
+//! - `world::World`: a world file loaded with overrides, and `check()`'s structured verdict;
+//! - `sim::Simulation`: the closed loop of `ftcbf_sim::runner::Simulation`, stepped from
+//!   Python, with a built-in controller or a control law written in Python (`law`);
+//! - `batch::batch`: `ftcbf batch` (the same plan, runner, numbers and report), run with the
 //!   GIL released.
 //!
 //! Errors are Python exceptions whose message is what the CLI prints after `error: `.

@@ -645,6 +645,22 @@ struct ChannelState {
     recording: Vec<(f64, bool, f64)>,
 }
 
+impl ChannelState {
+    /// The state of a channel before its attack's window: nothing decided, seen or recorded.
+    fn fresh(rng: Option<ChaCha20Rng>) -> Self {
+        Self {
+            effect: Effect::None,
+            rng,
+            beta: 0.0,
+            last_fresh: None,
+            last_value: None,
+            frozen: None,
+            delivered: None,
+            recording: Vec::new(),
+        }
+    }
+}
+
 /// A validated injector with its state.
 #[derive(Debug, Clone)]
 struct Injector {
@@ -673,21 +689,16 @@ impl AttackStack {
             .map(|(index, (spec, targets))| {
                 let channels = targets
                     .iter()
-                    .map(|&c| ChannelState {
-                        effect: Effect::None,
-                        rng: matches!(spec.kind, AttackKind::Spikes { .. }).then(|| {
-                            stream_rng(
-                                seed,
-                                "attack",
-                                &format!("{index}/{}", suite.specs()[c].name),
-                            )
-                        }),
-                        beta: 0.0,
-                        last_fresh: None,
-                        last_value: None,
-                        frozen: None,
-                        delivered: None,
-                        recording: Vec::new(),
+                    .map(|&c| {
+                        ChannelState::fresh(matches!(spec.kind, AttackKind::Spikes { .. }).then(
+                            || {
+                                stream_rng(
+                                    seed,
+                                    "attack",
+                                    &format!("{index}/{}", suite.specs()[c].name),
+                                )
+                            },
+                        ))
                     })
                     .collect();
                 Injector {
@@ -871,7 +882,7 @@ impl Injector {
 /// largest rate), no random draws (spikes add nothing on average), readings the controller
 /// rejects (non-finite, absurd) add nothing, a frozen channel holds its value (or the truth at
 /// the window's start), a replayed one plays the truth recorded in its recording window. 0
-/// outside the window. The injector's own arithmetic ([`fresh_effect`]) decides the value
+/// outside the window. The injector's own arithmetic (`fresh_effect`) decides the value
 /// kinds, so a prediction made from this matches what a run injects.
 pub fn open_loop_offset(spec: &AttackSpec, j: usize, t: f64, truth: &dyn Fn(f64) -> f64) -> f64 {
     if !spec.contains(t) {
@@ -893,16 +904,7 @@ pub fn open_loop_offset(spec: &AttackSpec, j: usize, t: f64, truth: &dyn Fn(f64)
         }
         AttackKind::Dropout {} | AttackKind::NonFinite { .. } | AttackKind::Absurd { .. } => 0.0,
         kind => {
-            let mut st = ChannelState {
-                effect: Effect::None,
-                rng: None,
-                beta: 0.0,
-                last_fresh: None,
-                last_value: None,
-                frozen: None,
-                delivered: None,
-                recording: Vec::new(),
-            };
+            let mut st = ChannelState::fresh(None);
             let v = fresh_effect(kind, spec, j, 0, t, now, &mut st, &NoDetector).apply(now);
             if v.is_finite() {
                 v - now

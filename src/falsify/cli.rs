@@ -75,7 +75,7 @@ pub struct FalsifyArgs {
     #[arg(long, value_name = "KEY=VALUE", value_parser = super::scenario::parse_range,
           requires = "scenario")]
     pub range: Vec<(String, f64)>,
-    /// Where --scenario writes a regression world per defect [default: runs/<world>-scenario/]
+    /// Where --scenario writes a regression world per defect [default: runs/WORLD-scenario/]
     /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,

@@ -59,19 +59,19 @@ const CMA_TAG: u64 = 0x53_43_43;
 /// How far the scenario search may move the world (the `[falsify]` table, then `--range`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Ranges {
-    /// Largest shift of each obstacle along x and y [m] (half-spaces stay).
+    /// Largest shift of each obstacle along x and y \[m\] (half-spaces stay).
     pub obstacle_shift: f64,
     /// Largest relative change of each obstacle's size.
     pub obstacle_scale: f64,
-    /// Largest shift of the start along x and y [m].
+    /// Largest shift of the start along x and y \[m\].
     pub start_shift: f64,
-    /// Largest change of the start heading [rad].
+    /// Largest change of the start heading \[rad\].
     pub start_heading: f64,
-    /// Largest shift of the goal centre and waypoints along x and y [m].
+    /// Largest shift of the goal centre and waypoints along x and y \[m\].
     pub goal_shift: f64,
     /// Largest relative change of every channel's noise standard deviation.
     pub noise: f64,
-    /// Largest shift of the world's own attacks' windows [s].
+    /// Largest shift of the world's own attacks' windows \[s\].
     pub onset_shift: f64,
 }
 
@@ -182,15 +182,15 @@ pub fn parse_range(s: &str) -> Result<(String, f64), String> {
 pub struct Variant {
     /// Index (its random stream).
     pub index: usize,
-    /// Per obstacle: shift (x, y) [m] and size factor.
+    /// Per obstacle: shift (x, y) \[m\] and size factor.
     pub obstacles: Vec<([f64; 2], f64)>,
-    /// Start shift (x, y) [m] and heading change [rad].
+    /// Start shift (x, y) \[m\] and heading change \[rad\].
     pub start: [f64; 3],
-    /// Goal shift (x, y) [m].
+    /// Goal shift (x, y) \[m\].
     pub goal: [f64; 2],
     /// Per sensor channel: noise factor.
     pub noise: Vec<f64>,
-    /// Shift of the own attacks' windows [s].
+    /// Shift of the own attacks' windows \[s\].
     pub onset: f64,
 }
 
@@ -516,7 +516,7 @@ pub struct ScenarioReport {
     pub worst: Option<ScenarioRun>,
     /// The CMA-ES refinements.
     pub cmaes: Vec<ScenarioCma>,
-    /// Wall time [s] (the only field that differs between two runs of the same command).
+    /// Wall time \[s\] (the only field that differs between two runs of the same command).
     pub time_seconds: f64,
 }
 

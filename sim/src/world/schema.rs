@@ -63,20 +63,20 @@ pub struct WorldFile {
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct FalsifySection {
-    /// Largest shift of each obstacle's position along x and y [m].
+    /// Largest shift of each obstacle's position along x and y \[m\].
     pub obstacle_shift: Option<f64>,
     /// Largest relative change of each obstacle's size (every dimension by one factor in
     /// [1 − s, 1 + s]).
     pub obstacle_scale: Option<f64>,
-    /// Largest shift of the start position along x and y [m].
+    /// Largest shift of the start position along x and y \[m\].
     pub start_shift: Option<f64>,
-    /// Largest change of the start heading [rad].
+    /// Largest change of the start heading \[rad\].
     pub start_heading: Option<f64>,
-    /// Largest shift of the goal centre (and its waypoints) along x and y [m].
+    /// Largest shift of the goal centre (and its waypoints) along x and y \[m\].
     pub goal_shift: Option<f64>,
     /// Largest relative change of every sensor channel's noise standard deviation (±x).
     pub noise: Option<f64>,
-    /// Largest shift of the world's own attacks' onset (and end) [s].
+    /// Largest shift of the world's own attacks' onset (and end) \[s\].
     pub onset_shift: Option<f64>,
 }
 
