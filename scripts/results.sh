@@ -6,7 +6,7 @@
 #   BUDGET: runs per search method for `ftcbf falsify` (default 400)
 #   FALSIFY_WORLD…: names of catalogue worlds to falsify (default: every catalogue world)
 #   FTCBF=path/to/ftcbf overrides the binary (default target/release/ftcbf, built by
-#   `cargo test --release --workspace --locked --no-run`); JOBS=N the worker threads (default
+#   `cargo build --release --workspace --all-targets --locked`); JOBS=N the worker threads (default
 #   all cores); RESUME=1 keeps results/stamp.toml and skips every command already in it (to
 #   finish an interrupted measurement). Run from the repository root.
 #

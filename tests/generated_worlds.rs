@@ -132,16 +132,26 @@ fn files(dir: &std::path::Path) -> Vec<(String, String)> {
 fn ftcbf_gen_writes_the_same_files_twice_and_lists_them() {
     let dir = common::tmp_in("gen-cli", "out");
     let dir_s = dir.to_string_lossy().into_owned();
-    let args = [
-        "gen",
-        "--seed",
-        "1",
-        "--count",
-        "3",
-        "--out",
-        dir_s.as_str(),
-    ];
-    let first = common::ftcbf(&args);
+    // `ftcbf gen --seed 1 --count N --out DIR` and more flags
+    let gen = |count: &str, more: &[&str]| {
+        let mut args = vec![
+            "gen",
+            "--seed",
+            "1",
+            "--count",
+            count,
+            "--out",
+            dir_s.as_str(),
+        ];
+        args.extend_from_slice(more);
+        common::ftcbf(&args)
+    };
+    // a refused command: its exit code, and its message names `what`
+    let refused = |out: &std::process::Output, code: i32, what: &str| {
+        assert_eq!(out.status.code(), Some(code), "{}", common::text(out));
+        assert!(common::text(out).contains(what), "{}", common::text(out));
+    };
+    let first = gen("3", &[]);
     assert!(first.status.success(), "{}", common::text(&first));
     let a = files(&dir);
     assert_eq!(
@@ -165,46 +175,18 @@ fn ftcbf_gen_writes_the_same_files_twice_and_lists_them() {
         assert!(check.status.success(), "{name}: {}", common::text(&check));
     }
     std::fs::remove_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
-    let second = common::ftcbf(&args);
+    let second = gen("3", &[]);
     assert!(second.status.success(), "{}", common::text(&second));
     assert_eq!(files(&dir), a, "the same seed wrote different files");
     assert_eq!(second.stdout, first.stdout);
 
     // a usage error exits 64 and names the kinds
-    let bad = common::ftcbf(&[
-        "gen",
-        "--seed",
-        "1",
-        "--count",
-        "3",
-        "--out",
-        dir_s.as_str(),
-        "--kind",
-        "kitchen",
-    ]);
-    assert_eq!(bad.status.code(), Some(64), "{}", common::text(&bad));
-    assert!(
-        common::text(&bad).contains("l_turn"),
-        "{}",
-        common::text(&bad)
-    );
+    refused(&gen("3", &["--kind", "kitchen"]), 64, "l_turn");
     // a robots directory without the URDFs is an error naming the file
-    let none = common::ftcbf(&[
-        "gen",
-        "--seed",
-        "1",
-        "--count",
-        "1",
-        "--out",
-        dir_s.as_str(),
-        "--robots",
-        "worlds",
-    ]);
-    assert_eq!(none.status.code(), Some(1), "{}", common::text(&none));
-    assert!(
-        common::text(&none).contains("turtlebot3_burger.urdf"),
-        "{}",
-        common::text(&none)
+    refused(
+        &gen("1", &["--robots", "worlds"]),
+        1,
+        "turtlebot3_burger.urdf",
     );
     let _ = std::fs::remove_dir_all(dir.parent().expect("tmp"));
 }

@@ -113,6 +113,20 @@ impl Line {
         self.a[0] * u[0] + self.a[1] * u[1] - self.b
     }
 
+    /// Where the boundaries of `self` and `other` cross; `None` when they are parallel (or
+    /// one is degenerate). The point may be non-finite when they are nearly parallel.
+    #[inline]
+    fn meet(&self, other: &Line) -> Option<[f64; 2]> {
+        let det = self.a[0] * other.a[1] - self.a[1] * other.a[0];
+        if det == 0.0 {
+            return None;
+        }
+        Some([
+            (self.b * other.a[1] - other.b * self.a[1]) / det,
+            (self.a[0] * other.b - other.a[0] * self.b) / det,
+        ])
+    }
+
     #[inline]
     fn is_degenerate(&self) -> bool {
         self.a[0] == 0.0 && self.a[1] == 0.0
@@ -202,15 +216,9 @@ pub fn check(lines: &[Line], input_limit: Option<Input>) -> Feasibility {
             continue;
         }
         for j in (i + 1)..total {
-            let lj = line(j);
-            let det = li.a[0] * lj.a[1] - li.a[1] * lj.a[0];
-            if det == 0.0 {
+            let Some(v) = li.meet(&line(j)) else {
                 continue; // parallel (or degenerate): no single intersection
-            }
-            let v = [
-                (li.b * lj.a[1] - lj.b * li.a[1]) / det,
-                (li.a[0] * lj.b - lj.a[0] * li.b) / det,
-            ];
+            };
             if v[0].is_finite() && v[1].is_finite() && admissible(v) {
                 return Feasibility::Feasible {
                     witness: Input::new(v[0], v[1]),
@@ -253,15 +261,9 @@ pub fn nearest(lines: &[Line], input_limit: Option<Input>, target: Input) -> Opt
         let f = li.violation([target[0], target[1]]);
         consider([target[0] - f * li.a[0], target[1] - f * li.a[1]]);
         for j in (i + 1)..total {
-            let lj = line(j);
-            let det = li.a[0] * lj.a[1] - li.a[1] * lj.a[0];
-            if det == 0.0 {
-                continue;
+            if let Some(v) = li.meet(&line(j)) {
+                consider(v);
             }
-            consider([
-                (li.b * lj.a[1] - lj.b * li.a[1]) / det,
-                (li.a[0] * lj.b - lj.a[0] * li.b) / det,
-            ]);
         }
     }
     best.map(|(_, u)| u)

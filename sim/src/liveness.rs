@@ -587,10 +587,23 @@ impl<'a> Model<'a> {
         let mut e = vec![State::zeros(); gains.len()];
         let mut out = vec![Vec::with_capacity(n); gains.len()];
         let mut d = vec![0.0; q];
+        // Per channel: its sensor, and the attacks on it with the channel's place in each.
+        let on_channel: Vec<_> = (0..q)
+            .map(|ch| {
+                let s = &f.sensors[self.setup.sensor_of_channel[ch]];
+                let hits: Vec<_> = f
+                    .attacks
+                    .iter()
+                    .filter_map(|a| Some((a, a.channels.iter().position(|c| c == &s.name)?)))
+                    .collect();
+                (s, hits)
+            })
+            .collect();
         for k in 0..n {
             let t = k as f64 * dt;
-            for (ch, dk) in d.iter_mut().enumerate() {
-                let s = &f.sensors[self.setup.sensor_of_channel[ch]];
+            // The heading a `speed` channel is read along: the path's direction now.
+            let heading = self.truth_at(t).1;
+            for ((ch, dk), (s, hits)) in d.iter_mut().enumerate().zip(&on_channel) {
                 let truth = |tt: f64| {
                     let (p, tan, v) = self.truth_at(tt);
                     match s.measures {
@@ -601,21 +614,16 @@ impl<'a> Model<'a> {
                         _ => v,
                     }
                 };
-                let off: f64 = f
-                    .attacks
+                let off: f64 = hits
                     .iter()
-                    .filter_map(|a| {
-                        let j = a.channels.iter().position(|c| c == &s.name)?;
-                        Some(open_loop_offset(a, j, t, &truth))
-                    })
+                    .map(|&(a, j)| open_loop_offset(a, j, t, &truth))
                     .sum();
                 *dk = if s.measures == Quantity::Speed {
-                    // Read as world velocity along the heading: the path's direction.
-                    let tan = self.truth_at(t).1;
+                    // Read as world velocity along the heading.
                     off * if cfg.model.c[ch][2] != 0.0 {
-                        tan[0]
+                        heading[0]
                     } else {
-                        tan[1]
+                        heading[1]
                     }
                 } else {
                     off

@@ -4,7 +4,7 @@
 //! a swivel caster whose wheel is a continuous joint, sphere casters, a four-wheel skid steer
 //! written as xacro with arguments. Files ROS would refuse are refused with element and line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use ftcbf_sim::robot::{
     CollisionShape, LimitsSource, LoadOptions, RobotDescription, RobotError, XacroCommand,
@@ -202,7 +202,6 @@ fn skid_steer_xacro_with_arguments_loads_through_xacro() {
 #[test]
 fn files_ros_refuses_are_refused_with_element_and_line() {
     let text = std::fs::read_to_string(file("pioneer_style.urdf")).unwrap();
-    let line_of = |t: &str, m: &str| t.lines().position(|l| l.contains(m)).unwrap() + 1;
     let dir = std::env::temp_dir().join(format!("ftcbf-coverage-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cases: [(&str, &str, &str, &str); 4] = [
@@ -236,22 +235,8 @@ fn files_ros_refuses_are_refused_with_element_and_line() {
             "<inertia> of <link> `base_link` has no `izz`",
         ),
     ];
-    for (k, (from, to, marker, words)) in cases.iter().enumerate() {
-        let edited = text.replacen(from, to, 1);
-        assert_ne!(edited, text, "case {k}");
-        let path = dir.join(format!("case{k}.urdf"));
-        std::fs::write(&path, &edited).unwrap();
-        let e = RobotDescription::from_file(&path, &opts()).unwrap_err();
-        let line = line_of(&edited, marker);
-        assert!(
-            matches!(&e, RobotError::Parse { line: Some(l), .. } if *l == line),
-            "case {k}: {e:?} (expected line {line})"
-        );
-        let msg = e.to_string();
-        assert!(
-            msg.contains(words) && msg.contains(&format!("case{k}.urdf: line {line}: ")),
-            "case {k}: {msg}"
-        );
+    for (k, case) in cases.iter().enumerate() {
+        refused_at_line(&dir, k, &text, *case, &opts());
     }
     // A wheel named explicitly whose link has neither a cylinder nor a mesh collision.
     let edited = text.replace(
@@ -276,6 +261,33 @@ fn files_ros_refuses_are_refused_with_element_and_line() {
         "{msg}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Case `k`: `text` with `from` replaced by `to` (once), written to `dir/case{k}.urdf`, is refused
+/// with a parse error at the line holding `marker`, whose message names the file, that line and
+/// `words`.
+fn refused_at_line(
+    dir: &Path,
+    k: usize,
+    text: &str,
+    (from, to, marker, words): (&str, &str, &str, &str),
+    opts: &LoadOptions,
+) {
+    let edited = text.replacen(from, to, 1);
+    assert_ne!(edited, text, "case {k}");
+    let path = dir.join(format!("case{k}.urdf"));
+    std::fs::write(&path, &edited).unwrap();
+    let e = RobotDescription::from_file(&path, opts).unwrap_err();
+    let line = line_of(&edited, marker);
+    assert!(
+        matches!(&e, RobotError::Parse { line: Some(l), .. } if *l == line),
+        "case {k}: {e:?} (expected line {line})"
+    );
+    let msg = e.to_string();
+    assert!(
+        msg.contains(words) && msg.contains(&format!("case{k}.urdf: line {line}: ")),
+        "case {k}: {msg}"
+    );
 }
 
 /// Line (1-based) of the first line of `text` containing `marker`.
@@ -515,22 +527,8 @@ fn pioneer_file_edits_ros_refuses_are_refused_with_element_and_line() {
             "<joint> `left_wheel_joint` has type `rigid`",
         ),
     ];
-    for (k, (from, to, marker, words)) in cases.iter().enumerate() {
-        let edited = text.replacen(from, to, 1);
-        assert_ne!(edited, text, "case {k}");
-        let path = dir.join(format!("case{k}.urdf"));
-        std::fs::write(&path, &edited).unwrap();
-        let e = RobotDescription::from_file(&path, &opts).unwrap_err();
-        let line = line_of(&edited, marker);
-        assert!(
-            matches!(&e, RobotError::Parse { line: Some(l), .. } if *l == line),
-            "case {k}: {e:?} (expected line {line})"
-        );
-        let msg = e.to_string();
-        assert!(
-            msg.contains(words) && msg.contains(&format!("case{k}.urdf: line {line}: ")),
-            "case {k}: {msg}"
-        );
+    for (k, case) in cases.iter().enumerate() {
+        refused_at_line(&dir, k, &text, *case, &opts);
     }
     // A tyre joint naming a hub that does not exist: the joint and its line.
     let edited = text.replacen(
