@@ -148,13 +148,108 @@ fn joseph(
     (p + p.transpose()) * 0.5
 }
 
+/// The longest joint period [`UpdateSchedule::phases`] unrolls; a schedule whose periods have a
+/// longer least common multiple is coarsened (every channel updates every `max(every)` steps, all
+/// at once: fewer updates, so a larger covariance).
+pub const MAX_SCHEDULE_PERIOD: usize = 10_000;
+
+/// When each channel updates, in filter steps: channel k at the steps s (s = 0, 1, … from the
+/// start) with `s % every[k] == 0`; `every[k] = 0`: never; a missing entry: every step. A sensor
+/// at rate r sampled with the control period dt has `every = ⌈1/(r·dt)⌉`; the worst case over a
+/// run with dropouts stretches it to the longest gap the run's ε budget allows (the caller's
+/// choice, see `ftcbf_sim`'s setup). The Riccati recursions with a schedule are periodic
+/// (time-varying); γ and θ take their worst phase.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct UpdateSchedule {
+    /// Steps between updates per channel (0: never).
+    pub every: Vec<usize>,
+}
+
+impl UpdateSchedule {
+    /// Every channel every step (the paper's setting; the recursions are then exactly the
+    /// time-invariant ones).
+    pub fn every_step() -> Self {
+        Self { every: Vec::new() }
+    }
+
+    /// Steps between updates of channel `k` (0: never).
+    pub fn of(&self, k: usize) -> usize {
+        self.every.get(k).copied().unwrap_or(1)
+    }
+
+    /// The channel masks of one period for a filter that uses the channels where `uses[k]`:
+    /// entry s holds the channels that update at steps ≡ s (mod the period). One entry when every
+    /// used channel updates every step. The period is the least common multiple of the used
+    /// channels' `every` (coarsened above [`MAX_SCHEDULE_PERIOD`]).
+    pub fn phases(&self, uses: &[bool]) -> Vec<Vec<bool>> {
+        fn gcd(a: usize, b: usize) -> usize {
+            if b == 0 {
+                a
+            } else {
+                gcd(b, a % b)
+            }
+        }
+        let used: Vec<usize> = (0..uses.len())
+            .filter(|&k| uses[k])
+            .map(|k| self.of(k))
+            .filter(|&e| e > 0)
+            .collect();
+        let mut period = 1usize;
+        let mut coarse = false;
+        for &e in &used {
+            period = period / gcd(period, e) * e;
+            if period > MAX_SCHEDULE_PERIOD {
+                coarse = true;
+                break;
+            }
+        }
+        let longest = used.iter().copied().max().unwrap_or(1);
+        if coarse {
+            period = longest;
+        }
+        (0..period)
+            .map(|s| {
+                (0..uses.len())
+                    .map(|k| {
+                        let e = if coarse && self.of(k) > 0 {
+                            longest
+                        } else {
+                            self.of(k)
+                        };
+                        uses[k] && e > 0 && s % e == 0
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// The channels any phase uses.
+fn union_of(phases: &[Vec<bool>]) -> Vec<bool> {
+    let q = phases.iter().map(Vec::len).max().unwrap_or(0);
+    (0..q)
+        .map(|k| phases.iter().any(|p| p.get(k).copied().unwrap_or(false)))
+        .collect()
+}
+
 /// Iterate predict (Φ, Q_d at `dt`) + update with the channels where `uses[k]` until the
 /// relative change of P⁺ is below 1e-13 (max 1e6 iterations). A channel set that does not
 /// make the state detectable (e.g. open loop) has no steady state: the recursion stops with
 /// `converged = false` once P exceeds 1e12.
 pub fn steady_state_riccati(model: &LinearModel, uses: &[bool], dt: f64) -> RiccatiSolution {
+    periodic_riccati(model, &[uses.to_vec()], dt)
+}
+
+/// The periodic steady state of the Riccati recursion whose step s updates with the channels of
+/// `phases[s % L]` ([`UpdateSchedule::phases`]): iterated period by period until P⁺ at the
+/// period's end changes by less than 1e-13 (relative; at most 1e6 steps), then the phase with
+/// the largest λ̄(P⁺) of one more period is returned (its P⁻ and P⁺; `iterations` counts periods).
+/// With one phase this is [`steady_state_riccati`]. Observability is decided on the channels any
+/// phase uses.
+pub fn periodic_riccati(model: &LinearModel, phases: &[Vec<bool>], dt: f64) -> RiccatiSolution {
     let d = model.discretize(dt);
-    if !observable(model, uses, &d.phi) {
+    let union = union_of(phases);
+    if phases.is_empty() || !observable(model, &union, &d.phi) {
         // Every eigenvalue of Φ lies on the unit circle for the double integrator, so an
         // unobservable channel set is undetectable: P grows without bound; no need to iterate.
         let p = StateMatrix::identity() * f64::INFINITY;
@@ -167,13 +262,30 @@ pub fn steady_state_riccati(model: &LinearModel, uses: &[bool], dt: f64) -> Ricc
     }
     let mut post = StateMatrix::identity();
     let mut prior = post;
-    let max_iter = 1_000_000;
+    let max_iter = (1_000_000 / phases.len()).max(1);
+    let lmax = |p: &StateMatrix| p.symmetric_eigenvalues().max();
     for it in 1..=max_iter {
-        let p;
-        (prior, p) = riccati_step(model, uses, &d, &post);
-        let change = (p - post).amax() / p.amax().max(1e-300);
+        let start = post;
+        let mut p = post;
+        for uses in phases {
+            (prior, p) = riccati_step(model, uses, &d, &p);
+        }
+        let change = (p - start).amax() / p.amax().max(1e-300);
         post = p;
         if change < 1e-13 {
+            if phases.len() > 1 {
+                // The worst phase of one more period from the periodic steady state.
+                let (mut worst_prior, mut worst) = (prior, post);
+                let mut p = post;
+                for uses in phases {
+                    let pr;
+                    (pr, p) = riccati_step(model, uses, &d, &p);
+                    if lmax(&p) > lmax(&worst) {
+                        (worst_prior, worst) = (pr, p);
+                    }
+                }
+                (prior, post) = (worst_prior, worst);
+            }
             return RiccatiSolution {
                 prior,
                 posterior: post,
@@ -350,11 +462,26 @@ pub fn horizon_riccati(
     p0: &StateMatrix,
     n: usize,
 ) -> StateMatrix {
+    horizon_riccati_from(model, &[uses.to_vec()], 0, dt, p0, n)
+}
+
+/// [`horizon_riccati`] with a schedule: step s (s = `first`, `first` + 1, …) updates with the
+/// channels of `phases[s % L]`.
+pub fn horizon_riccati_from(
+    model: &LinearModel,
+    phases: &[Vec<bool>],
+    first: usize,
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+) -> StateMatrix {
     let d = model.discretize(dt);
     let lmax = |p: &StateMatrix| p.symmetric_eigenvalues().max();
     let mut post = *p0;
     let mut worst = post;
-    for _ in 0..n {
+    let none = Vec::new();
+    for s in first..first + n {
+        let uses = phases.get(s % phases.len().max(1)).unwrap_or(&none);
         post = riccati_step(model, uses, &d, &post).1;
         if lmax(&post) > lmax(&worst) {
             worst = post;
@@ -373,12 +500,23 @@ pub fn horizon_posterior_max(
     p0: &StateMatrix,
     n: usize,
 ) -> StateMatrix {
-    if n == 0 {
+    horizon_posterior_max_scheduled(model, &[uses.to_vec()], dt, p0, n)
+}
+
+/// [`horizon_posterior_max`] with a schedule (step s updates with `phases[s % L]`).
+pub fn horizon_posterior_max_scheduled(
+    model: &LinearModel,
+    phases: &[Vec<bool>],
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+) -> StateMatrix {
+    if n == 0 || phases.is_empty() {
         return *p0;
     }
     let d = model.discretize(dt);
-    let first = riccati_step(model, uses, &d, p0).1;
-    horizon_riccati(model, uses, dt, &first, n - 1)
+    let first = riccati_step(model, &phases[0], &d, p0).1;
+    horizon_riccati_from(model, phases, 1, dt, &first, n - 1)
 }
 
 /// Steady-state `K c̄ = P∞⁺ c̄ᵀ R⁻¹ c̄ / dt` of a channel subset (the K of §4.2.1 used by
@@ -545,6 +683,20 @@ pub fn separation_moments(
     n: usize,
     w: usize,
 ) -> SeparationMoments {
+    separation_moments_scheduled(model, &[uses_a.to_vec()], &[uses_b.to_vec()], dt, p0, n, w)
+}
+
+/// [`separation_moments`] with a schedule: at step s filter a updates with the channels of
+/// `phases_a[s % L_a]`, filter b with `phases_b[s % L_b]` ([`UpdateSchedule::phases`]).
+pub fn separation_moments_scheduled(
+    model: &LinearModel,
+    phases_a: &[Vec<bool>],
+    phases_b: &[Vec<bool>],
+    dt: f64,
+    p0: &StateMatrix,
+    n: usize,
+    w: usize,
+) -> SeparationMoments {
     type M8 = nalgebra::SMatrix<f64, 8, 8>;
     let d = model.discretize(dt);
     let q = model.channels();
@@ -573,11 +725,14 @@ pub fn separation_moments(
     let mut worst_abs = 0.0f64;
     let mut absolute = Vec::with_capacity(n);
     let mut increments = Vec::with_capacity(n);
-    for _ in 0..n {
+    fn phase(phases: &[Vec<bool>], s: usize) -> &[bool] {
+        phases.get(s % phases.len().max(1)).map_or(&[], Vec::as_slice)
+    }
+    for s in 0..n {
         let prior_a = d.phi * pa * d.phi.transpose() + d.qd;
         let prior_b = d.phi * pb * d.phi.transpose() + d.qd;
-        let (aa, ba, post_a) = update_map(model, uses_a, &prior_a);
-        let (ab, bb, post_b) = update_map(model, uses_b, &prior_b);
+        let (aa, ba, post_a) = update_map(model, phase(phases_a, s), &prior_a);
+        let (ab, bb, post_b) = update_map(model, phase(phases_b, s), &prior_b);
         pa = post_a;
         pb = post_b;
         let mut t = M8::zeros();
@@ -723,6 +878,33 @@ impl FtParameters {
         p0: &StateMatrix,
         method: BoundMethod,
     ) -> Self {
+        Self::compute_scheduled(
+            model,
+            patterns,
+            dt,
+            eps,
+            horizon_samples,
+            p0,
+            method,
+            &UpdateSchedule::every_step(),
+        )
+    }
+
+    /// [`FtParameters::compute_with`] for channels that update on `schedule` (a sensor slower
+    /// than the control rate, or its longest gap under dropouts): every Riccati recursion behind
+    /// γ, θ and η is the periodic one ([`periodic_riccati`], [`horizon_riccati_from`],
+    /// [`separation_moments_scheduled`]) and each bound takes its worst phase.
+    #[allow(clippy::too_many_arguments)]
+    pub fn compute_scheduled(
+        model: &LinearModel,
+        patterns: &[Vec<usize>],
+        dt: f64,
+        eps: f64,
+        horizon_samples: usize,
+        p0: &StateMatrix,
+        method: BoundMethod,
+        updates: &UpdateSchedule,
+    ) -> Self {
         let q = model.channels();
         let m = patterns.len().max(1);
         let n = horizon_samples.max(1);
@@ -749,10 +931,11 @@ impl FtParameters {
         let mut all_converged = true;
         // γ of one channel set: steady state (paper) or the worst of steady state and horizon.
         let mut gamma_of = |uses: &[bool], iterations: &mut Vec<usize>| -> f64 {
-            let s = steady_state_riccati(model, uses, dt);
+            let phases = updates.phases(uses);
+            let s = periodic_riccati(model, &phases, dt);
             iterations.push(s.iterations);
             all_converged &= s.converged;
-            let horizon = || horizon_riccati(model, uses, dt, p0, n);
+            let horizon = || horizon_riccati_from(model, &phases, 0, dt, p0, n);
             match (method, s.converged) {
                 (BoundMethod::Paper, true) => gamma_bound(&s.posterior, eps1),
                 (_, false) => gamma_bound(&horizon(), eps1),
@@ -789,10 +972,20 @@ impl FtParameters {
                     BoundMethod::Paper => theta.push(tri),
                     BoundMethod::Horizon => {
                         let chi = chi_square_quantile(4, 1.0 - eps1);
-                        let si =
-                            separation_moments(model, &mask(&[&patterns[i]]), &pair, dt, p0, n, w);
-                        let sj =
-                            separation_moments(model, &mask(&[&patterns[j]]), &pair, dt, p0, n, w);
+                        let pair_phases = updates.phases(&pair);
+                        let sep = |single: &Vec<usize>| {
+                            separation_moments_scheduled(
+                                model,
+                                &updates.phases(&mask(&[single])),
+                                &pair_phases,
+                                dt,
+                                p0,
+                                n,
+                                w,
+                            )
+                        };
+                        let si = sep(&patterns[i]);
+                        let sj = sep(&patterns[j]);
                         theta.push(2.0 * (si.worst_abs.max(sj.worst_abs).max(0.0) * chi).sqrt());
                         let mut running = 0.0f64;
                         schedule.push(

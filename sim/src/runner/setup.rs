@@ -9,7 +9,7 @@ use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::odometry;
 use ftcbf_controller::params::{
-    gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule,
+    gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule, UpdateSchedule,
 };
 use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
@@ -248,6 +248,128 @@ pub struct ParamReport {
     pub computed: Option<FtParameters>,
     /// ε the computed parameters are for.
     pub epsilon: f64,
+    /// How the filter channels' readings arrive in the worst case γ, θ and η are computed for.
+    pub timing: SensorTiming,
+}
+
+/// One filter channel's worst-case update schedule ([`sensor_timing`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelTiming {
+    /// The controller channel.
+    pub channel: usize,
+    /// The sensor whose samples time it (for a channel derived from wheels, the wheel whose
+    /// worst gap is shortest).
+    pub sensor: usize,
+    /// Control ticks between its samples, ⌈1/(rate·dt)⌉ (1: every tick).
+    pub period: usize,
+    /// Probability a due sample is lost.
+    pub dropout: f64,
+    /// Consecutive lost samples the run's gap budget allows.
+    pub missed: usize,
+    /// Ticks between updates in the worst case, `period·(missed + 1)`; 0: never (every sample
+    /// lost, or the gap is longer than the run).
+    pub every: usize,
+}
+
+/// The filter channels' update schedule γ, θ and η are computed for, and the share of ε it takes.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SensorTiming {
+    /// Per controller channel.
+    pub channels: Vec<ChannelTiming>,
+    /// The share of ε spent on gaps longer than allowed (0 without dropouts; else ε/2).
+    pub eps_gaps: f64,
+    /// The sensors with dropouts the gap budget is split over.
+    pub lossy_sensors: usize,
+    /// The schedule handed to the Riccati recursions.
+    pub schedule: UpdateSchedule,
+}
+
+impl SensorTiming {
+    /// Whether every filter channel reads every tick (γ, θ, η are then the paper's).
+    pub fn every_tick(&self) -> bool {
+        self.channels.iter().all(|c| c.every == 1)
+    }
+}
+
+/// The worst-case update schedule of the filter channels over a run of `horizon` ticks. A sensor
+/// at `rate_hz` is sampled every `period = ⌈1/(rate·dt)⌉` ticks (the longer gap of a rate that is
+/// not a whole number of ticks); with `dropout_prob` p > 0 each due sample is lost independently,
+/// so n + 1 consecutive losses somewhere among its N = ⌈horizon/period⌉ slots have probability at
+/// most N·p^(n+1) (a union bound over the first slot lost). Half of ε goes to these events, split
+/// evenly over the D sensors with dropouts: `missed` is the smallest n with N·p^(n+1) ≤ ε/(2D),
+/// and the channel is modelled as updating every `period·(n + 1)` ticks (all its updates spaced by
+/// the longest gap: fewer updates than any run outside the ε/2 event). The other half of ε is what
+/// γ, θ and η are computed for. A channel derived from wheel channels (`from_wheels`) is fresh when
+/// either wheel is, so it takes the shorter of their worst gaps.
+pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize) -> SensorTiming {
+    let sensors = &world.file.sensors;
+    let dt = world.control_dt();
+    let sources = |si: usize| -> Vec<usize> {
+        crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec())
+    };
+    let mut lossy: Vec<usize> = sensor_of_channel
+        .iter()
+        .flat_map(|&si| sources(si))
+        .filter(|&t| sensors[t].dropout_prob > 0.0)
+        .collect();
+    lossy.sort_unstable();
+    lossy.dedup();
+    let eps = world.file.control.epsilon;
+    let eps_gaps = if lossy.is_empty() { 0.0 } else { eps / 2.0 };
+    let per_sensor = eps_gaps / lossy.len().max(1) as f64;
+    let timing_of = |channel: usize, t: usize| -> ChannelTiming {
+        let s = &sensors[t];
+        let period = s
+            .rate_hz
+            .map_or(1, |r| ((1.0 / (r * dt)) - 1e-9).ceil().max(1.0) as usize);
+        let slots = horizon.div_ceil(period).max(1) as f64;
+        let p = s.dropout_prob;
+        let missed = if p <= 0.0 {
+            Some(0)
+        } else if p >= 1.0 {
+            None
+        } else {
+            // Smallest n with slots·p^(n+1) ≤ per_sensor.
+            let n = ((per_sensor / slots).ln() / p.ln() - 1.0).ceil().max(0.0);
+            (n.is_finite() && n < horizon as f64).then_some(n as usize)
+        };
+        let every = missed
+            .map(|n| period.saturating_mul(n + 1))
+            .filter(|&e| e == 1 || e <= horizon)
+            .unwrap_or(0);
+        ChannelTiming {
+            channel,
+            sensor: t,
+            period,
+            dropout: p,
+            missed: missed.unwrap_or(usize::MAX),
+            every,
+        }
+    };
+    let channels: Vec<ChannelTiming> = sensor_of_channel
+        .iter()
+        .enumerate()
+        .map(|(c, &si)| {
+            sources(si)
+                .into_iter()
+                .map(|t| timing_of(c, t))
+                .min_by_key(|t| if t.every == 0 { usize::MAX } else { t.every })
+                .unwrap_or_else(|| timing_of(c, si))
+        })
+        .collect();
+    let schedule = if channels.iter().all(|c| c.every == 1) {
+        UpdateSchedule::every_step()
+    } else {
+        UpdateSchedule {
+            every: channels.iter().map(|c| c.every).collect(),
+        }
+    };
+    SensorTiming {
+        channels,
+        eps_gaps,
+        lossy_sensors: lossy.len(),
+        schedule,
+    }
 }
 
 /// The planar-state row of a sensed quantity, if the linear model observes it.
@@ -460,7 +582,7 @@ impl ControlSetup {
             barriers.push(Arc::new(ob.barrier(&bcfg)));
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
-        let params = parameters(world, &model, &patterns);
+        let params = parameters(world, &model, &patterns, &ch.sensor_of_channel);
         let gain = choose_gain(world, &model, &patterns, &params, &barriers[safe_sets..]);
         let form = problem_form(
             world,
@@ -1188,24 +1310,33 @@ pub fn initial_covariance(world: &World) -> StateMatrix {
 }
 
 /// γ_i, γ of the all-channel filter, θ_ij and δ: given, or computed per §4.3 (`auto`).
-fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> ParamReport {
+/// With dropouts on a filter channel, half of ε bounds the gaps ([`sensor_timing`]) and half the
+/// estimation errors.
+fn parameters(
+    world: &World,
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    sensor_of_channel: &[usize],
+) -> ParamReport {
     let file = &world.file;
     let control_dt = world.control_dt();
     let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
+    let timing = sensor_timing(world, sensor_of_channel, horizon);
     let needs_auto =
         matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
     let computed = needs_auto.then(|| {
-        FtParameters::compute_with(
+        FtParameters::compute_scheduled(
             model,
             patterns,
             control_dt,
-            file.control.epsilon,
+            file.control.epsilon - timing.eps_gaps,
             horizon,
             &initial_covariance(world),
             match file.control.bounds {
                 BoundsSpec::Horizon => BoundMethod::Horizon,
                 BoundsSpec::Paper => BoundMethod::Paper,
             },
+            &timing.schedule,
         )
     });
     let m = patterns.len();
@@ -1249,6 +1380,7 @@ fn parameters(world: &World, model: &LinearModel, patterns: &[Vec<usize>]) -> Pa
         delta_auto: auto.is_some(),
         computed,
         epsilon: file.control.epsilon,
+        timing,
     }
 }
 
