@@ -595,3 +595,123 @@ fn a_narrow_corridor_fails_case_i_jointly_although_each_wall_passes() {
         assert_ne!(one.status, Status::Fails, "{}", one.detail);
     }
 }
+
+/// Issue #30 item 4, written by hand: `paper_turtlebot_receivers` with the honest receiver's y
+/// declaring a constant bias of +0.3 m. γ, θ and η model white noise, so before the fix `check`
+/// said "applies" here; the run leaves the floor at about 1 s (min h ≈ −0.23). `check` now fails
+/// the white-noise hypothesis, naming the channel and its bias.
+#[test]
+fn a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis() {
+    let p =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_check/biased_receiver.toml");
+    let w = World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let r = check_world(&w).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("white, unbiased noise"))
+        .expect("the white-noise hypothesis");
+    assert_eq!(h.status, Status::Fails, "{}", h.detail);
+    assert!(
+        h.detail.contains("\"gnss1_y\" declares bias 0.3 m"),
+        "{}",
+        h.detail
+    );
+    let s = ftcbf_sim::runner::run(&w, &RunOptions::default()).expect("runs");
+    assert!(
+        !s.safe,
+        "the biased world's run is unsafe: {:?}",
+        s.min_barrier
+    );
+    // The catalogue world it is made from has no biased filter channel.
+    let r = check_world(&world("paper_turtlebot_receivers.toml")).expect("check");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("white, unbiased noise"))
+        .expect("the white-noise hypothesis");
+    assert_eq!(h.status, Status::Holds, "{}", h.detail);
+}
+
+/// Issue #30 item 4: a compass bias b_θ turns the odometry's world velocity by b_θ, a constant
+/// cross-track error the odometry-only pair filter integrates: v_max·b_θ·T over the run.
+/// `turtlebot_gyro_compass` declares b_θ = 0.02 rad (R took it as noise); `check` now names it
+/// with that bound, and the verdict does not apply.
+#[test]
+fn a_compass_bias_is_named_with_its_dead_reckoning_drift() {
+    let r = check_world(&world("turtlebot_gyro_compass.toml")).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("white, unbiased noise"))
+        .expect("the white-noise hypothesis");
+    assert_eq!(h.status, Status::Fails, "{}", h.detail);
+    // v_max = 0.22 m/s (burger), b_θ = 0.02 rad, T = 20 s: 0.0044 m/s, 0.088 m.
+    assert!(
+        h.detail.contains("\"compass\" declares bias 0.02 rad"),
+        "{}",
+        h.detail
+    );
+    assert!(h.detail.contains("v_max·b_θ = 0.0044 m/s"), "{}", h.detail);
+    assert!(h.detail.contains("0.088 m over 20 s"), "{}", h.detail);
+}
+
+/// Issue #30 item 4: γ, θ and η come from the sensors as declared. `corridor_spoof` with
+/// receiver gnss1 at 10 Hz (a sample every 5 ticks at 50 Hz) losing 20 % of its samples: over the
+/// 1250 ticks (250 slots) with ε/2 split over its two lossy channels, 250·0.2^(n+1) ≤ 0.0125 gives
+/// n = 6 lost in a row, so the filters are computed for an update every 35 ticks at ε/2: Step 2's
+/// η_12 grows by a third, and `check` prints the schedule. Before, the rate and the dropouts were ignored.
+#[test]
+fn a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap() {
+    use ftcbf_sim::runner::setup::ControlSetup;
+    let p = path("corridor_spoof.toml");
+    let text = std::fs::read_to_string(&p).expect("world");
+    let slow = ["gnss1_x", "gnss1_y"].iter().fold(text.clone(), |t, n| {
+        t.replace(
+            &format!("name = \"{n}\"\nmeasures = "),
+            &format!("name = \"{n}\"\nrate_hz = 10.0\ndropout_prob = 0.2\nmeasures = "),
+        )
+    });
+    assert_ne!(slow, text);
+    let every_tick = World::from_str(&text, &p, &[]).expect("world");
+    let slow = World::from_str(&slow, &p, &[]).expect("world");
+    let kind = slow.file.control.controller;
+    let fast = ControlSetup::new(&every_tick, kind).expect("setup");
+    let setup = ControlSetup::new(&slow, kind).expect("setup");
+    assert!(fast.params.timing.every_tick());
+    let t = &setup.params.timing;
+    assert_eq!(t.eps_gaps, 0.025);
+    assert_eq!(t.lossy_sensors, 2);
+    let gnss1: Vec<_> = t.channels.iter().filter(|c| c.every != 1).collect();
+    assert_eq!(gnss1.len(), 2, "{t:?}");
+    for c in gnss1 {
+        assert_eq!((c.period, c.missed, c.every), (5, 6, 35), "{c:?}");
+    }
+    let eps1 = |s: &ControlSetup| s.params.computed.as_ref().expect("auto").eps_per_sample;
+    assert!((eps1(&setup) / eps1(&fast) - 0.5).abs() < 1e-12);
+    // γ here is set by the start uncertainty (P0 over the first steps), so it grows only by the
+    // halved ε; η_12, the 1 s increment of the separation, sees the gaps: 12.7 → 17.2 (measured).
+    assert!(setup.params.gamma[1] > fast.params.gamma[1]);
+    let (e_fast, e_slow) = (
+        fast.params.theta_increment[0],
+        setup.params.theta_increment[0],
+    );
+    assert!(
+        e_slow > 1.3 * e_fast,
+        "η_12 {e_slow} vs every tick {e_fast}"
+    );
+    let r = check_world(&slow).expect("check");
+    let h = r
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("γ, θ, η for the sensors' rates"))
+        .expect("the timing line");
+    assert!(
+        h.detail
+            .contains("dropout 0.2: up to 6 lost in a row) modelled as every 35 ticks"),
+        "{}",
+        h.detail
+    );
+}

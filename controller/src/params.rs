@@ -726,7 +726,9 @@ pub fn separation_moments_scheduled(
     let mut absolute = Vec::with_capacity(n);
     let mut increments = Vec::with_capacity(n);
     fn phase(phases: &[Vec<bool>], s: usize) -> &[bool] {
-        phases.get(s % phases.len().max(1)).map_or(&[], Vec::as_slice)
+        phases
+            .get(s % phases.len().max(1))
+            .map_or(&[], Vec::as_slice)
     }
     for s in 0..n {
         let prior_a = d.phi * pa * d.phi.transpose() + d.qd;
@@ -1317,6 +1319,66 @@ mod tests {
         let y = [0.0; 6];
         bank.step(&Input::zeros(), 0.01, &y, &[true; 6], &[false; 6]);
         assert!((bank.single(0).covariance() - s.posterior).amax() < 1e-12 * s.posterior.amax());
+    }
+
+    #[test]
+    fn a_schedule_unrolls_to_its_phases() {
+        let sched = UpdateSchedule {
+            every: vec![1, 5, 0, 2],
+        };
+        let phases = sched.phases(&[true, true, true, true]);
+        assert_eq!(phases.len(), 10); // lcm(1, 5, 2); channel 2 never updates
+        assert_eq!(phases[0], vec![true, true, false, true]);
+        assert_eq!(phases[1], vec![true, false, false, false]);
+        assert_eq!(phases[5], vec![true, true, false, false]);
+        // a channel the filter does not use is left out, and so is its period
+        assert_eq!(sched.phases(&[true, false, true, true]).len(), 2);
+        assert_eq!(
+            UpdateSchedule::every_step().phases(&[true, false]),
+            vec![vec![true, false]]
+        );
+        // periods whose lcm exceeds the cap are coarsened to the longest one, all at once
+        let coarse = UpdateSchedule {
+            every: vec![9973, 9967],
+        };
+        let phases = coarse.phases(&[true, true]);
+        assert_eq!(phases.len(), 9973);
+        assert_eq!(phases[0], vec![true, true]);
+        assert!(phases[1..].iter().all(|p| p == &vec![false, false]));
+    }
+
+    #[test]
+    fn the_periodic_riccati_takes_its_worst_phase() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        let uses = [true, false, true, false, true, true];
+        let dt = 0.02;
+        // every step: exactly the time-invariant recursion
+        let one = periodic_riccati(&model, &UpdateSchedule::every_step().phases(&uses), dt);
+        assert_eq!(one, steady_state_riccati(&model, &uses, dt));
+        // the position channels every 5 steps: the worst phase is the last before an update,
+        // and it is what a long run of the recursion reaches at most
+        let sched = UpdateSchedule {
+            every: vec![5, 5, 5, 5, 1, 1],
+        };
+        let phases = sched.phases(&uses);
+        let s = periodic_riccati(&model, &phases, dt);
+        assert!(s.converged);
+        let lmax = |p: &StateMatrix| p.symmetric_eigenvalues().max();
+        assert!(lmax(&s.posterior) > 1.5 * lmax(&one.posterior));
+        let long = horizon_riccati_from(&model, &phases, 0, dt, &one.posterior, 5000);
+        assert!(
+            (lmax(&long) - lmax(&s.posterior)).abs() < 1e-9 * lmax(&s.posterior),
+            "{} vs {}",
+            lmax(&long),
+            lmax(&s.posterior)
+        );
+        let d = model.discretize(dt);
+        let mut p = s.posterior;
+        // the worst is phase 4, four steps after an update; phases 0–3 that follow are smaller
+        for (ph, uses) in phases.iter().enumerate().take(4) {
+            p = riccati_step(&model, uses, &d, &p).1;
+            assert!(lmax(&p) < lmax(&s.posterior), "phase {ph}");
+        }
     }
 
     #[test]

@@ -971,7 +971,11 @@ fn check_white_noise(world: &World, setup: &ControlSetup, found: &mut Findings) 
     let mut feeding: Vec<usize> = Vec::new();
     for (c, &si) in setup.sensor_of_channel.iter().enumerate() {
         feeding.push(si);
-        feeding.extend(crate::sensors::wheel_sources(sensors, si).into_iter().flatten());
+        feeding.extend(
+            crate::sensors::wheel_sources(sensors, si)
+                .into_iter()
+                .flatten(),
+        );
         if setup.conversion[c] != Conversion::Direct {
             feeding.extend(heading);
         }
@@ -1047,17 +1051,20 @@ fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, foun
             } else {
                 format!("modelled as every {} ticks", c.every)
             };
-            if c.dropout > 0.0 {
+            let by = if setup.sensor_of_channel[c.channel] == c.sensor {
+                String::new()
+            } else {
+                format!("timed by {}: ", s.name)
+            };
+            let lost = if c.dropout > 0.0 {
                 format!(
-                    "{} (timed by {}: {rate}, a sample every {} ticks, dropout {}: up to {} lost in a row) {gap}",
-                    names.channels[c.channel], s.name, c.period, c.dropout, c.missed
+                    ", a sample every {} ticks, dropout {}: up to {} lost in a row",
+                    c.period, c.dropout, c.missed
                 )
             } else {
-                format!(
-                    "{} (timed by {}: {rate}) {gap}",
-                    names.channels[c.channel], s.name
-                )
-            }
+                String::new()
+            };
+            format!("{} ({by}{rate}{lost}) {gap}", names.channels[c.channel])
         })
         .collect();
     let budget = if timing.eps_gaps > 0.0 {
