@@ -157,5 +157,14 @@ mutant "run --duration runs past the horizon gamma, theta, eta were computed for
   'if duration > file.duration {' 'if false {' \
   a_run_past_the_horizon_of_gamma_theta_eta_is_refused \
   --test simulation a_run_past_the_horizon_of_gamma_theta_eta_is_refused
+# Issue #30 item 4: γ, θ, η from the sensors as declared; biased filter channels fail check.
+mutant "gamma, theta, eta ignore the filter channels' rates and dropouts" sim/src/runner/setup.rs \
+  '            &timing.schedule,' '            &UpdateSchedule::every_step(),' \
+  a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap \
+  --test guarantees a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap
+mutant "check ignores a declared bias on a filter channel" sim/src/check.rs \
+  '    check_white_noise(world, &setup, &mut found); // 1d' '' \
+  a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis \
+  --test guarantees a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis
 echo "$survivors mutant(s) survived"
 [ "$survivors" -eq 0 ]
