@@ -1146,7 +1146,9 @@ fn check_drive_model(world: &World, found: &mut Findings) {
 /// steady state) and a P0 above it, each filter's error in its first steps is larger than γ_i
 /// allows (issue #35: 20-40 of 40 attack-free runs left γ on the paper's worlds with P0 = 1e-2·I).
 fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
-    use ftcbf_controller::params::{chi_square_quantile, horizon_posterior_max, BoundMethod};
+    use ftcbf_controller::params::{
+        chi_square_quantile, horizon_posterior_max_scheduled, BoundMethod,
+    };
     let Some(c) = setup.params.computed.as_ref() else {
         return;
     };
@@ -1165,7 +1167,8 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.gamma[i]));
     for (label, drop, gamma) in singles {
         let uses = channel_mask(q, patterns, &drop);
-        let reached = horizon_posterior_max(model, &uses, dt, &p0, n)
+        let phases = setup.params.timing.schedule.phases(&uses);
+        let reached = horizon_posterior_max_scheduled(model, &phases, dt, &p0, n)
             .symmetric_eigenvalues()
             .max();
         let covered = gamma * gamma / chi;
