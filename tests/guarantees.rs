@@ -596,6 +596,17 @@ fn a_narrow_corridor_fails_case_i_jointly_although_each_wall_passes() {
     }
 }
 
+/// The hypothesis of `r` whose name starts with `prefix`.
+fn hypothesis<'a>(
+    r: &'a ftcbf_sim::check::CheckReport,
+    prefix: &str,
+) -> &'a ftcbf_sim::check::Hypothesis {
+    r.hypotheses
+        .iter()
+        .find(|h| h.name.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no hypothesis {prefix:?} in\n{r}"))
+}
+
 /// Issue #30 item 4, written by hand: `paper_turtlebot_receivers` with the honest receiver's y
 /// declaring a constant bias of +0.3 m. γ, θ and η model white noise, so before the fix `check`
 /// said "applies" here; the run leaves the floor at about 1 s (min h ≈ −0.23). `check` now fails
@@ -607,11 +618,7 @@ fn a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis() {
     let w = World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"));
     let r = check_world(&w).expect("check");
     assert!(!r.verdict.applies, "{r}");
-    let h = r
-        .hypotheses
-        .iter()
-        .find(|h| h.name.starts_with("white, unbiased noise"))
-        .expect("the white-noise hypothesis");
+    let h = hypothesis(&r, "white, unbiased noise");
     assert_eq!(h.status, Status::Fails, "{}", h.detail);
     assert!(
         h.detail.contains("\"gnss1_y\" declares bias 0.3 m"),
@@ -626,11 +633,7 @@ fn a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis() {
     );
     // The catalogue world it is made from has no biased filter channel.
     let r = check_world(&world("paper_turtlebot_receivers.toml")).expect("check");
-    let h = r
-        .hypotheses
-        .iter()
-        .find(|h| h.name.starts_with("white, unbiased noise"))
-        .expect("the white-noise hypothesis");
+    let h = hypothesis(&r, "white, unbiased noise");
     assert_eq!(h.status, Status::Holds, "{}", h.detail);
 }
 
@@ -642,11 +645,7 @@ fn a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis() {
 fn a_compass_bias_is_named_with_its_dead_reckoning_drift() {
     let r = check_world(&world("turtlebot_gyro_compass.toml")).expect("check");
     assert!(!r.verdict.applies, "{r}");
-    let h = r
-        .hypotheses
-        .iter()
-        .find(|h| h.name.starts_with("white, unbiased noise"))
-        .expect("the white-noise hypothesis");
+    let h = hypothesis(&r, "white, unbiased noise");
     assert_eq!(h.status, Status::Fails, "{}", h.detail);
     // v_max = 0.22 m/s (burger), b_θ = 0.02 rad, T = 20 s: 0.0044 m/s, 0.088 m.
     assert!(
@@ -703,11 +702,7 @@ fn a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap() {
         "η_12 {e_slow} vs every tick {e_fast}"
     );
     let r = check_world(&slow).expect("check");
-    let h = r
-        .hypotheses
-        .iter()
-        .find(|h| h.name.starts_with("γ, θ, η for the sensors' rates"))
-        .expect("the timing line");
+    let h = hypothesis(&r, "γ, θ, η for the sensors' rates");
     assert!(
         h.detail
             .contains("dropout 0.2: up to 6 lost in a row) modelled as every 35 ticks"),
