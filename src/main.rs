@@ -535,11 +535,19 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
     let setup = ControlSetup::new(&world, world.file.control.controller)
         .map_err(|e| run_failure(e, "controller setup"))?;
     let start = [setup.config.x0];
-    for (b, name) in setup.config.barriers.iter().zip(&setup.barrier_names) {
-        println!(
-            "(4.4) for {name} at the start estimate: {}",
-            condition_4_4(b.as_ref(), &setup.config.model.g, &start)
-        );
+    let lines = setup
+        .config
+        .barriers
+        .iter()
+        .zip(&setup.barrier_names)
+        .map(|(b, name)| {
+            format!(
+                "(4.4) for {name} at the start estimate: {}",
+                condition_4_4(b.as_ref(), &setup.config.model.g, &start)
+            )
+        });
+    for line in check::group_by_barrier(lines, &setup.barrier_names) {
+        println!("{line}");
     }
     if a.suggest {
         let s = check::suggest(&world).map_err(|e| run_failure(e, "controller setup"))?;

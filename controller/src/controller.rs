@@ -690,8 +690,17 @@ impl Controller {
     }
 
     /// The safety-filter form: u_nom from the estimate of a unit Step 2's isolation kept (this
-    /// step's [`prepare`] ran it), the one Step 3 would keep among them (smallest residue key:
-    /// the windowed χ² score of its innovations, then the lowest index), as the QP's reference.
+    /// step's [`prepare`] ran it), as the QP's reference: a kept unit whose filter is not starved
+    /// (its one-σ position spread √tr P_pos within the error bound γ its rows assume; γ is
+    /// several σ of the worst covariance the bounds allow, so only a filter that has lost
+    /// channels for seconds exceeds it) when there is one, then the one Step 3 would keep
+    /// (smallest residue key, then the lowest index). A unit that lost a channel (a receiver's x reading dropped)
+    /// dead-reckons that axis, drifting, with a χ² score as good as the honest one's: the robot
+    /// followed it 12 times in 20 and stopped off its goal (issue #36, a generated L turn).
+    /// Preferring the more certain unit outright was tried and undone: it hands the reference to
+    /// a stealthy attacker of the more precise receiver (`stealthy_gnss` came 0.08 m nearer its
+    /// wall); so was a filter's variance against 4 × its least, which a 5–10 Hz receiver without
+    /// velocity exceeds between readings (a generated corridor stopped entering its goal).
     /// Without the Step-2 filter a spoofed unit with a small residue steered u_nom even while
     /// Step 2 dropped its rows every step, and the robot dithered at the goal between the
     /// spoofed reference and the honest barrier row. (A component-wise median over units and
@@ -702,11 +711,42 @@ impl Controller {
             return;
         };
         let units = self.problem.units();
-        let key = |i: usize| (!self.scratch.kept(i), self.problem.residue_key[i]);
+        let filters = self.bank.filters();
+        let spread = |f: &crate::estimator::KalmanFilter| {
+            let p = f.covariance();
+            let v = p[(0, 0)] + p[(1, 1)];
+            if v.is_finite() {
+                v
+            } else {
+                f64::INFINITY
+            }
+        };
+        // The unit's filter (the baseline's for the baseline's unit) is starved when its
+        // position spread √tr P_pos exceeds the error bound γ its rows assume.
+        let starved = |i: usize| {
+            let (fi, gamma) = match self.kind {
+                ControllerKind::FtCbfClf => (i, self.gamma.get(i).copied()),
+                _ => (self.bank.baseline_index(), Some(self.gamma_baseline)),
+            };
+            match (filters.get(fi), gamma) {
+                (Some(f), Some(g)) => !(spread(f) <= g * g),
+                _ => true,
+            }
+        };
+        let fed = (0..units).any(|i| self.scratch.kept(i) && !starved(i));
+        let key = |i: usize| {
+            (
+                !self.scratch.kept(i),
+                fed && starved(i),
+                self.problem.residue_key[i],
+            )
+        };
         let best = (0..units)
             .min_by(|&a, &b| {
                 let (ka, kb) = (key(a), key(b));
-                ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+                ka.0.cmp(&kb.0)
+                    .then(ka.1.cmp(&kb.1))
+                    .then(ka.2.total_cmp(&kb.2))
             })
             .unwrap_or(0);
         let x = self.problem.estimates[best];

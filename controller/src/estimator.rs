@@ -47,6 +47,14 @@ pub const RESIDUE_WINDOW: f64 = 1.0;
 /// Largest number of control steps in the window (the buffer is allocated once).
 pub const RESIDUE_WINDOW_MAX_STEPS: usize = 512;
 
+/// Step 3's ranking key of a filter none of whose channels gave a reading in the last
+/// [`RESIDUE_WINDOW`]: after every filter with evidence, before every flagged one (`+∞`).
+/// A silent filter used to rank first (the score of no innovation was −∞): a receiver whose
+/// readings an attacker suppresses left the filter that relies on it dead-reckoning, drifting,
+/// and the most trusted, so the tracker followed it and the robot stopped off its goal (issue
+/// #36: 2 of 20 trials settled in a generated doorway with one receiver dropped).
+pub const NO_EVIDENCE: f64 = f64::MAX;
+
 /// Wilson–Hilferty normal score of a χ²_k statistic `s` (−∞ for k = 0: no evidence).
 pub fn chi_square_z(s: f64, k: u32) -> f64 {
     if k == 0 {
@@ -184,11 +192,15 @@ impl KalmanFilter {
     pub fn flagged(&self) -> bool {
         self.flagged
     }
-    /// Ranking key of Step 3: `+∞` when flagged, else the normal score of the windowed χ²
-    /// test (see module docs; −∞ before any innovation).
+    /// Ranking key of Step 3: `+∞` when flagged; [`NO_EVIDENCE`] when no innovation entered
+    /// the window (every channel of the filter silent for [`RESIDUE_WINDOW`]: the filter is
+    /// dead-reckoning, and nothing shows it honest); else the normal score of the windowed χ²
+    /// test (see module docs).
     pub fn residue_rank_key(&self) -> f64 {
         if self.flagged {
             f64::INFINITY
+        } else if self.win_dof == 0 {
+            NO_EVIDENCE
         } else {
             chi_square_z(self.win_nis, self.win_dof)
         }
@@ -636,6 +648,37 @@ mod tests {
         }
         assert!(f.estimate()[0].is_nan());
         assert_eq!(f.residue_rank_key(), f64::INFINITY);
+    }
+
+    #[test]
+    fn a_filter_silent_for_a_window_ranks_after_every_filter_with_evidence() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        let uses = vec![true, true, false, false, false, false];
+        let make = || {
+            KalmanFilter::new(
+                "f".into(),
+                FilterRole::Baseline,
+                uses.clone(),
+                State::zeros(),
+                StateMatrix::identity(),
+            )
+        };
+        let (mut heard, mut silent) = (make(), make());
+        // a reading 3σ off on every step: evidence against the filter, but evidence
+        let y = [0.1, -0.1, 0.0, 0.0, 0.0, 0.0];
+        for k in 0..250 {
+            heard.update(&model, &y, &[true; 6], &[false; 6], 0.01);
+            // the silent filter's channels stop after 0.5 s (a dropout attack)
+            let fresh = [k < 50; 6];
+            silent.update(&model, &[0.0; 6], &fresh, &[false; 6], 0.01);
+        }
+        assert!(heard.residue_rank_key().is_finite());
+        assert_eq!(silent.residue_rank_key(), NO_EVIDENCE);
+        assert!(silent.residue_rank_key() > heard.residue_rank_key());
+        assert!(
+            silent.residue_rank_key() < f64::INFINITY,
+            "a flagged filter still ranks last"
+        );
     }
 
     #[test]

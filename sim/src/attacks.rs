@@ -877,6 +877,53 @@ impl Injector {
     }
 }
 
+/// A `stealthy` injector played against a linear model of the detector it hides under (the
+/// liveness prediction's counterpart of [`open_loop_offset`], which lets the bias grow at its
+/// largest rate): each call is one fresh reading, with the detector's honest innovation `nu`
+/// (what the innovation would be without any attack), the offset `moved` the attack has
+/// already given the detector's prediction c·x̂⁻, and its innovation standard deviation `s`.
+/// The injector's own arithmetic (`fresh_effect`) decides the bias, so the played offset is the
+/// one a run with those innovations injects.
+#[derive(Debug, Clone)]
+pub struct StealthyPlay {
+    st: ChannelState,
+}
+
+impl Default for StealthyPlay {
+    fn default() -> Self {
+        Self {
+            st: ChannelState::fresh(None),
+        }
+    }
+}
+
+impl StealthyPlay {
+    /// What the injector adds to the `j`-th channel of `spec` at `t` (0 outside its window).
+    pub fn offset(
+        &mut self,
+        spec: &AttackSpec,
+        j: usize,
+        t: f64,
+        nu: f64,
+        moved: f64,
+        s: f64,
+    ) -> f64 {
+        if !spec.contains(t) {
+            return 0.0;
+        }
+        // Offsets from the truth: the reading is the truth (0) and the prediction is off by
+        // the attack's pull minus the honest innovation, so reading − prediction = nu − moved.
+        let predicted = moved - nu;
+        let detector = |_: usize| Some((predicted, s));
+        let v = fresh_effect(&spec.kind, spec, j, 0, t, 0.0, &mut self.st, &detector).apply(0.0);
+        if v.is_finite() {
+            v
+        } else {
+            0.0
+        }
+    }
+}
+
 /// What the attack adds to a fresh reading of its `j`-th channel at time `t` when the true
 /// value is `truth(t)`, played open loop: no detector feedback (a stealthy bias grows at its
 /// largest rate), no random draws (spikes add nothing on average), readings the controller

@@ -214,6 +214,9 @@ pub struct CheckReport {
     pub verdict: Verdict,
     /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
     pub liveness: LivenessReport,
+    /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
+    /// barrier they name are printed once, listing the barriers ([`group_by_barrier`]).
+    pub barrier_names: Vec<String>,
 }
 
 fn fmt_list(v: &[f64]) -> String {
@@ -369,6 +372,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
             horizon: (applies && found.finite_horizon).then_some(f.duration),
         },
         liveness,
+        barrier_names: setup.barrier_names.clone(),
     })
 }
 
@@ -387,18 +391,33 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
     }
     let barriers = world.file.safe_sets.len() + world.obstacles.len();
     let name = "case (i): the rows of every kept unit and every active barrier met by one input in the box".to_string();
-    let stalled = liveness.cases.iter().find_map(|c| match &c.stall {
-        Some(st) if st.blocked == liveness::Blocked::Infeasible => Some((c, st)),
-        _ => None,
-    });
+    let stalled = liveness
+        .cases
+        .iter()
+        .find_map(|c| c.joint_infeasible.as_ref().map(|st| (c, st)));
     match stalled {
         Some((c, st)) => found.record(
             name,
             Status::Fails,
             format!(
-                "{}, at rest along the planned path, the robot {}: Step 1 is infeasible there and Step 3 may drop an honest filter, which the proof's case (i) excludes",
+                "{}, at rest along the planned path, at ({:.2}, {:.2}), {:.2} m along it{}, no input in the box meets the rows of every unit Step 2 keeps (rows of {}): Step 1 is infeasible there and Step 3 may drop an honest filter, which the proof's case (i) excludes",
                 c.name,
-                liveness::stall_text(st)
+                st.at[0],
+                st.at[1],
+                st.along,
+                if st.offset == [0.0, 0.0] {
+                    String::new()
+                } else {
+                    format!(
+                        ", spoofed estimates off by ({:.2}, {:.2}) m",
+                        st.offset[0], st.offset[1]
+                    )
+                },
+                if st.binding.is_empty() {
+                    "no barrier".to_string()
+                } else {
+                    st.binding.join(", ")
+                }
             ),
         ),
         None => {
@@ -1542,18 +1561,88 @@ fn goal_hypothesis(g: &GoalHold) -> Hypothesis {
     }
 }
 
+/// Lines that differ only in the one barrier they name, printed once with the barriers listed
+/// (`obstacle:{wall_1, wall_2}`), in the order of their first line; every other line as it is.
+/// A name counts where it stands as a whole word (`wall_1` is not found in `wall_10`), with or
+/// without its `obstacle:` prefix.
+pub fn group_by_barrier<I: IntoIterator<Item = String>>(lines: I, names: &[String]) -> Vec<String> {
+    const MARK: &str = "\u{1}";
+    let mut tokens: Vec<&str> = names
+        .iter()
+        .map(|n| n.strip_prefix("obstacle:").unwrap_or(n))
+        .collect();
+    // Longest first, so that a name that contains another is found whole.
+    tokens.sort_by_key(|t| std::cmp::Reverse(t.len()));
+    tokens.dedup();
+    let word = |c: Option<char>| c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+    let find = |line: &str| -> Option<(String, String)> {
+        let mut hit: Option<(&str, String)> = None;
+        for t in &tokens {
+            let mut out = String::new();
+            let mut rest = line;
+            let mut found = false;
+            while let Some(i) = rest.find(t) {
+                let before = rest[..i].chars().next_back();
+                let after = rest[i + t.len()..].chars().next();
+                out.push_str(&rest[..i]);
+                if word(before) || word(after) {
+                    out.push_str(t);
+                } else {
+                    out.push_str(MARK);
+                    found = true;
+                }
+                rest = &rest[i + t.len()..];
+            }
+            out.push_str(rest);
+            if found {
+                if hit.is_some() {
+                    return None; // two barriers in one line: leave it alone
+                }
+                hit = Some((t, out));
+            }
+        }
+        hit.map(|(t, out)| (t.to_string(), out))
+    };
+    let mut order: Vec<(String, Vec<String>)> = Vec::new();
+    for line in lines {
+        match find(&line) {
+            Some((name, template)) => match order
+                .iter_mut()
+                .find(|(t, n)| *t == template && !n.is_empty())
+            {
+                Some((_, n)) => n.push(name),
+                None => order.push((template, vec![name])),
+            },
+            None => order.push((line, Vec::new())),
+        }
+    }
+    order
+        .into_iter()
+        .map(|(t, n)| match n.len() {
+            0 => t,
+            1 => t.replace(MARK, &n[0]),
+            _ => t.replace(MARK, &format!("{{{}}}", n.join(", "))),
+        })
+        .collect()
+}
+
 impl fmt::Display for CheckReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for line in &self.context {
+        let names = &self.barrier_names;
+        for line in group_by_barrier(self.context.iter().cloned(), names) {
             writeln!(f, "  {line}")?;
         }
         writeln!(f, "hypotheses of Theorem 3:")?;
-        for h in &self.hypotheses {
-            writeln!(f, "  [{}] {}: {}", h.status.tag(), h.name, h.detail)?;
+        let hyps = self
+            .hypotheses
+            .iter()
+            .map(|h| format!("[{}] {}: {}", h.status.tag(), h.name, h.detail));
+        for line in group_by_barrier(hyps, names) {
+            writeln!(f, "  {line}")?;
         }
         if !self.verdict.assumptions.is_empty() {
             writeln!(f, "assumed, not checkable from the world file:")?;
-            for a in &self.verdict.assumptions {
+            for a in group_by_barrier(self.verdict.assumptions.iter().cloned(), names) {
                 writeln!(f, "  - {a}")?;
             }
         }
@@ -1886,5 +1975,46 @@ mod non_finite_tests {
             &mut found,
         );
         assert_eq!(found.reasons.len(), 1);
+    }
+}
+
+#[cfg(test)]
+mod grouping_tests {
+    use super::group_by_barrier;
+
+    #[test]
+    fn lines_that_differ_only_in_the_barrier_are_printed_once() {
+        let names: Vec<String> = [
+            "obstacle:wall_1",
+            "obstacle:wall_10",
+            "obstacle:post",
+            "floor",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let lines = [
+            "condition 1 for obstacle:wall_1: needs 0.490 × the box",
+            "condition 1 for obstacle:wall_10: needs 0.490 × the box",
+            "condition 1 for obstacle:post: needs 0.700 × the box",
+            "condition 1 for obstacle:floor_x: needs 0.490 × the box",
+            "curvature of wall_1 is assumed",
+            "curvature of post is assumed",
+            "wall_1 and post touch",
+        ]
+        .map(String::from);
+        let out = group_by_barrier(lines, &names);
+        assert_eq!(
+            out,
+            vec![
+                "condition 1 for obstacle:{wall_1, wall_10}: needs 0.490 × the box",
+                "condition 1 for obstacle:post: needs 0.700 × the box",
+                // `floor` inside `floor_x` is not a barrier's name
+                "condition 1 for obstacle:floor_x: needs 0.490 × the box",
+                "curvature of {wall_1, post} is assumed",
+                // two barriers in one line: as it is
+                "wall_1 and post touch",
+            ]
+        );
     }
 }
