@@ -99,7 +99,10 @@ BEGIN {
         judged++
         outcome = ($9 >= 0.95 * n) ? "live" : "stall"
         if ($12 == outcome) matched++
-        if ($12 == "live") { predicted_live++; if (outcome == "live") live_settled++ }
+        if ($12 == "live") {
+            predicted_live++; live_trials += n; live_trials_settled += $9
+            if (outcome == "live") live_settled++
+        }
         if ($6 == "applies") { applies_worlds++; if ($7 < n) unsafe_applies++ }
     }
 }
@@ -108,6 +111,7 @@ END {
     totals("kind", "per kind", "room corridor doorway clutter l_turn")
     totals("all", "total", "all")
     printf "\nliveness: predicted live in %d of %d worlds, %d of them settled in >= 95 %% of trials; the prediction (live = settles in >= 95 %%) matches the outcome in %d of %d worlds\n", predicted_live, judged, live_settled, matched, judged
+    printf "in the worlds predicted live, %d of %d trials settled (%.1f %%)\n", live_trials_settled, live_trials, live_trials ? 100 * live_trials_settled / live_trials : 0
     printf "Theorem 3 applies in %d worlds; unsafe trials in %d of them\n", applies_worlds, unsafe_applies
 }
 ' "$rows" | tee "$report"

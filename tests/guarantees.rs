@@ -581,7 +581,8 @@ fn a_narrow_corridor_fails_case_i_jointly_although_each_wall_passes() {
         h.detail
     );
     assert!(
-        h.detail.contains("no input in the box satisfies every row"),
+        h.detail
+            .contains("no input in the box meets the rows of every unit Step 2 keeps"),
         "{}",
         h.detail
     );
