@@ -166,5 +166,10 @@ mutant "check ignores a declared bias on a filter channel" sim/src/check.rs \
   '    check_white_noise(world, &setup, &mut found); // 1d' '' \
   a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis \
   --test guarantees a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis
+# Issue #36: a filter none of whose channels gave a reading for a whole χ² window ranks after
+# every filter with evidence (it ranked first, and the tracker followed a dead-reckoning filter).
+mutant "a filter with no reading in its window ranks first" controller/src/estimator.rs \
+  '        } else if self.win_dof == 0 {' '        } else if false && self.win_dof == 0 {' \
+  a_filter_silent_for_a_window_ranks_after_every_filter_with_evidence
 echo "$survivors mutant(s) survived"
 [ "$survivors" -eq 0 ]
