@@ -126,10 +126,13 @@ fn main() -> anyhow::Result<()> {
             .with_context(|| format!("TRIALS: expected a count, found `{s}`"))?,
         None => 40,
     };
-    let world = World::load(&path, &[])?;
+    // Compiled once (γ, θ, η, barriers, CLF, path): the stepped run and every trial below
+    // borrow it.
+    let runner = Runner(WorldRunner::new(World::load(&path, &[])?)?);
+    let world = runner.0.world();
 
     // One run, stepped by hand: count the steps whose frame reports an event.
-    let mut sim = Simulation::with_law(&world, &RunOptions::default(), |cfg| {
+    let mut sim = Simulation::with_law(&runner.0 .0, &RunOptions::default(), |cfg| {
         Ok(Box::new(MedianPd::new(cfg)) as Box<dyn ControlLaw>)
     })?;
     let mut eventful = 0;
@@ -161,7 +164,7 @@ fn main() -> anyhow::Result<()> {
         jobs: None,
         progress: false,
     };
-    let result = batch::run_batch(&Runner(WorldRunner(world)), &plan, exec)?;
+    let result = batch::run_batch(&runner, &plan, exec)?;
     for c in &result.summaries {
         println!(
             "{:>11}: safe {}/{} = {:.3}, 95 % CI [{:.3}, {:.3}], goal rate {:.3}",

@@ -1,12 +1,13 @@
 //! The closed-loop trial runner of one world file, shared by `ftcbf batch`, the examples and the
-//! Python package: a [`WorldRunner`] runs the built-in controllers by name, and
-//! [`prepare_batch`] loads a world (with a sweep point's overrides) into the
-//! [`batch::PreparedWorld`] that [`batch::run_sweep`] runs.
+//! Python package: a [`WorldRunner`] runs the built-in controllers by name on a world compiled
+//! once ([`CompiledWorld`]: γ, θ, η, barriers, CLF and planned path computed once for all its
+//! trials and controllers), and [`prepare_batch`] loads and compiles a world (with a sweep
+//! point's overrides) into the [`batch::PreparedWorld`] that [`batch::run_sweep`] runs.
 
 use std::path::Path;
 
 use ftcbf_sim::check;
-use ftcbf_sim::runner::{run, RunOptions};
+use ftcbf_sim::runner::{run, CompiledWorld, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
 
@@ -27,8 +28,24 @@ pub fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
     }
 }
 
-/// The closed-loop runner of one world with the built-in controllers.
-pub struct WorldRunner(pub World);
+/// The closed-loop runner of one compiled world with the built-in controllers: each trial
+/// borrows the compiled model and builds only its own state (sensors, attacks, law, plant).
+pub struct WorldRunner(pub CompiledWorld);
+
+impl WorldRunner {
+    /// Compiles `world` for its trials.
+    pub fn new(world: World) -> anyhow::Result<Self> {
+        let name = world.path.display().to_string();
+        let compiled = CompiledWorld::new(world)
+            .map_err(|e| anyhow::Error::new(e).context(format!("compiling {name}")))?;
+        Ok(Self(compiled))
+    }
+
+    /// The world.
+    pub fn world(&self) -> &World {
+        self.0.world()
+    }
+}
 
 impl batch::TrialRunner for WorldRunner {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
@@ -41,12 +58,13 @@ impl batch::TrialRunner for WorldRunner {
     }
 }
 
-/// The batch's view of a loaded world: its name, seed, the ε of its claim (when γ or θ is
+/// The batch's view of a compiled world: its name, seed, the ε of its claim (when γ or θ is
 /// derived from it) and `ftcbf check`'s Theorem 3 and liveness verdict lines.
-pub fn world_info(world: &World) -> batch::WorldInfo {
+pub fn world_info(compiled: &CompiledWorld) -> batch::WorldInfo {
+    let world = compiled.world();
     let c = &world.file.control;
     let auto = matches!(c.gamma, Param::Auto) || matches!(c.theta, Param::Auto);
-    let report = check::check_world(world).ok();
+    let report = Some(check::check_compiled(compiled));
     batch::WorldInfo {
         name: world.name.clone(),
         seed: world.file.seed,
@@ -73,16 +91,16 @@ pub fn load_point(
     World::load(path, &overrides)
 }
 
-/// What `ftcbf batch` runs for `path`: the world loaded with each sweep point's overrides,
-/// its trials run by a [`WorldRunner`].
+/// What `ftcbf batch` runs for `path`: the world loaded with each sweep point's overrides and
+/// compiled once, its trials run by a [`WorldRunner`].
 pub fn prepare_batch(
     path: &Path,
 ) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
     move |point: &[batch::ParamOverride]| {
-        let world = load_point(path, &[], point)?;
+        let runner = WorldRunner::new(load_point(path, &[], point)?)?;
         Ok(batch::PreparedWorld {
-            info: world_info(&world),
-            runner: Box::new(WorldRunner(world)),
+            info: world_info(&runner.0),
+            runner: Box::new(runner),
         })
     }
 }

@@ -110,7 +110,7 @@ impl World {
         let world = self.inner.clone();
         let (report, setup) = py
             .detach(move || {
-                preflight(&world)?;
+                preflight(&*world)?;
                 let report = check::check_world(&world)?;
                 let setup = ControlSetup::new(&world, world.file.control.controller)?;
                 Ok((report, setup))

@@ -47,7 +47,9 @@ pub fn controller_name(spec: ControllerKindSpec) -> &'static str {
     }
 }
 
-/// Everything the runner derives once per run for the controller.
+/// Everything a run derives from its world for the controller (computed once per world by
+/// [`CompiledWorld`](super::CompiledWorld)).
+#[derive(Clone)]
 pub struct ControlSetup {
     /// The configuration handed to `Controller::new`.
     pub config: ControllerConfig,
@@ -560,6 +562,7 @@ pub fn check_structure(world: &World) -> Result<(), RunError> {
 impl ControlSetup {
     /// Builds the controller configuration for `world` run with `kind`.
     pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
+        super::compiled::SETUPS_COMPUTED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let file = &world.file;
         let ch = Channels::of(world)?;
         let patterns = model_patterns(world, &ch.channels_of_sensor)?;
