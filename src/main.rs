@@ -16,7 +16,6 @@ use ftcbf_sim::check;
 use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::runner::{preflight, run, run_observed, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
@@ -223,7 +222,7 @@ fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
 
 /// The recording id: what ran, so the same world + controller + seed gives the same id.
 fn recording_id(world: &World, kind: ControllerKindSpec, seed: u64) -> String {
-    format!("{}-{}-seed{}", world.name, controller_name(kind), seed)
+    format!("{}-{}-seed{}", world.name, kind.name(), seed)
 }
 
 /// Shows a progress bar over control steps while forwarding to the recorder.

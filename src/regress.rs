@@ -14,7 +14,6 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use ftcbf_sim::regress::{collect_world_files, expectation_for, expected_controllers, failures};
-use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::runner::{run, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::{RunSummary, METRICS};
 use ftcbf_sim::world::{ControllerKindSpec, ExpectOutcome, World, WorldError};
@@ -167,7 +166,7 @@ impl Plan {
                 };
                 let r = run(&*c.world, &opts).map_err(|source| RegressError::Run {
                     world: c.world.world().name.clone(),
-                    controller: controller_name(c.controller).to_string(),
+                    controller: c.controller.name().to_string(),
                     seed,
                     source: Box::new(source),
                 });
@@ -183,7 +182,7 @@ impl Plan {
                 let runs: Vec<RunSummary> = it.by_ref().take(c.seeds.len()).collect();
                 CaseResult {
                     world: c.world.world().name.clone(),
-                    controller: controller_name(c.controller).to_string(),
+                    controller: c.controller.name().to_string(),
                     failures: failures(&c.expected, &runs),
                     expected: c.expected.clone(),
                     runs,

@@ -13,20 +13,9 @@ use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
 
 use crate::batch;
 
-/// The built-in controllers' names.
-pub const CONTROLLERS: [&str; 3] = ["ft-cbf-clf", "baseline", "nominal"];
-
-/// The built-in controller named `name` (one of [`CONTROLLERS`]).
-pub fn parse_kind(name: &str) -> anyhow::Result<ControllerKindSpec> {
-    match name {
-        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
-        "baseline" => Ok(ControllerKindSpec::Baseline),
-        "nominal" => Ok(ControllerKindSpec::Nominal),
-        other => {
-            anyhow::bail!("unknown controller `{other}` (expected ft-cbf-clf, baseline or nominal)")
-        }
-    }
-}
+/// The built-in controllers' names ([`ControllerKindSpec::NAMES`]; parse one with
+/// `str::parse::<ControllerKindSpec>`).
+pub const CONTROLLERS: [&str; 3] = ControllerKindSpec::NAMES;
 
 /// The closed-loop runner of one compiled world with the built-in controllers: each trial
 /// borrows the compiled model and builds only its own state (sensors, attacks, law, plant).
@@ -51,7 +40,7 @@ impl batch::TrialRunner for WorldRunner {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
         let opts = RunOptions {
             seed: Some(seed),
-            controller: Some(parse_kind(controller)?),
+            controller: Some(controller.parse::<ControllerKindSpec>()?),
             duration: None,
         };
         Ok(run(&self.0, &opts)?)

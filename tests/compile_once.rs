@@ -10,10 +10,10 @@
 use std::path::{Path, PathBuf};
 
 use ftcbf::batch::{run_batch, BatchPlan, BatchResult, Execution, TrialRunner, CONFIDENCE};
-use ftcbf::runner::{parse_kind, prepare_batch};
+use ftcbf::runner::prepare_batch;
 use ftcbf_sim::runner::{run, setups_computed, RunOptions};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::World;
+use ftcbf_sim::world::{ControllerKindSpec, World};
 
 const TRIALS: u64 = 100;
 const CONTROLLERS: [&str; 2] = ["ft-cbf-clf", "baseline"];
@@ -25,7 +25,7 @@ impl TrialRunner for PerTrial {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
         let opts = RunOptions {
             seed: Some(seed),
-            controller: Some(parse_kind(controller)?),
+            controller: Some(controller.parse::<ControllerKindSpec>()?),
             duration: None,
         };
         Ok(run(&self.0, &opts)?)

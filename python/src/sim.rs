@@ -38,7 +38,8 @@ impl Choice {
             return Ok(None);
         };
         if let Ok(name) = c.extract::<String>() {
-            return ftcbf::runner::parse_kind(&name)
+            return name
+                .parse::<ftcbf_sim::world::ControllerKindSpec>()
                 .map(|k| Some(Choice::Builtin(k)))
                 .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()));
         }

@@ -50,9 +50,9 @@ use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
-    channel_mask, controller_name, ellipse_prop1, heading_fusion, heading_sensor,
-    initial_covariance, process_model, process_noise, rest_hold, sensor_dependents, speed_bound,
-    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
+    channel_mask, ellipse_prop1, heading_fusion, heading_sensor, initial_covariance, process_model,
+    process_noise, rest_hold, sensor_dependents, speed_bound, ControlSetup, Conversion,
+    NoiseSource, MIN_VARIANCE,
 };
 use crate::runner::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
@@ -484,7 +484,7 @@ fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
     context_plant(world, &mut context);
     context.push(format!(
         "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
-        controller_name(f.control.controller),
+        f.control.controller.name(),
         f.control.rate_hz,
         world.ticks_per_control,
         f.duration,

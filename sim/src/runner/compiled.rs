@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::attacks::AttackSpec;
 use crate::world::{ControllerKindSpec, World, WorldError};
 
-use super::setup::{controller_kind, ControlSetup};
+use super::setup::ControlSetup;
 use super::RunError;
 
 /// How many times a world's controller setup (channels, model, barriers, γ/θ/η, κ, CLF, planned
@@ -61,7 +61,7 @@ impl CompiledWorld {
             Cow::Borrowed(&self.setup)
         } else {
             let mut s = self.setup.clone();
-            s.config.kind = controller_kind(kind);
+            s.config.kind = kind.into();
             Cow::Owned(s)
         }
     }
@@ -191,7 +191,7 @@ mod tests {
         assert!(matches!(compiled.setup_for(own), Cow::Borrowed(_)));
         let shared = compiled.setup_for(other);
         let fresh = ControlSetup::new(compiled.world(), other).expect("sets up");
-        assert_eq!(shared.config.kind, controller_kind(other));
+        assert_eq!(shared.config.kind, other.into());
         assert_eq!(
             format!("{:?}", shared.config),
             format!("{:?}", fresh.config)
