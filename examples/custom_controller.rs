@@ -13,8 +13,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use ftcbf::batch::{self, BatchPlan, Execution, TrialRunner, CONFIDENCE};
-use ftcbf::runner::WorldRunner;
+use ftcbf::batch::{self, Execution, TrialRunner};
+use ftcbf::runner::{plan_for, WorldRunner};
 use ftcbf_sim::ftcbf_controller::{ControlLaw, ControllerConfig, Decision, Input, Readings, State};
 use ftcbf_sim::runner::{RunOptions, Simulation};
 use ftcbf_sim::summary::RunSummary;
@@ -146,20 +146,8 @@ fn main() -> anyhow::Result<()> {
     );
 
     // A paired batch: both laws on the same trial seeds, exact 95 % intervals.
-    let plan = BatchPlan {
-        world: world.name.clone(),
-        world_file: path.display().to_string(),
-        world_digest: String::new(),
-        theorem3: None,
-        liveness: None,
-        overrides: Vec::new(),
-        trials,
-        base_seed: world.file.seed,
-        controllers: vec!["ft-cbf-clf".into(), "median-pd".into()],
-        shard: None,
-        epsilon: None,
-        confidence: CONFIDENCE,
-    };
+    let controllers = vec!["ft-cbf-clf".into(), "median-pd".into()];
+    let plan = plan_for(world, &path, trials, controllers);
     let exec = Execution {
         jobs: None,
         progress: false,

@@ -38,12 +38,42 @@ impl WorldRunner {
 
 impl batch::TrialRunner for WorldRunner {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
-        let opts = RunOptions {
-            seed: Some(seed),
-            controller: Some(controller.parse::<ControllerKindSpec>()?),
-            duration: None,
-        };
-        Ok(run(&self.0, &opts)?)
+        Ok(run(&self.0, &trial_options(controller, seed)?)?)
+    }
+}
+
+/// The run options of a batch trial: the built-in `controller` (one of [`CONTROLLERS`]) with
+/// `seed`, for the world's duration.
+pub fn trial_options(controller: &str, seed: u64) -> anyhow::Result<RunOptions> {
+    Ok(RunOptions {
+        seed: Some(seed),
+        controller: Some(controller.parse::<ControllerKindSpec>()?),
+        duration: None,
+    })
+}
+
+/// A plan of `trials` trials of `world` (loaded from `path`) for `controllers`, from the
+/// world's seed: unsharded, no sweep point, no claim (ε), no file digest and no check lines,
+/// at the default confidence ([`batch::CONFIDENCE`]).
+pub fn plan_for(
+    world: &World,
+    path: &Path,
+    trials: u64,
+    controllers: Vec<String>,
+) -> batch::BatchPlan {
+    batch::BatchPlan {
+        world: world.name.clone(),
+        world_file: path.display().to_string(),
+        world_digest: String::new(),
+        theorem3: None,
+        liveness: None,
+        overrides: Vec::new(),
+        trials,
+        base_seed: world.file.seed,
+        controllers,
+        shard: None,
+        epsilon: None,
+        confidence: batch::CONFIDENCE,
     }
 }
 

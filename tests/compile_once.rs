@@ -7,13 +7,13 @@
 //! One test in this file: [`setups_computed`] is a process-wide counter, and tests of one file
 //! run in parallel.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use ftcbf::batch::{run_batch, BatchPlan, BatchResult, Execution, TrialRunner, CONFIDENCE};
-use ftcbf::runner::prepare_batch;
-use ftcbf_sim::runner::{run, setups_computed, RunOptions};
+use ftcbf::batch::{run_batch, BatchPlan, BatchResult, Execution, TrialRunner};
+use ftcbf::runner::{plan_for, prepare_batch, trial_options};
+use ftcbf_sim::runner::{run, setups_computed};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ControllerKindSpec, World};
+use ftcbf_sim::world::World;
 
 const TRIALS: u64 = 100;
 const CONTROLLERS: [&str; 2] = ["ft-cbf-clf", "baseline"];
@@ -23,29 +23,7 @@ struct PerTrial(World);
 
 impl TrialRunner for PerTrial {
     fn run_trial(&self, controller: &str, seed: u64) -> anyhow::Result<RunSummary> {
-        let opts = RunOptions {
-            seed: Some(seed),
-            controller: Some(controller.parse::<ControllerKindSpec>()?),
-            duration: None,
-        };
-        Ok(run(&self.0, &opts)?)
-    }
-}
-
-fn plan(world: &World, path: &Path) -> BatchPlan {
-    BatchPlan {
-        world: world.name.clone(),
-        world_file: path.display().to_string(),
-        world_digest: String::new(),
-        theorem3: None,
-        liveness: None,
-        overrides: Vec::new(),
-        trials: TRIALS,
-        base_seed: world.file.seed,
-        controllers: CONTROLLERS.iter().map(|c| c.to_string()).collect(),
-        shard: None,
-        epsilon: None,
-        confidence: CONFIDENCE,
+        Ok(run(&self.0, &trial_options(controller, seed)?)?)
     }
 }
 
@@ -61,7 +39,8 @@ fn batch(runner: &dyn TrialRunner, plan: &BatchPlan) -> BatchResult {
 fn a_batch_computes_its_worlds_setup_once() {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds/paper_linear.toml");
     let world = World::load(&path, &[]).expect("world loads");
-    let plan = plan(&world, &path);
+    let controllers = CONTROLLERS.iter().map(|c| c.to_string()).collect();
+    let plan = plan_for(&world, &path, TRIALS, controllers);
 
     let before = setups_computed();
     let prepared = prepare_batch(&path)(&[]).expect("prepared");
