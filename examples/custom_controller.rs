@@ -13,8 +13,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use ftcbf::batch::{self, BatchPlan, Execution, TrialRunner, CONFIDENCE};
-use ftcbf::runner::WorldRunner;
+use ftcbf::batch::{self, Execution, TrialRunner};
+use ftcbf::runner::{plan_for, WorldRunner};
 use ftcbf_sim::ftcbf_controller::{ControlLaw, ControllerConfig, Decision, Input, Readings, State};
 use ftcbf_sim::runner::{RunOptions, Simulation};
 use ftcbf_sim::summary::RunSummary;
@@ -126,10 +126,13 @@ fn main() -> anyhow::Result<()> {
             .with_context(|| format!("TRIALS: expected a count, found `{s}`"))?,
         None => 40,
     };
-    let world = World::load(&path, &[])?;
+    // Compiled once (γ, θ, η, barriers, CLF, path): the stepped run and every trial below
+    // borrow it.
+    let runner = Runner(WorldRunner::new(World::load(&path, &[])?)?);
+    let world = runner.0.world();
 
     // One run, stepped by hand: count the steps whose frame reports an event.
-    let mut sim = Simulation::with_law(&world, &RunOptions::default(), |cfg| {
+    let mut sim = Simulation::with_law(&runner.0 .0, &RunOptions::default(), |cfg| {
         Ok(Box::new(MedianPd::new(cfg)) as Box<dyn ControlLaw>)
     })?;
     let mut eventful = 0;
@@ -143,25 +146,13 @@ fn main() -> anyhow::Result<()> {
     );
 
     // A paired batch: both laws on the same trial seeds, exact 95 % intervals.
-    let plan = BatchPlan {
-        world: world.name.clone(),
-        world_file: path.display().to_string(),
-        world_digest: String::new(),
-        theorem3: None,
-        liveness: None,
-        overrides: Vec::new(),
-        trials,
-        base_seed: world.file.seed,
-        controllers: vec!["ft-cbf-clf".into(), "median-pd".into()],
-        shard: None,
-        epsilon: None,
-        confidence: CONFIDENCE,
-    };
+    let controllers = vec!["ft-cbf-clf".into(), "median-pd".into()];
+    let plan = plan_for(world, &path, trials, controllers);
     let exec = Execution {
         jobs: None,
         progress: false,
     };
-    let result = batch::run_batch(&Runner(WorldRunner(world)), &plan, exec)?;
+    let result = batch::run_batch(&runner, &plan, exec)?;
     for c in &result.summaries {
         println!(
             "{:>11}: safe {}/{} = {:.3}, 95 % CI [{:.3}, {:.3}], goal rate {:.3}",

@@ -16,8 +16,7 @@ use ftcbf_sim::check;
 use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
-use ftcbf_sim::runner::{preflight, run, run_observed, RunError, RunOptions};
+use ftcbf_sim::runner::{preflight, run, run_observed, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
 
@@ -223,7 +222,7 @@ fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
 
 /// The recording id: what ran, so the same world + controller + seed gives the same id.
 fn recording_id(world: &World, kind: ControllerKindSpec, seed: u64) -> String {
-    format!("{}-{}-seed{}", world.name, controller_name(kind), seed)
+    format!("{}-{}-seed{}", world.name, kind.name(), seed)
 }
 
 /// Shows a progress bar over control steps while forwarding to the recorder.
@@ -288,13 +287,16 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         controller: Some(kind),
         duration: a.duration,
     };
+    // Compiled once: the run and the liveness explanation below share its setup.
+    let compiled = CompiledWorld::new(world).map_err(|e| run_failure(e, "run failed"))?;
+    let world = compiled.world();
     let summary = if a.no_record {
-        run(&world, &opts).map_err(|e| run_failure(e, "run failed"))?
+        run(&compiled, &opts).map_err(|e| run_failure(e, "run failed"))?
     } else {
-        run_recorded(a, &world, &opts, kind, seed)?
+        run_recorded(a, &compiled, &opts, kind, seed)?
     };
-    let expected = ftcbf_sim::regress::expectation_for(&world, kind);
-    let seeds = regress::world_seeds(&world);
+    let expected = ftcbf_sim::regress::expectation_for(world, kind);
+    let seeds = regress::world_seeds(world);
     // A run is judged by its world's expectations only on one of the regression seeds.
     let judged = expected.as_ref().filter(|_| seeds.contains(&seed));
     let (failures, left) = judged
@@ -305,10 +307,9 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         println!("{text}");
     } else {
         print_summary(&summary);
-        if let Ok(setup) = ControlSetup::new(&world, kind) {
-            if let Some(why) = ftcbf_sim::liveness::explain_run(&world, &setup, &summary) {
-                println!("  {why}");
-            }
+        let setup = compiled.setup_for(kind);
+        if let Some(why) = ftcbf_sim::liveness::explain_run(world, &setup, &summary) {
+            println!("  {why}");
         }
         let judgement = match (&expected, judged) {
             (None, _) => Judgement::NoExpectations,
@@ -339,11 +340,12 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
 /// over the control steps.
 fn run_recorded(
     a: &RunArgs,
-    world: &World,
+    compiled: &CompiledWorld,
     opts: &RunOptions,
     kind: ControllerKindSpec,
     seed: u64,
 ) -> Result<RunSummary, Failure> {
+    let world = compiled.world();
     let out = a
         .out
         .clone()
@@ -356,7 +358,7 @@ fn run_recorded(
             inner: &mut rec,
             bar: bar.clone(),
         };
-        run_observed(world, opts, Some(&mut obs)).map_err(|e| run_failure(e, "run failed"))?
+        run_observed(compiled, opts, Some(&mut obs)).map_err(|e| run_failure(e, "run failed"))?
     };
     bar.finish_and_clear();
     rec.finish().context("recording")?;
@@ -522,18 +524,19 @@ fn print_summary(s: &RunSummary) {
 }
 
 fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
-    let world = load(&a.world, &[])?;
+    let compiled =
+        CompiledWorld::new(load(&a.world, &[])?).map_err(|e| run_failure(e, "controller setup"))?;
+    let world = compiled.world();
     // Whatever `run` would refuse at its start, `check` refuses too, with the same exit code.
-    preflight(&world).map_err(|e| run_failure(e, "controller setup"))?;
+    preflight(&compiled).map_err(|e| run_failure(e, "controller setup"))?;
     println!("world {} ({})", world.name, world.path.display());
-    let report = check::check_world(&world).map_err(|e| run_failure(e, "controller setup"))?;
+    let report = check::check_compiled(&compiled);
     println!("{report}");
     if let Some(r) = &world.robot {
         println!("drive: {}", r.wheels.describe());
     }
     // Condition (4.4) decided exactly on every barrier that runs, at the start estimate.
-    let setup = ControlSetup::new(&world, world.file.control.controller)
-        .map_err(|e| run_failure(e, "controller setup"))?;
+    let setup = compiled.setup();
     let start = [setup.config.x0];
     let lines = setup
         .config
@@ -550,7 +553,7 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
         println!("{line}");
     }
     if a.suggest {
-        let s = check::suggest(&world).map_err(|e| run_failure(e, "controller setup"))?;
+        let s = check::suggest(world).map_err(|e| run_failure(e, "controller setup"))?;
         println!("{s}");
     }
     if a.strict && !report.verdict.applies {

@@ -14,8 +14,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use ftcbf_sim::regress::{collect_world_files, expectation_for, expected_controllers, failures};
-use ftcbf_sim::runner::setup::controller_name;
-use ftcbf_sim::runner::{run, RunError, RunOptions};
+use ftcbf_sim::runner::{run, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::{RunSummary, METRICS};
 use ftcbf_sim::world::{ControllerKindSpec, ExpectOutcome, World, WorldError};
 
@@ -39,6 +38,9 @@ pub enum RegressError {
     /// A world file is invalid.
     #[error(transparent)]
     World(#[from] WorldError),
+    /// A world's controller setup (γ, θ, η, barriers, CLF, path) could not be computed.
+    #[error("{0}")]
+    Setup(Box<RunError>),
     /// A run could not be set up or failed.
     #[error("{world} with {controller}, seed {seed}: {source}")]
     Run {
@@ -69,8 +71,8 @@ pub fn world_seeds(world: &World) -> Vec<u64> {
 /// One controller on one world, over the world's regression seeds.
 #[derive(Debug, Clone)]
 pub struct Case {
-    /// The world.
-    pub world: Arc<World>,
+    /// The world, compiled once for all its cases and seeds.
+    pub world: Arc<CompiledWorld>,
     /// The controller.
     pub controller: ControllerKindSpec,
     /// What it must show.
@@ -115,18 +117,24 @@ impl Plan {
     }
 
     fn add(&mut self, path: &Path) -> Result<(), RegressError> {
-        let world = Arc::new(World::load(path, &[])?);
+        let world = World::load(path, &[])?;
         let kinds = expected_controllers(&world);
         if kinds.is_empty() {
             self.skipped.push(path.to_path_buf());
             return Ok(());
         }
         let seeds = world_seeds(&world);
-        for k in kinds {
+        let expected: Vec<_> = kinds
+            .iter()
+            .map(|&k| expectation_for(&world, k).unwrap_or_default())
+            .collect();
+        let world =
+            Arc::new(CompiledWorld::new(world).map_err(|e| RegressError::Setup(Box::new(e)))?);
+        for (k, expected) in kinds.into_iter().zip(expected) {
             self.cases.push(Case {
                 world: world.clone(),
                 controller: k,
-                expected: expectation_for(&world, k).unwrap_or_default(),
+                expected,
                 seeds: seeds.clone(),
             });
         }
@@ -156,9 +164,9 @@ impl Plan {
                     controller: Some(c.controller),
                     duration: None,
                 };
-                let r = run(&c.world, &opts).map_err(|source| RegressError::Run {
-                    world: c.world.name.clone(),
-                    controller: controller_name(c.controller).to_string(),
+                let r = run(&*c.world, &opts).map_err(|source| RegressError::Run {
+                    world: c.world.world().name.clone(),
+                    controller: c.controller.name().to_string(),
                     seed,
                     source: Box::new(source),
                 });
@@ -173,8 +181,8 @@ impl Plan {
             .map(|c| {
                 let runs: Vec<RunSummary> = it.by_ref().take(c.seeds.len()).collect();
                 CaseResult {
-                    world: c.world.name.clone(),
-                    controller: controller_name(c.controller).to_string(),
+                    world: c.world.world().name.clone(),
+                    controller: c.controller.name().to_string(),
                     failures: failures(&c.expected, &runs),
                     expected: c.expected.clone(),
                     runs,

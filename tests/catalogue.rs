@@ -52,13 +52,13 @@ fn every_world_meets_its_expectations() {
         assert!(
             c.seeds.len() >= 4,
             "{}: only {} seed(s)",
-            c.world.name,
+            c.world.world().name,
             c.seeds.len()
         );
         assert!(
             !c.expected.margins.is_empty(),
             "{} / {:?}: no numeric margin",
-            c.world.name,
+            c.world.world().name,
             c.controller
         );
     }

@@ -19,23 +19,27 @@ fn user_worlds_with_defaults_only_are_safe_and_reach_their_goals() {
     let plan = Plan::load(&[dir()]).unwrap_or_else(|e| panic!("{e}"));
     assert!(plan.cases.len() >= 2, "only {} cases", plan.cases.len());
     for c in &plan.cases {
-        let f = &c.world.file;
+        let f = &c.world.world().file;
         // No tuning key in the files: the defaults are what is tested.
-        assert!(f.control.form_declared.is_none(), "{}: form", c.world.name);
+        assert!(
+            f.control.form_declared.is_none(),
+            "{}: form",
+            c.world.world().name
+        );
         assert!(
             f.control.cbf_gain_declared.is_none(),
             "{}: cbf_gain",
-            c.world.name
+            c.world.world().name
         );
         assert!(
             f.control.process_noise.is_none(),
             "{}: process_noise",
-            c.world.name
+            c.world.world().name
         );
         assert!(
             f.control.drive.low_speed.is_none(),
             "{}: drive",
-            c.world.name
+            c.world.world().name
         );
     }
     common::assert_plan_passes(&plan);

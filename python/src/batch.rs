@@ -108,11 +108,11 @@ pub fn batch(
     let laws = Arc::new(laws);
     let outcome = py.detach(|| {
         let prepare = |point: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
-            let w = load_point(&args.world, &base, point)?;
+            let builtin = WorldRunner::new(load_point(&args.world, &base, point)?)?;
             Ok(PreparedWorld {
-                info: world_info(&w),
+                info: world_info(&builtin.0),
                 runner: Box::new(Runner {
-                    builtin: WorldRunner(w),
+                    builtin,
                     laws: laws.clone(),
                     raised: raised.clone(),
                 }),

@@ -99,7 +99,7 @@ impl Factory {
             Some(n) => n,
             None => obj.getattr("__name__")?.extract()?,
         };
-        if ftcbf::runner::parse_kind(&name).is_ok() || name.is_empty() {
+        if name.parse::<ftcbf_sim::world::ControllerKindSpec>().is_ok() || name.is_empty() {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "a Python law needs a name of its own (its `name` attribute or `__name__`), \
                  not `{name}`"

@@ -6,8 +6,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 use ftcbf_sim::observe::{Frame as SimFrame, Observer};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::ControlSetup;
-use ftcbf_sim::runner::{RunOptions, Simulation as Loop};
+use ftcbf_sim::runner::{RunOptions, Simulation as Loop, Source};
 use ftcbf_sim::world::World as SimWorld;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
@@ -39,7 +38,8 @@ impl Choice {
             return Ok(None);
         };
         if let Ok(name) = c.extract::<String>() {
-            return ftcbf::runner::parse_kind(&name)
+            return name
+                .parse::<ftcbf_sim::world::ControllerKindSpec>()
                 .map(|k| Some(Choice::Builtin(k)))
                 .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()));
         }
@@ -50,27 +50,29 @@ impl Choice {
 /// Starts a run of `world` with `seed` (None: the world's) and the law `choice` (None: the
 /// world's controller). A Python law reports its exceptions into `error`.
 pub fn start<'w>(
-    world: &'w SimWorld,
+    source: impl Into<Source<'w>>,
     seed: Option<u64>,
     duration: Option<f64>,
     choice: Option<&Choice>,
     error: &LawError,
 ) -> Result<Loop<'w>, ftcbf_sim::runner::RunError> {
+    let source = source.into();
+    let world = source.world();
     let mut opts = RunOptions {
         seed,
         controller: None,
         duration,
     };
     match choice {
-        None => Loop::new(world, &opts),
+        None => Loop::new(source, &opts),
         Some(Choice::Builtin(k)) => {
             opts.controller = Some(*k);
-            Loop::new(world, &opts)
+            Loop::new(source, &opts)
         }
         Some(Choice::Python(f)) => {
-            let setup = ControlSetup::new(world, world.file.control.controller)?;
+            let setup = source.setup(world.file.control.controller)?;
             let seed = seed.unwrap_or(world.file.seed);
-            Loop::with_law(world, &opts, |_| f.build(world, &setup, seed, error))
+            Loop::with_law(source, &opts, |_| f.build(world, &setup, seed, error))
         }
     }
 }
@@ -138,7 +140,7 @@ impl Simulation {
         let choice = Choice::from_py(controller)?;
         let error = LawError::default();
         let run = Run::try_new(world.inner.clone(), |w| {
-            start(w, seed, duration, choice.as_ref(), &error)
+            start(&**w, seed, duration, choice.as_ref(), &error)
         });
         let run = match run {
             Ok(run) => run,

@@ -8,7 +8,7 @@ use ftcbf_sim::check::{self, CheckReport, CovarianceBound, Status};
 use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::liveness::{Blocked, LivenessReport};
 use ftcbf_sim::runner::preflight;
-use ftcbf_sim::runner::setup::{controller_name, ControlSetup};
+use ftcbf_sim::runner::setup::ControlSetup;
 use ftcbf_sim::world::{Override, World as SimWorld};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -89,7 +89,7 @@ impl World {
     /// The controller the world file names (`ft-cbf-clf`, `baseline` or `nominal`).
     #[getter]
     fn controller(&self) -> &'static str {
-        controller_name(self.inner.file.control.controller)
+        self.inner.file.control.controller.name()
     }
 
     /// The overrides it was loaded with.
@@ -110,7 +110,7 @@ impl World {
         let world = self.inner.clone();
         let (report, setup) = py
             .detach(move || {
-                preflight(&world)?;
+                preflight(&*world)?;
                 let report = check::check_world(&world)?;
                 let setup = ControlSetup::new(&world, world.file.control.controller)?;
                 Ok((report, setup))

@@ -50,11 +50,11 @@ use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
-    channel_mask, controller_name, ellipse_prop1, heading_fusion, heading_sensor,
-    initial_covariance, process_model, process_noise, rest_hold, sensor_dependents, speed_bound,
-    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
+    channel_mask, ellipse_prop1, heading_fusion, heading_sensor, initial_covariance, process_model,
+    process_noise, rest_hold, sensor_dependents, speed_bound, ControlSetup, Conversion,
+    NoiseSource, MIN_VARIANCE,
 };
-use crate::runner::RunError;
+use crate::runner::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
@@ -320,29 +320,38 @@ impl Findings {
     }
 }
 
-/// Check `world` (see the module docs).
+/// Check `world` (see the module docs): compiles it, then [`check_compiled`].
 pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
+    let setup = ControlSetup::new(world, world.file.control.controller)?;
+    Ok(check_setup(world, &setup))
+}
+
+/// Check a compiled world (see the module docs), reusing its controller setup.
+pub fn check_compiled(compiled: &CompiledWorld) -> CheckReport {
+    check_setup(compiled.world(), compiled.setup())
+}
+
+fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     let f = &world.file;
-    let setup = ControlSetup::new(world, f.control.controller)?;
-    let names = Names::new(world, &setup);
-    let context = context(world, &setup, &names);
+    let names = Names::new(world, setup);
+    let context = context(world, setup, &names);
 
     let mut found = Findings::default();
-    check_disjoint_patterns(&setup, &names, &mut found); // 1
+    check_disjoint_patterns(setup, &names, &mut found); // 1
     check_converted_odometry(world, &names, &mut found); // 1b
     check_drive_heading(world, &names, &mut found); // 1c
-    check_white_noise(world, &setup, &mut found); // 1d
-    let filters = check_filters(world, &setup, &names, &mut found); // 2-4
-    check_finite_parameters(world, &setup, &mut found); // 4
-    report_sensor_timing(world, &setup, &names, &mut found); // 4a
-    check_transient(world, &setup, &mut found); // 4b
-    check_condition1(world, &setup, &mut found); // 5
-    check_input_authority(world, &setup, &filters, &mut found); // 6
+    check_white_noise(world, setup, &mut found); // 1d
+    let filters = check_filters(world, setup, &names, &mut found); // 2-4
+    check_finite_parameters(world, setup, &mut found); // 4
+    report_sensor_timing(world, setup, &names, &mut found); // 4a
+    check_transient(world, setup, &mut found); // 4b
+    check_condition1(world, setup, &mut found); // 5
+    check_input_authority(world, setup, &filters, &mut found); // 6
     if matches!(f.dynamics, Dynamics::Rapier) {
         check_drive_model(world, &mut found); // 6b
     }
     check_attacks(world, &names, &mut found); // 7
-    let goal = goal_holding(world, &setup, &filters); // 8
+    let goal = goal_holding(world, setup, &filters); // 8
     for g in &goal {
         let h = goal_hypothesis(g);
         if h.status == Status::Fails {
@@ -350,15 +359,15 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         }
         found.hypotheses.push(h);
     }
-    check_start_and_goal(world, &setup, &mut found); // 9
+    check_start_and_goal(world, setup, &mut found); // 9
     check_finite_report(&context[usize::from(f.description.is_some())..], &mut found); // fail closed on NaN / ∞
 
-    let liveness = liveness::predict(world, &setup);
+    let liveness = liveness::predict(world, setup);
     check_joint_rows(world, &liveness, &mut found); // 10
     check_departures(world, &mut found); // 11
 
     let applies = found.reasons.is_empty();
-    Ok(CheckReport {
+    CheckReport {
         world: world.name.clone(),
         context,
         filters,
@@ -373,7 +382,7 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
         },
         liveness,
         barrier_names: setup.barrier_names.clone(),
-    })
+    }
 }
 
 /// Hypothesis 10, case (i) of Theorem 3's proof with several rows: when the kept estimates agree within θ,
@@ -475,7 +484,7 @@ fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
     context_plant(world, &mut context);
     context.push(format!(
         "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
-        controller_name(f.control.controller),
+        f.control.controller.name(),
         f.control.rate_hz,
         world.ticks_per_control,
         f.duration,

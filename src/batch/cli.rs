@@ -54,7 +54,7 @@ pub struct BatchArgs {
     #[arg(
         long = "controller",
         value_name = "KIND",
-        value_parser = ["ft-cbf-clf", "baseline", "nominal"],
+        value_parser = ftcbf_sim::world::ControllerKindSpec::NAMES,
         default_values = ["ft-cbf-clf", "baseline"]
     )]
     pub controllers: Vec<String>,

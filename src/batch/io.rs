@@ -19,9 +19,10 @@
 //! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker), `estimation`
 //! (per filter of the bank, as a JSON array: `filter`, `honest` — it read no attacked channel —,
 //! `max_ratio` — its largest ‖x − x̂‖/γ — and `exceeded` — it left γ).
-//! Fields containing `,`, `"` or a line break are quoted (RFC 4180).
+//! Fields containing `,`, `"` or a line break are quoted (RFC 4180). Written and read through the
+//! `csv` crate with serde (one row type, its field names the header); [`from_csv`] reads a file
+//! back exactly, a field that does not parse an error naming the file, trial and column.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context};
@@ -120,85 +121,216 @@ min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2
 control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance,\
 omega_sign_change_fraction,mean_abs_domega,stalls,estimation";
 
-fn csv_text(out: &mut String, s: &str) {
-    if s.contains([',', '"', '\n', '\r']) {
-        out.push('"');
-        out.push_str(&s.replace('"', "\"\""));
-        out.push('"');
-    } else {
-        out.push_str(s);
-    }
-}
-
 fn float_text(x: f64) -> String {
     // Debug of f64 is the shortest text that parses back to the same bits ("NaN", "inf").
     format!("{x:?}")
 }
 
-/// One row per trial record, results in order, records in trial order.
-pub fn to_csv(results: &[BatchResult]) -> String {
-    let mut out = String::from(CSV_HEADER);
-    out.push('\n');
-    for res in results {
-        let (key, value) = match res.plan.overrides.first() {
-            Some(o) => (o.key.as_str(), float_text(o.value)),
-            None => ("", String::new()),
-        };
-        for r in &res.records {
-            csv_text(&mut out, key);
-            out.push(',');
-            out.push_str(&value);
-            let opt_f = |x: Option<f64>| x.map(float_text).unwrap_or_default();
-            let _ = write!(out, ",{},{},", r.trial, r.seed);
-            csv_text(&mut out, &r.controller);
-            let _ = write!(
-                out,
-                ",{},{},{},",
-                r.safe,
-                r.collided,
-                opt_f(r.first_collision_t)
-            );
-            csv_text(
-                &mut out,
-                r.first_collision_obstacle.as_deref().unwrap_or(""),
-            );
-            let _ = write!(out, ",{},", opt_f(r.first_violation_t));
-            csv_text(&mut out, r.first_violation_set.as_deref().unwrap_or(""));
-            let _ = write!(
-                out,
-                ",{},{},",
-                opt_f(r.first_violation_value),
-                opt_f(r.min_barrier)
-            );
-            csv_text(&mut out, r.min_barrier_name.as_deref().unwrap_or(""));
-            let _ = write!(
-                out,
-                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},",
-                opt_f(r.min_clearance),
-                r.goal_reached,
-                opt_f(r.time_to_goal),
-                r.steps.step1,
-                r.steps.clf_relaxed,
-                r.steps.step2,
-                r.steps.step3,
-                r.steps.infeasible,
-                r.control_steps,
-                r.rejected_readings,
-                float_text(r.duration),
-                r.outside_fault_patterns,
-                r.goal_settled,
-                float_text(r.final_goal_distance),
-                float_text(r.omega_sign_change_fraction),
-                float_text(r.mean_abs_domega),
-                r.stalls
-            );
-            // The per-filter rows as one JSON cell (quoted: it holds commas).
-            let cell = serde_json::to_string(&r.estimation).unwrap_or_else(|_| "[]".into());
-            csv_text(&mut out, &cell);
-            out.push('\n');
+/// One CSV row: the columns of [`CSV_HEADER`], in order (serde writes the header from the field
+/// names). Floats are kept as [`float_text`] (exact, "NaN"/"inf" included; empty = none), the
+/// estimation rows as one JSON cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct CsvRow {
+    sweep_key: String,
+    sweep_value: String,
+    trial: u64,
+    seed: u64,
+    controller: String,
+    safe: bool,
+    collided: bool,
+    first_collision_t: String,
+    first_collision_obstacle: String,
+    first_violation_t: String,
+    first_violation_set: String,
+    first_violation_value: String,
+    min_barrier: String,
+    min_barrier_name: String,
+    min_clearance: String,
+    goal_reached: bool,
+    time_to_goal: String,
+    step1: u64,
+    clf_relaxed: u64,
+    step2: u64,
+    step3: u64,
+    infeasible: u64,
+    control_steps: u64,
+    rejected_readings: u64,
+    duration: String,
+    outside_fault_patterns: bool,
+    goal_settled: bool,
+    final_goal_distance: String,
+    omega_sign_change_fraction: String,
+    mean_abs_domega: String,
+    stalls: u64,
+    estimation: String,
+}
+
+impl CsvRow {
+    fn of(sweep: &(String, String), r: &TrialRecord) -> Self {
+        let opt_f = |x: Option<f64>| x.map(float_text).unwrap_or_default();
+        let opt_s = |x: &Option<String>| x.clone().unwrap_or_default();
+        CsvRow {
+            sweep_key: sweep.0.clone(),
+            sweep_value: sweep.1.clone(),
+            trial: r.trial,
+            seed: r.seed,
+            controller: r.controller.clone(),
+            safe: r.safe,
+            collided: r.collided,
+            first_collision_t: opt_f(r.first_collision_t),
+            first_collision_obstacle: opt_s(&r.first_collision_obstacle),
+            first_violation_t: opt_f(r.first_violation_t),
+            first_violation_set: opt_s(&r.first_violation_set),
+            first_violation_value: opt_f(r.first_violation_value),
+            min_barrier: opt_f(r.min_barrier),
+            min_barrier_name: opt_s(&r.min_barrier_name),
+            min_clearance: opt_f(r.min_clearance),
+            goal_reached: r.goal_reached,
+            time_to_goal: opt_f(r.time_to_goal),
+            step1: r.steps.step1,
+            clf_relaxed: r.steps.clf_relaxed,
+            step2: r.steps.step2,
+            step3: r.steps.step3,
+            infeasible: r.steps.infeasible,
+            control_steps: r.control_steps,
+            rejected_readings: r.rejected_readings,
+            duration: float_text(r.duration),
+            outside_fault_patterns: r.outside_fault_patterns,
+            goal_settled: r.goal_settled,
+            final_goal_distance: float_text(r.final_goal_distance),
+            omega_sign_change_fraction: float_text(r.omega_sign_change_fraction),
+            mean_abs_domega: float_text(r.mean_abs_domega),
+            stalls: r.stalls,
+            estimation: serde_json::to_string(&r.estimation).unwrap_or_else(|_| "[]".into()),
         }
     }
-    out
+}
+
+/// One row per trial record, results in order, records in trial order.
+pub fn to_csv(results: &[BatchResult]) -> anyhow::Result<String> {
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    let mut rows = 0;
+    for res in results {
+        let sweep = match res.plan.overrides.first() {
+            Some(o) => (o.key.clone(), float_text(o.value)),
+            None => (String::new(), String::new()),
+        };
+        for r in &res.records {
+            w.serialize(CsvRow::of(&sweep, r))
+                .context("writing a CSV row")?;
+            rows += 1;
+        }
+    }
+    if rows == 0 {
+        w.write_record(CSV_HEADER.split(','))
+            .context("writing the CSV header")?;
+    }
+    let bytes = w.into_inner().context("finishing the CSV")?;
+    String::from_utf8(bytes).context("the CSV is not UTF-8")
+}
+
+impl CsvRow {
+    /// The trial record of this row (the sweep columns aside).
+    fn record(&self) -> anyhow::Result<TrialRecord> {
+        let f = |name: &str, text: &str| -> anyhow::Result<f64> {
+            text.parse()
+                .map_err(|_| anyhow!("column `{name}`: expected a number, found `{text}`"))
+        };
+        let opt_f = |name: &str, text: &str| -> anyhow::Result<Option<f64>> {
+            (!text.is_empty()).then(|| f(name, text)).transpose()
+        };
+        let opt_s = |text: &str| (!text.is_empty()).then(|| text.to_string());
+        Ok(TrialRecord {
+            trial: self.trial,
+            seed: self.seed,
+            controller: self.controller.clone(),
+            safe: self.safe,
+            collided: self.collided,
+            first_collision_t: opt_f("first_collision_t", &self.first_collision_t)?,
+            first_collision_obstacle: opt_s(&self.first_collision_obstacle),
+            first_violation_t: opt_f("first_violation_t", &self.first_violation_t)?,
+            first_violation_set: opt_s(&self.first_violation_set),
+            first_violation_value: opt_f("first_violation_value", &self.first_violation_value)?,
+            min_barrier: opt_f("min_barrier", &self.min_barrier)?,
+            min_barrier_name: opt_s(&self.min_barrier_name),
+            min_clearance: opt_f("min_clearance", &self.min_clearance)?,
+            goal_reached: self.goal_reached,
+            time_to_goal: opt_f("time_to_goal", &self.time_to_goal)?,
+            steps: ftcbf_sim::summary::StepCounts {
+                step1: self.step1,
+                clf_relaxed: self.clf_relaxed,
+                step2: self.step2,
+                step3: self.step3,
+                infeasible: self.infeasible,
+            },
+            control_steps: self.control_steps,
+            rejected_readings: self.rejected_readings,
+            duration: f("duration", &self.duration)?,
+            outside_fault_patterns: self.outside_fault_patterns,
+            goal_settled: self.goal_settled,
+            final_goal_distance: f("final_goal_distance", &self.final_goal_distance)?,
+            omega_sign_change_fraction: f(
+                "omega_sign_change_fraction",
+                &self.omega_sign_change_fraction,
+            )?,
+            mean_abs_domega: f("mean_abs_domega", &self.mean_abs_domega)?,
+            stalls: self.stalls,
+            estimation: serde_json::from_str(&self.estimation)
+                .context("column `estimation`: expected a JSON array of filter rows")?,
+        })
+    }
+}
+
+/// One row of a batch CSV read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CsvTrial {
+    /// The sweep point's key and value (`None` without a sweep).
+    pub sweep: Option<(String, f64)>,
+    /// The trial record.
+    pub record: TrialRecord,
+}
+
+/// Reads a batch CSV (as [`to_csv`] writes it) back: per row, the sweep point (key and value,
+/// `None` without a sweep) and the trial record, floats bit for bit. A row that does not parse
+/// is an error naming its line and column.
+pub fn from_csv(text: &str, name: &str) -> anyhow::Result<Vec<CsvTrial>> {
+    let mut reader = csv::ReaderBuilder::new().from_reader(text.as_bytes());
+    let header: Vec<String> = reader
+        .headers()
+        .with_context(|| format!("{name}: reading the CSV header"))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    if header.join(",") != CSV_HEADER {
+        return Err(anyhow!(
+            "{name}: not a batch CSV (expected the header `{CSV_HEADER}`)"
+        ));
+    }
+    let mut out = Vec::new();
+    for row in reader.deserialize::<CsvRow>() {
+        let row = row.with_context(|| format!("{name}: a CSV row"))?;
+        let sweep = if row.sweep_key.is_empty() {
+            None
+        } else {
+            let v = row.sweep_value.parse().map_err(|_| {
+                anyhow!(
+                    "column `sweep_value`: expected a number, found `{}`",
+                    row.sweep_value
+                )
+            });
+            Some((
+                row.sweep_key.clone(),
+                v.with_context(|| format!("{name}: trial {}", row.trial))?,
+            ))
+        };
+        let record = row
+            .record()
+            .with_context(|| format!("{name}: trial {} of {}", row.trial, row.controller))?;
+        out.push(CsvTrial { sweep, record });
+    }
+    Ok(out)
 }
 
 /// FNV-1a (64 bit) of a file's bytes, as `fnv1a64:<16 hex digits>`: the "same world" check
@@ -231,7 +363,7 @@ pub fn check_outputs(paths: &[PathBuf]) -> anyhow::Result<()> {
 pub fn write_outputs(paths: &[PathBuf], results: &[BatchResult]) -> anyhow::Result<()> {
     for p in paths {
         let text = match OutFormat::from_path(p)? {
-            OutFormat::Csv => to_csv(results),
+            OutFormat::Csv => to_csv(results)?,
             OutFormat::Json => to_json(results)?,
         };
         std::fs::write(p, text).with_context(|| format!("could not write `{}`", p.display()))?;
@@ -301,80 +433,6 @@ mod tests {
     use super::super::*;
     use super::*;
 
-    /// Minimal RFC 4180 reader for the round-trip test: rows of fields.
-    fn parse_csv(text: &str) -> Vec<Vec<String>> {
-        let mut rows = Vec::new();
-        let mut row = Vec::new();
-        let mut field = String::new();
-        let mut chars = text.chars().peekable();
-        let mut quoted = false;
-        while let Some(c) = chars.next() {
-            match (quoted, c) {
-                (true, '"') if chars.peek() == Some(&'"') => {
-                    field.push('"');
-                    chars.next();
-                }
-                (true, '"') => quoted = false,
-                (true, c) => field.push(c),
-                (false, '"') => quoted = true,
-                (false, ',') => row.push(std::mem::take(&mut field)),
-                (false, '\n') => {
-                    row.push(std::mem::take(&mut field));
-                    rows.push(std::mem::take(&mut row));
-                }
-                (false, c) => field.push(c),
-            }
-        }
-        rows
-    }
-
-    fn opt_f(s: &str) -> Option<f64> {
-        (!s.is_empty()).then(|| s.parse().expect("float field"))
-    }
-
-    fn opt_s(s: &str) -> Option<String> {
-        (!s.is_empty()).then(|| s.to_string())
-    }
-
-    fn record_from_row(f: &[String]) -> TrialRecord {
-        let u = |i: usize| f[i].parse::<u64>().expect("integer field");
-        let b = |i: usize| f[i].parse::<bool>().expect("bool field");
-        TrialRecord {
-            trial: u(2),
-            seed: u(3),
-            controller: f[4].clone(),
-            safe: b(5),
-            collided: b(6),
-            first_collision_t: opt_f(&f[7]),
-            first_collision_obstacle: opt_s(&f[8]),
-            first_violation_t: opt_f(&f[9]),
-            first_violation_set: opt_s(&f[10]),
-            first_violation_value: opt_f(&f[11]),
-            min_barrier: opt_f(&f[12]),
-            min_barrier_name: opt_s(&f[13]),
-            min_clearance: opt_f(&f[14]),
-            goal_reached: b(15),
-            time_to_goal: opt_f(&f[16]),
-            steps: ftcbf_sim::summary::StepCounts {
-                step1: u(17),
-                clf_relaxed: u(18),
-                step2: u(19),
-                step3: u(20),
-                infeasible: u(21),
-            },
-            control_steps: u(22),
-            rejected_readings: u(23),
-            duration: f[24].parse().expect("duration"),
-            outside_fault_patterns: b(25),
-            goal_settled: b(26),
-            final_goal_distance: f[27].parse().expect("final_goal_distance"),
-            omega_sign_change_fraction: f[28].parse().expect("omega_sign_change_fraction"),
-            mean_abs_domega: f[29].parse().expect("mean_abs_domega"),
-            stalls: u(30),
-            estimation: serde_json::from_str(&f[31]).expect("estimation cell"),
-        }
-    }
-
     #[test]
     fn csv_round_trip_is_exact() {
         let runner = Synthetic {
@@ -391,18 +449,15 @@ mod tests {
         res.records[0].min_barrier = Some(f64::NEG_INFINITY);
         res.records[1].first_violation_value = Some(f64::NAN);
         res.records[2].first_violation_set = Some("line\nbreak".into());
-        let text = to_csv(std::slice::from_ref(&res));
-        let rows = parse_csv(&text);
-        assert_eq!(rows[0].join(","), CSV_HEADER);
-        assert_eq!(rows.len(), 1 + res.records.len());
-        for (row, rec) in rows[1..].iter().zip(&res.records) {
-            assert_eq!(row.len(), CSV_HEADER.split(',').count());
-            assert_eq!(row[0], "attacks[0].value");
-            assert_eq!(
-                row[1].parse::<f64>().map(f64::to_bits).ok(),
-                Some((0.1_f64 + 0.2).to_bits())
-            );
-            let back = record_from_row(row);
+        let text = to_csv(std::slice::from_ref(&res)).expect("csv");
+        assert_eq!(text.lines().next(), Some(CSV_HEADER));
+        let rows = from_csv(&text, "mem.csv").expect("reads back");
+        assert_eq!(rows.len(), res.records.len());
+        for (row, rec) in rows.iter().zip(&res.records) {
+            let (key, value) = row.sweep.as_ref().expect("a sweep point");
+            let back = &row.record;
+            assert_eq!(key, "attacks[0].value");
+            assert_eq!(value.to_bits(), (0.1_f64 + 0.2).to_bits());
             if rec.first_violation_value.is_some_and(f64::is_nan) {
                 assert!(back.first_violation_value.is_some_and(f64::is_nan));
                 let mut a = back.clone();
@@ -411,11 +466,37 @@ mod tests {
                 b.first_violation_value = None;
                 assert_eq!(a, b);
             } else {
-                assert_eq!(&back, rec);
+                assert_eq!(back, rec);
             }
         }
         // The obstacle name of the synthetic runner contains a comma and quotes.
         assert!(text.contains("\"pillar, \"\"east\"\"\""));
+    }
+
+    #[test]
+    fn a_csv_field_that_does_not_parse_is_an_error_naming_it() {
+        let runner = Synthetic {
+            p_safe: 0.8,
+            fail_seed: None,
+        };
+        let res = run_batch(&runner, &plan(3, None), SERIAL).expect("batch");
+        let text = to_csv(std::slice::from_ref(&res)).expect("csv");
+        let d = float_text(res.records[1].duration);
+        let bad = text.replacen(&format!(",{d},"), ",1.5s,", 2);
+        let e = from_csv(&bad, "bad.csv").expect_err("refused");
+        let msg = format!("{e:#}");
+        assert!(
+            msg.contains("bad.csv") && msg.contains("`duration`") && msg.contains("1.5s"),
+            "{msg}"
+        );
+        let e = from_csv(&text.replacen("true", "yes", 1), "bad.csv").expect_err("refused");
+        assert!(format!("{e:#}").contains("bad.csv"), "{e:#}");
+        // Without records: the header alone.
+        let empty = BatchResult {
+            records: Vec::new(),
+            ..res
+        };
+        assert_eq!(to_csv(&[empty]).expect("csv"), format!("{CSV_HEADER}\n"));
     }
 
     #[test]

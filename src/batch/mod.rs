@@ -37,7 +37,7 @@ pub use cli::{
     batch_command, failing_verdicts, merge_command, run_batch_args, BatchArgs, FailOn, MergeArgs,
     PrepareFn, VerdictFailure,
 };
-pub use io::{to_json, FORMAT};
+pub use io::{from_csv, to_csv, to_json, CsvTrial, FORMAT};
 pub use merge::merge;
 pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
 pub use result::{

@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context};
 use ftcbf_sim::record::Recorder;
-use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
@@ -39,7 +38,7 @@ pub struct FalsifyArgs {
     /// World file (TOML). Its own `[[attacks]]` are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
-    #[arg(long, value_name = "KIND", value_parser = ["ft-cbf-clf", "baseline", "nominal"])]
+    #[arg(long, value_name = "KIND", value_parser = ControllerKindSpec::NAMES)]
     pub controller: Option<String>,
     /// Runs (simulations) per search method (at least 24), or in all with --scenario (at least 8).
     #[arg(long, value_name = "N", default_value_t = 200,
@@ -79,17 +78,6 @@ pub struct FalsifyArgs {
     /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,
-}
-
-fn parse_controller(s: &str) -> anyhow::Result<ControllerKindSpec> {
-    match s {
-        "ft-cbf-clf" => Ok(ControllerKindSpec::FtCbfClf),
-        "baseline" => Ok(ControllerKindSpec::Baseline),
-        "nominal" => Ok(ControllerKindSpec::Nominal),
-        other => Err(anyhow!(
-            "unknown controller `{other}`; expected ft-cbf-clf, baseline or nominal"
-        )),
-    }
 }
 
 /// A command-line value out of range (exit 64, as clap's own usage errors).
@@ -195,7 +183,7 @@ pub fn write_worst(
             let id = format!(
                 "{}-{}-seed{}",
                 world.name,
-                controller_name(world.file.control.controller),
+                world.file.control.controller.name(),
                 world.file.seed
             );
             let mut rec = Recorder::create(path, &id).context("recording")?;
@@ -309,7 +297,7 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     }
     let template = WorldTemplate::load(&args.world)?;
     let controller = match &args.controller {
-        Some(c) => parse_controller(c)?,
+        Some(c) => c.parse::<ControllerKindSpec>()?,
         None => template.world.file.control.controller,
     };
     let settings = Settings {

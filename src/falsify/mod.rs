@@ -61,7 +61,6 @@ use std::fmt::Write as _;
 
 use anyhow::Context;
 use ftcbf_sim::attacks::validate_attacks;
-use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
 
@@ -243,7 +242,7 @@ pub fn falsify(template: &WorldTemplate, settings: &Settings) -> anyhow::Result<
     Ok(Report {
         world: world.name.clone(),
         world_file: template.path.display().to_string(),
-        controller: controller_name(settings.controller).to_string(),
+        controller: settings.controller.name().to_string(),
         seed: settings.seed,
         plan,
         threat_model: format!(

@@ -29,7 +29,6 @@ use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
 use ftcbf_sim::check::check_world;
 use ftcbf_sim::obstacles::ShapeSpec;
-use ftcbf_sim::runner::setup::controller_name;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::world::{Dynamics, World, WorldFile};
 use indicatif::ProgressBar;
@@ -552,7 +551,7 @@ pub fn scenario(
     let clock = Instant::now();
     let base = &template.world;
     let space = SearchSpace::new(base).with_context(|| format!("world `{}`", base.name))?;
-    let controller = controller_name(settings.controller);
+    let controller = settings.controller.name();
     let plan = ScenarioPlan::new(settings.budget, !base.file.attacks.is_empty())?;
     let pool = worker_pool(settings.jobs)?;
     let bar = progress_bar(plan.budget as u64, &base.name, settings.progress);

@@ -3,8 +3,8 @@
 
 use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
-use ftcbf_sim::runner::{run, RunOptions};
-use ftcbf_sim::world::{ControllerKindSpec, World};
+use ftcbf_sim::runner::{run, CompiledWorld, RunOptions};
+use ftcbf_sim::world::ControllerKindSpec;
 use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -866,9 +866,9 @@ impl Search<'_> {
         seeds: &[u64],
     ) -> anyhow::Result<Vec<Evaluation>> {
         let hidden = ProgressBar::hidden();
-        let worlds: Vec<World> = run_parallel(self.pool, &candidates, &hidden, |c| {
+        let worlds: Vec<CompiledWorld> = run_parallel(self.pool, &candidates, &hidden, |c| {
             self.template
-                .world_with(&self.space.decode(c))
+                .compiled_with(&self.space.decode(c))
                 .with_context(|| self.space.describe(c))
         })?;
         let tasks: Vec<(usize, u64)> = (0..candidates.len())
@@ -886,7 +886,7 @@ impl Search<'_> {
                     self.space.describe(&candidates[i])
                 )
             })?;
-            let robustness = Robustness::of(&worlds[i], &s)
+            let robustness = Robustness::of(worlds[i].world(), &s)
                 .ok_or_else(|| anyhow!("the world has no safe set and no obstacle"))?;
             Ok(SeedRun { seed, robustness })
         })?;

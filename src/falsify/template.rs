@@ -6,6 +6,7 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
+use ftcbf_sim::runner::CompiledWorld;
 use ftcbf_sim::world::World;
 use toml_edit::{ArrayOfTables, DocumentMut, Item, Table};
 
@@ -17,6 +18,8 @@ pub struct WorldTemplate {
     doc: DocumentMut,
     /// The world as loaded, with its own attacks.
     pub world: World,
+    /// The same world compiled once: every candidate attack shares its controller setup.
+    compiled: CompiledWorld,
 }
 
 /// What the written replay world says about itself.
@@ -42,10 +45,13 @@ impl WorldTemplate {
         let doc: DocumentMut = text
             .parse()
             .with_context(|| format!("{}: not a TOML document", path.display()))?;
+        let compiled = CompiledWorld::new(world.with_file(world.file.clone())?)
+            .with_context(|| format!("{}: the controller setup", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             doc,
             world,
+            compiled,
         })
     }
 
@@ -71,6 +77,14 @@ impl WorldTemplate {
     /// read again; the written world's replay check confirms it is the same world).
     pub fn world_with(&self, attacks: &[AttackSpec]) -> anyhow::Result<World> {
         self.variant_with(&self.world, attacks)
+    }
+
+    /// [`WorldTemplate::world_with`], compiled: the world's controller setup (γ, θ, η,
+    /// barriers, CLF, planned path) is shared, not computed again for the candidate.
+    pub fn compiled_with(&self, attacks: &[AttackSpec]) -> anyhow::Result<CompiledWorld> {
+        self.compiled
+            .with_attacks(attacks)
+            .with_context(|| format!("{}: the world with a candidate attack", self.path.display()))
     }
 
     /// `base` (this world or a variant of it, see [`World::with_file`]) with `attacks` in place

@@ -17,11 +17,13 @@
 //! [`Frame`] to an [`Observer`] (the recorder).
 //!
 //! ```no_run
-//! use ftcbf_sim::runner::{RunOptions, Simulation};
+//! use ftcbf_sim::runner::{CompiledWorld, RunOptions, Simulation};
 //! use ftcbf_sim::world::World;
 //!
 //! let world = World::load(std::path::Path::new("worlds/paper_linear.toml"), &[])?;
-//! let mut sim = Simulation::new(&world, &RunOptions::default())?;
+//! // Compile it once (γ, θ, η, barriers, CLF, planned path); runs borrow the result.
+//! let compiled = CompiledWorld::new(world)?;
+//! let mut sim = Simulation::new(&compiled, &RunOptions::default())?;
 //! while let Some(frame) = sim.step() {
 //!     if !frame.events.is_empty() {
 //!         println!("t = {:.2} s: {:?}", frame.t, frame.events);
@@ -31,6 +33,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod compiled;
 mod errors;
 pub mod identify;
 mod monitor;
@@ -45,6 +48,7 @@ use ftcbf_controller::estimator::FilterRole;
 use ftcbf_controller::interface::{ControlLaw, Readings};
 use ftcbf_controller::policy::{QpOutcome, SafeAction, Stage};
 use ftcbf_controller::Input;
+use std::borrow::Cow;
 
 use crate::attacks::AttackStack;
 use crate::observe::{Frame, Observer, Scene};
@@ -59,6 +63,8 @@ use view::StepView;
 pub use plant::Plant;
 pub use scene::build_scene;
 use setup::ControlSetup;
+
+pub use compiled::{setups_computed, CompiledWorld, Source};
 
 /// Per-run choices that override the world file.
 #[derive(Debug, Clone, Default)]
@@ -110,12 +116,12 @@ impl RunError {
 /// Builds everything a run of `world` with its own controller builds at its start (controller
 /// setup, sensors, attacks, the control law, the plant) and drops it: `Ok` exactly when
 /// [`run`] would start. `ftcbf check` calls it so that it refuses what `run` refuses.
-pub fn preflight(world: &World) -> Result<(), RunError> {
+pub fn preflight<'w>(world: impl Into<Source<'w>>) -> Result<(), RunError> {
     Simulation::new(world, &RunOptions::default()).map(drop)
 }
 
-/// Runs `world` headlessly and returns its summary.
-pub fn run(world: &World, opts: &RunOptions) -> Result<RunSummary, RunError> {
+/// Runs `world` (a [`World`] or a [`CompiledWorld`]) headlessly and returns its summary.
+pub fn run<'w>(world: impl Into<Source<'w>>, opts: &RunOptions) -> Result<RunSummary, RunError> {
     let mut sim = Simulation::new(world, opts)?;
     sim.run_to_end();
     Ok(sim.summary())
@@ -123,8 +129,8 @@ pub fn run(world: &World, opts: &RunOptions) -> Result<RunSummary, RunError> {
 
 /// Runs `world`, showing the scene and then every control step to `observer` (the recorder, a
 /// test).
-pub fn run_observed(
-    world: &World,
+pub fn run_observed<'w>(
+    world: impl Into<Source<'w>>,
     opts: &RunOptions,
     observer: Option<&mut dyn Observer>,
 ) -> Result<RunSummary, RunError> {
@@ -178,7 +184,7 @@ pub struct Simulation<'w> {
     control_dt: f64,
     n_steps: u64,
     k: u64,
-    setup: ControlSetup,
+    setup: Cow<'w, ControlSetup>,
     suite: SensorSuite,
     attacks: AttackStack,
     law: Box<dyn ControlLaw>,
@@ -204,8 +210,10 @@ pub struct Simulation<'w> {
 }
 
 impl<'w> Simulation<'w> {
-    /// A run of `world` with the controller the options (or the world file) name.
-    pub fn new(world: &'w World, opts: &RunOptions) -> Result<Self, RunError> {
+    /// A run of `world` with the controller the options (or the world file) name. Given a
+    /// [`CompiledWorld`], the run borrows its controller setup; given a [`World`], it computes
+    /// one for itself.
+    pub fn new(world: impl Into<Source<'w>>, opts: &RunOptions) -> Result<Self, RunError> {
         Self::with_law(world, opts, |config| {
             Controller::new(config.clone())
                 .map(|c| Box::new(c) as Box<dyn ControlLaw>)
@@ -217,10 +225,12 @@ impl<'w> Simulation<'w> {
     /// world implies (linear model and its channels, barriers, goal, input limit). The
     /// configuration is that of `opts.controller` or the world's controller kind.
     pub fn with_law(
-        world: &'w World,
+        world: impl Into<Source<'w>>,
         opts: &RunOptions,
         make: impl FnOnce(&ControllerConfig) -> Result<Box<dyn ControlLaw>, String>,
     ) -> Result<Self, RunError> {
+        let source = world.into();
+        let world = source.world();
         let file = &world.file;
         let seed = opts.seed.unwrap_or(file.seed);
         let kind = opts.controller.unwrap_or(file.control.controller);
@@ -257,7 +267,7 @@ impl<'w> Simulation<'w> {
             message,
         };
         let control_dt = world.control_dt();
-        let setup = ControlSetup::new(world, kind)?;
+        let setup = source.setup(kind)?;
         let mut suite = SensorSuite::new(&file.sensors, control_dt, seed)
             .map_err(|e| start_err("sensors", e.to_string()))?;
         let attacks = AttackStack::new(&file.attacks, &suite, seed)
@@ -276,7 +286,7 @@ impl<'w> Simulation<'w> {
         world: &'w World,
         seed: u64,
         duration: f64,
-        setup: ControlSetup,
+        setup: Cow<'w, ControlSetup>,
         suite: SensorSuite,
         attacks: AttackStack,
         law: Box<dyn ControlLaw>,

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::HalfPlane;
-use ftcbf_controller::controller::{ControllerConfig, ControllerKind};
+use ftcbf_controller::controller::ControllerConfig;
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::odometry;
@@ -29,25 +29,9 @@ pub const MIN_VARIANCE: f64 = 1e-8;
 /// Readings larger than this are rejected by the controller as absurd [m or m/s].
 pub const MAX_ABS_READING: f64 = 1e6;
 
-/// The controller kind for a world-file name.
-pub fn controller_kind(spec: ControllerKindSpec) -> ControllerKind {
-    match spec {
-        ControllerKindSpec::FtCbfClf => ControllerKind::FtCbfClf,
-        ControllerKindSpec::Baseline => ControllerKind::Baseline,
-        ControllerKindSpec::Nominal => ControllerKind::Nominal,
-    }
-}
-
-/// The world-file name of a controller kind.
-pub fn controller_name(spec: ControllerKindSpec) -> &'static str {
-    match spec {
-        ControllerKindSpec::FtCbfClf => "ft-cbf-clf",
-        ControllerKindSpec::Baseline => "baseline",
-        ControllerKindSpec::Nominal => "nominal",
-    }
-}
-
-/// Everything the runner derives once per run for the controller.
+/// Everything a run derives from its world for the controller (computed once per world by
+/// [`CompiledWorld`](super::CompiledWorld)).
+#[derive(Clone)]
 pub struct ControlSetup {
     /// The configuration handed to `Controller::new`.
     pub config: ControllerConfig,
@@ -560,6 +544,7 @@ pub fn check_structure(world: &World) -> Result<(), RunError> {
 impl ControlSetup {
     /// Builds the controller configuration for `world` run with `kind`.
     pub fn new(world: &World, kind: ControllerKindSpec) -> Result<Self, RunError> {
+        super::compiled::SETUPS_COMPUTED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let file = &world.file;
         let ch = Channels::of(world)?;
         let patterns = model_patterns(world, &ch.channels_of_sensor)?;
@@ -597,7 +582,7 @@ impl ControlSetup {
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
         let clf = clf_config(world, &model, goal)?;
         let config = ControllerConfig {
-            kind: controller_kind(kind),
+            kind: kind.into(),
             model,
             fault_patterns: patterns,
             barriers,

@@ -214,6 +214,55 @@ pub enum ControllerKindSpec {
     Nominal,
 }
 
+impl ControllerKindSpec {
+    /// Every built-in controller, in the order the CLI lists them.
+    pub const ALL: [Self; 3] = [Self::FtCbfClf, Self::Baseline, Self::Nominal];
+    /// Their names, as world files, the CLI, summaries and batch files write them (in the
+    /// order of [`ControllerKindSpec::ALL`]).
+    pub const NAMES: [&'static str; 3] = ["ft-cbf-clf", "baseline", "nominal"];
+
+    /// The name (`ft-cbf-clf`, `baseline`, `nominal`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::FtCbfClf => Self::NAMES[0],
+            Self::Baseline => Self::NAMES[1],
+            Self::Nominal => Self::NAMES[2],
+        }
+    }
+}
+
+impl std::fmt::Display for ControllerKindSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A controller name that is none of [`ControllerKindSpec::NAMES`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown controller `{0}` (expected ft-cbf-clf, baseline or nominal)")]
+pub struct UnknownController(pub String);
+
+impl std::str::FromStr for ControllerKindSpec {
+    type Err = UnknownController;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| UnknownController(s.to_string()))
+    }
+}
+
+impl From<ControllerKindSpec> for ftcbf_controller::controller::ControllerKind {
+    fn from(k: ControllerKindSpec) -> Self {
+        match k {
+            ControllerKindSpec::FtCbfClf => Self::FtCbfClf,
+            ControllerKindSpec::Baseline => Self::Baseline,
+            ControllerKindSpec::Nominal => Self::Nominal,
+        }
+    }
+}
+
 /// A parameter given as a number or computed (`"auto"`, from ε and the noise model, §4.3).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Param {
@@ -643,6 +692,32 @@ impl SafeSetSpec {
             SafeSetSpec::HalfPlane { name, .. }
             | SafeSetSpec::EllipseInside { name, .. }
             | SafeSetSpec::EllipseOutside { name, .. } => name,
+        }
+    }
+}
+
+#[cfg(test)]
+mod controller_kind_tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_back_and_others_are_refused() {
+        for k in ControllerKindSpec::ALL {
+            assert_eq!(k.to_string().parse::<ControllerKindSpec>(), Ok(k));
+        }
+        let e = "pid".parse::<ControllerKindSpec>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown controller `pid` (expected ft-cbf-clf, baseline or nominal)"
+        );
+        // The world file's spelling is the same name.
+        #[derive(Deserialize)]
+        struct C {
+            controller: ControllerKindSpec,
+        }
+        for k in ControllerKindSpec::ALL {
+            let c: C = toml::from_str(&format!("controller = \"{k}\"")).expect("parses");
+            assert_eq!(c.controller, k);
         }
     }
 }
