@@ -729,7 +729,10 @@ impl Controller {
                 _ => (self.bank.baseline_index(), Some(self.gamma_baseline)),
             };
             match (filters.get(fi), gamma) {
-                (Some(f), Some(g)) => !(spread(f) <= g * g),
+                (Some(f), Some(g)) => {
+                    let v = spread(f);
+                    v.is_nan() || v > g * g
+                }
                 _ => true,
             }
         };
