@@ -151,7 +151,7 @@ pub struct LivenessCase {
     /// that Step 2 cannot isolate over the run's last [`SETTLE_WINDOW`] (so Step 3's ranking
     /// may pick it for u_nom), when it exceeds the goal's radius, with the θ \[m\] it stays
     /// under (`+∞` for the baseline, which has no Step 2). Judged where the offsets are computed
-    /// exactly ([`Model::responses`]), not from the declared reach's bound.
+    /// exactly (the filters' linear response), not from the declared reach's bound.
     pub misled: Option<(f64, f64)>,
     /// Path points where the rows of every unit together admit no input, but those of the
     /// units the attack does not move do: the robot passes only if Step 3 drops the spoofed
