@@ -729,10 +729,8 @@ impl Controller {
                 _ => (self.bank.baseline_index(), Some(self.gamma_baseline)),
             };
             match (filters.get(fi), gamma) {
-                (Some(f), Some(g)) => {
-                    let v = spread(f);
-                    v.is_nan() || v > g * g
-                }
+                // `spread` maps a non-finite variance to +∞, so this is never a NaN comparison.
+                (Some(f), Some(g)) => spread(f) > g * g,
                 _ => true,
             }
         };

@@ -653,11 +653,8 @@ impl<'a> Model<'a> {
         for a in &f.attacks {
             for c in &a.channels {
                 let s = f.sensors.iter().find(|s| &s.name == c)?;
-                let direct = matches!(
-                    s.measures,
-                    Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy
-                );
-                if !(direct || (s.measures == Quantity::Speed && s.world_velocity)) {
+                if !(direct_fix(s.measures) || (s.measures == Quantity::Speed && s.world_velocity))
+                {
                     return None;
                 }
             }
@@ -734,7 +731,10 @@ impl<'a> Model<'a> {
                 let hits: Vec<_> = f
                     .attacks
                     .iter()
-                    .filter_map(|a| Some((a, a.channels.iter().position(|c| c == &s.name)?)))
+                    .enumerate()
+                    .filter_map(|(ai, a)| {
+                        Some((ai, a, a.channels.iter().position(|c| c == &s.name)?))
+                    })
                     .collect();
                 (s, hits)
             })
@@ -756,19 +756,9 @@ impl<'a> Model<'a> {
                     }
                 };
                 let mut off = 0.0;
-                for &(a, j) in hits {
-                    let ai = f
-                        .attacks
-                        .iter()
-                        .position(|b| std::ptr::eq(a, b))
-                        .unwrap_or(0);
+                for &(ai, a, j) in hits {
                     off += match (&a.kind, &detector) {
-                        (AttackKind::Stealthy { .. }, Some((_, sd)))
-                            if matches!(
-                                s.measures,
-                                Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy
-                            ) =>
-                        {
+                        (AttackKind::Stealthy { .. }, Some((_, sd))) if direct_fix(s.measures) => {
                             let nu =
                                 sd[ch] * Distribution::<f64>::sample(&StandardNormal, &mut rng);
                             let moved = (cfg.model.c[ch] * all_prior)[0];
@@ -1086,6 +1076,11 @@ impl Model<'_> {
             .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
             .sum()
     }
+}
+
+/// A position or velocity fix the filters read directly (no conversion).
+fn direct_fix(q: Quantity) -> bool {
+    matches!(q, Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy)
 }
 
 /// The declared attack's pattern (the one containing every attacked channel), if any.
