@@ -50,9 +50,9 @@ use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
-    channel_mask, ellipse_prop1, heading_fusion, heading_sensor, initial_covariance, process_model,
-    process_noise, rest_hold, sensor_dependents, speed_bound, ControlSetup, Conversion,
-    NoiseSource, MIN_VARIANCE,
+    channel_mask, ellipse_prop1, heading_fusion, heading_hold, heading_sensor, initial_covariance,
+    process_model, process_noise, rest_hold, sensor_dependents, speed_bound, turn_rate_bound,
+    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
 };
 use crate::runner::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
@@ -1036,6 +1036,23 @@ fn check_white_noise(world: &World, setup: &ControlSetup, found: &mut Findings) 
             }
         })
         .collect();
+    let stale = heading_hold(world)
+        .filter(|h| h.age > 0.0 && feeding.contains(&h.sensor))
+        .map(|h| {
+            let s = &sensors[h.sensor];
+            let omega_max = turn_rate_bound(world).unwrap_or(f64::INFINITY);
+            let held = if h.age.is_finite() {
+                format!("up to {:.3} s", h.age)
+            } else {
+                "for the whole run (no finite gap fits the budget)".to_string()
+            };
+            format!(
+                "\"{}\" (no gyro fused) is held {held} between fresh samples: the world velocity made with it errs by up to v_max·ω_max·age = {:.4} m/s while the robot turns, an error that follows the turn, not white noise (its bound is in the conversion's variance); fuse a gyro (`gyro = \"…\"` on the heading channel) or read the heading every control step",
+                s.name,
+                v_max * omega_max * h.age
+            )
+        });
+    let biased: Vec<String> = biased.into_iter().chain(stale).collect();
     let name = "white, unbiased noise on every filter channel (γ, θ, η model no bias)".to_string();
     if biased.is_empty() {
         found.record(
