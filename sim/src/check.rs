@@ -1866,6 +1866,15 @@ impl fmt::Display for Suggestion {
                 "suggest: nothing to change: Theorem 3 applies and the path is live"
             );
         }
+        if self.changes.is_empty() && self.tried == 0 {
+            return write!(
+                f,
+                "suggest: nothing to try: control.cbf_gain is already at its ceiling (1/(2·dt)) and control.input_limit at or above {} m/s², and no other [control] key is searched, so what fails below needs a change to the world itself (its sensors, fault patterns, obstacles or path); as written:\n  {}\n  liveness: {}",
+                liveness::LIMIT_CANDIDATES[liveness::LIMIT_CANDIDATES.len() - 1],
+                self.verdict,
+                self.liveness
+            );
+        }
         if self.changes.is_empty() {
             return write!(
                 f,
@@ -1978,6 +1987,22 @@ pub fn suggest(world: &World) -> Result<Suggestion, RunError> {
 #[cfg(test)]
 mod non_finite_tests {
     use super::*;
+
+    #[test]
+    fn a_suggestion_with_nothing_to_try_says_so_instead_of_counting_zero_worlds() {
+        let none = Suggestion {
+            changes: Vec::new(),
+            already: false,
+            verdict: "verdict: Theorem 3 does NOT apply: …".into(),
+            liveness: "live".into(),
+            tried: 0,
+        };
+        let text = none.to_string();
+        assert!(text.starts_with("suggest: nothing to try"), "{text}");
+        assert!(!text.contains("0 worlds checked"), "{text}");
+        let searched = Suggestion { tried: 7, ..none };
+        assert!(searched.to_string().contains("(7 worlds checked)"));
+    }
 
     #[test]
     fn a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply() {
