@@ -273,7 +273,7 @@ impl KalmanFilter {
 
     /// Time update over one period with input `u` held.
     pub fn predict(&mut self, d: &Discretization, u: &Input) {
-        self.x = d.phi * self.x + d.gamma * u;
+        self.x = d.phi * self.x + d.input_map * u;
         let p = d.phi * self.p * d.phi.transpose() + d.qd;
         self.p = (p + p.transpose()) * 0.5;
         self.x_prior = self.x;
@@ -506,7 +506,7 @@ impl EstimatorBank {
         let r = self.model.r[channel];
         let (x, p) = match &self.disc {
             Some(d) => (
-                d.phi * f.x + d.gamma * self.last_u,
+                d.phi * f.x + d.input_map * self.last_u,
                 d.phi * f.p * d.phi.transpose() + d.qd,
             ),
             None => (f.x, f.p),
@@ -587,7 +587,7 @@ mod tests {
         bank.set_last_input(u);
         let d = model.discretize(0.02);
         let f = bank.single(1);
-        let x = d.phi * f.estimate() + d.gamma * u;
+        let x = d.phi * f.estimate() + d.input_map * u;
         let p = d.phi * f.covariance() * d.phi.transpose() + d.qd;
         let (mean, std) = bank.predicted_measurement(1, 3).unwrap();
         assert!((mean - x[1]).abs() < 1e-15);

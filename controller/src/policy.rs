@@ -390,7 +390,7 @@ impl PolicyProblem {
             h_hat: 0.0,
         };
         let zero_clf = ClfRow {
-            gamma_row: Input::zeros(),
+            lg_v: Input::zeros(),
             tau_bar: 0.0,
             v: 0.0,
         };

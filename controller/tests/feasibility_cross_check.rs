@@ -347,7 +347,7 @@ fn random_policy_problem(rng: &mut ChaCha8Rng) -> (PolicyProblem, Option<Input>)
         let t: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         let mag = rng.random_range(0.1..1e3);
         p.clf[i] = ClfRow {
-            gamma_row: Input::new(t.cos(), t.sin()) * mag,
+            lg_v: Input::new(t.cos(), t.sin()) * mag,
             tau_bar: rng.random_range(-2.0..1.0) * mag,
             v: 1.0,
         };

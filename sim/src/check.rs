@@ -44,7 +44,8 @@
 use std::fmt;
 
 use ftcbf_controller::params::{
-    check_lemma1, check_theorem5, detectability, steady_state_gain_product, Detectability,
+    check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
+    Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
@@ -639,9 +640,9 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     }
     context.push(format!(
         "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}{}",
-        fmt_list(&p.gamma),
-        p.gamma_baseline,
-        fmt_list(&p.theta),
+        fmt_list(&p.ft.gamma),
+        p.ft.gamma_baseline,
+        fmt_list(&p.ft.theta),
         p.delta,
         if p.delta_auto {
             " (auto: half the largest δ Prop. 1 allows for the arena)"
@@ -651,12 +652,12 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     ));
     context.push(format!("CBF gain: {}", setup.gain));
     for b in &setup.config.barriers {
-        let hb: Vec<f64> = p.gamma.iter().map(|g| b.h_bar(*g)).collect();
+        let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
             "h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
             b.name(),
             fmt_list(&hb),
-            b.h_bar(p.gamma_baseline)
+            b.h_bar(p.ft.gamma_baseline)
         ));
     }
 }
@@ -832,18 +833,11 @@ fn check_filters(
         }
     }
     let mut filters = Vec::new();
-    let mut pair_index = 0;
     for d in &drops {
-        let gamma = setup.params.computed.as_ref().map(|c| {
-            if d.len() == 1 {
-                c.gamma[d[0]]
-            } else {
-                c.gamma_pair[pair_index]
-            }
+        let gamma = setup.params.computed.as_ref().map(|c| match d[..] {
+            [i, j] => pair_slot(m, i, j).map_or(f64::NAN, |k| c.gamma_pair[k]),
+            _ => c.ft.gamma[d[0]],
         });
-        if d.len() == 2 {
-            pair_index += 1;
-        }
         filters.push(check_filter(world, setup, names, d, gamma, found));
     }
     filters
@@ -1117,15 +1111,15 @@ fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, foun
 fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
     let horizon = world.file.duration;
-    let finite =
-        p.gamma.iter().chain(&p.theta).all(|v| v.is_finite()) && p.gamma_baseline.is_finite();
+    let finite = p.ft.gamma.iter().chain(&p.ft.theta).all(|v| v.is_finite())
+        && p.ft.gamma_baseline.is_finite();
     found.hypotheses.push(Hypothesis {
         name: "finite γ_i and θ_ij".into(),
         status: if finite { Status::Holds } else { Status::Fails },
         detail: format!(
             "γ_i = [{}], θ_ij = [{}]{}",
-            fmt_list(&p.gamma),
-            fmt_list(&p.theta),
+            fmt_list(&p.ft.gamma),
+            fmt_list(&p.ft.theta),
             match &p.computed {
                 Some(c) => format!(
                     ", per-sample ε' = {:.3e} (union bound over the {} samples of the run and each sample's events)",
@@ -1192,7 +1186,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p0 = initial_covariance(world);
     let mut worst: Option<(String, f64, f64)> = None;
     // The filters Theorem 3's (4.5) is about: x̂_i, each without one fault pattern.
-    let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.gamma[i]));
+    let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.ft.gamma[i]));
     for (label, drop, gamma) in singles {
         let uses = channel_mask(q, patterns, &drop);
         let phases = setup.params.timing.schedule.phases(&uses);
@@ -1230,7 +1224,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
 /// 5. Condition 1 of Theorem 3 for every safe set (decided) and obstacle (assumed).
 fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
-    let theta_bar = p.theta.iter().copied().fold(0.0, f64::max);
+    let theta_bar = p.ft.theta.iter().copied().fold(0.0, f64::max);
     for s in &world.file.safe_sets {
         match s {
             SafeSetSpec::HalfPlane { name, a, .. } => {
@@ -1408,7 +1402,7 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                     world,
                     &setup.config.model,
                     &setup.config.fault_patterns,
-                    setup.params.gamma[i],
+                    setup.params.ft.gamma[i],
                     i,
                     &*setup.config.barriers[bi],
                     &av,
@@ -1677,7 +1671,7 @@ fn single_filter_gains(
             let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
             (
                 fc.label.clone(),
-                setup.params.gamma[i],
+                setup.params.ft.gamma[i],
                 steady_state_gain_product(model, &mask, dt),
             )
         })
