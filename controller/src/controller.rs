@@ -13,7 +13,7 @@ use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
 use crate::nominal::{PathTracker, TrackerConfig, TrackerError};
-use crate::params::{FtParams, STEP2_WINDOW};
+use crate::params::{FtParams, PairTable, STEP2_WINDOW};
 use crate::policy::{decide, prepare, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
 use crate::qp::QpSolver;
 use crate::types::{Input, State, StateMatrix};
@@ -520,19 +520,15 @@ fn initial_problem(
     problem.delta = cfg.delta;
     problem.v_bar = cfg.clf.v_bar;
     let ft = &cfg.ft;
-    for i in 0..units {
-        for j in 0..units {
-            if i == j {
-                continue;
-            }
-            let k = i * units + j;
-            problem.theta[k] = FtParams::per_pair(&ft.theta, m, i, j).unwrap_or(f64::NAN);
-            problem.theta_increment[k] =
-                FtParams::per_pair(&ft.eta, m, i, j).unwrap_or(f64::INFINITY);
-            problem.increment_metric[k] = FtParams::per_pair(&ft.increment_metric, m, i, j)
-                .unwrap_or_else(StateMatrix::identity);
-        }
-    }
+    problem.theta = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.theta, m, i, j).unwrap_or(f64::NAN)
+    });
+    problem.eta = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.eta, m, i, j).unwrap_or(f64::INFINITY)
+    });
+    problem.increment_metric = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.increment_metric, m, i, j).unwrap_or_else(StateMatrix::identity)
+    });
     problem
 }
 
@@ -914,9 +910,9 @@ impl Controller {
         }
         if self.kind == ControllerKind::FtCbfClf {
             for i in 0..m {
-                for j in 0..m {
+                for j in (i + 1)..m {
                     if let Some(p) = self.bank.pair(i, j) {
-                        self.problem.pair_estimates[i * m + j] = *p.estimate();
+                        self.problem.pair_estimates[(i, j)] = *p.estimate();
                     }
                 }
             }
@@ -924,14 +920,10 @@ impl Controller {
                 self.update_increments(m);
             }
             if let Some(sched) = &self.ft.theta_schedule {
-                let mut pair = 0;
-                for i in 0..m {
-                    for j in (i + 1)..m {
-                        if let Some(t) = sched.at(pair, self.elapsed) {
-                            self.problem.theta[i * m + j] = t;
-                            self.problem.theta[j * m + i] = t;
-                        }
-                        pair += 1;
+                // θ_ij(t) rows are in the packed pair order the table stores.
+                for (k, theta) in self.problem.theta.values_mut().iter_mut().enumerate() {
+                    if let Some(t) = sched.at(k, self.elapsed) {
+                        *theta = t;
                     }
                 }
             }
@@ -949,7 +941,7 @@ impl Controller {
                     continue;
                 }
                 let k = a * m + j;
-                let s = self.problem.estimates[a] - self.problem.pair_estimates[a * m + j];
+                let s = self.problem.estimates[a] - self.problem.pair_estimates[(a, j)];
                 self.problem.separation_increment[k] = s - h.get(reference, k);
                 h.store(k, s);
             }

@@ -685,6 +685,11 @@ impl<T> PairTable<T> {
     pub fn as_slice(&self) -> &[T] {
         &self.values
     }
+
+    /// The values in packed order, mutably.
+    pub fn values_mut(&mut self) -> &mut [T] {
+        &mut self.values
+    }
 }
 
 impl<T> std::ops::Index<(usize, usize)> for PairTable<T> {

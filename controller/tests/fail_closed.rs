@@ -37,8 +37,8 @@ fn step2_never_drops_the_last_unit_with_cbf_rows() {
         State::new(0.0, 1.0, 0.0, 0.0),
         State::new(0.0, -1.0, 0.0, 0.0),
     ];
-    p.pair_estimates = vec![State::new(5.0, 0.0, 0.0, 0.0); 4]; // drifted far from both
-    p.theta = vec![f64::INFINITY, 0.1, 0.1, f64::INFINITY];
+    p.pair_estimates[(0, 1)] = State::new(5.0, 0.0, 0.0, 0.0); // drifted far from both
+    p.theta[(0, 1)] = 0.1;
     p.residue_key = vec![2.0, 0.5]; // Step 3 would keep unit 1
     let (u, o, rec) = run(&p, None);
     assert!(
@@ -83,7 +83,7 @@ fn step2_never_drops_the_last_unit_with_cbf_rows() {
     assert_eq!(rec.step2_retained.map(|r| r.unit), Some(0));
     assert!((u - Input::new(0.0, 1.0)).norm() < 1e-6, "{u}");
     // when the pair test leaves one unit, nothing is retained
-    p.pair_estimates = vec![State::new(0.0, -0.99, 0.0, 0.0); 4];
+    p.pair_estimates[(0, 1)] = State::new(0.0, -0.99, 0.0, 0.0);
     let (_, _, rec) = run(&p, None);
     assert_eq!(rec.step2_retained, None);
 }

@@ -22,7 +22,7 @@ use common::{cbf, run, verdict};
 /// Two units, one barrier, no CLF unless set; θ finite on the pair (10), ∞ on the diagonal.
 fn two_units(rows: [CbfRow; 2]) -> PolicyProblem {
     let mut p = common::two_units(rows);
-    p.theta = vec![f64::INFINITY, 10.0, 10.0, f64::INFINITY];
+    p.theta[(0, 1)] = 10.0;
     p
 }
 
@@ -58,8 +58,8 @@ fn step2_drops_the_filter_far_from_the_pair_estimate() {
     let mut p = two_units([cbf(0.0, 1.0, 1.0), cbf(0.0, -1.0, 1.0)]);
     p.estimates = vec![State::new(0.0, 1.0, 0.0, 0.0), State::zeros()];
     let pair = State::new(0.0, 0.01, 0.0, 0.0);
-    p.pair_estimates = vec![pair; 4];
-    p.theta = vec![f64::INFINITY, 0.1, 0.1, f64::INFINITY];
+    p.pair_estimates[(0, 1)] = pair;
+    p.theta[(0, 1)] = 0.1;
     p.residue_key = vec![0.0, 100.0]; // Step 3 would drop unit 1: Step 2 must decide first
     let (u, o, rec) = run(&p, None);
     assert!(
