@@ -43,6 +43,7 @@
 
 use std::fmt;
 
+use ftcbf_controller::conditions::{condition_4_4, Condition44Verdict};
 use ftcbf_controller::params::{
     check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
     Detectability,
@@ -330,6 +331,31 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
 /// Check a compiled world (see the module docs), reusing its controller setup.
 pub fn check_compiled(compiled: &CompiledWorld) -> CheckReport {
     check_setup(compiled.world(), compiled.setup())
+}
+
+/// Condition (4.4) decided exactly on every barrier that runs, at the start estimate x̂(0):
+/// (barrier name, verdict) in the setup's barrier order.
+pub fn condition_4_4_at_start(setup: &ControlSetup) -> Vec<(&str, Condition44Verdict)> {
+    let start = [setup.config.x0];
+    setup
+        .config
+        .barriers
+        .iter()
+        .zip(&setup.barrier_names)
+        .map(|(b, name)| {
+            let verdict = condition_4_4(b.as_ref(), &setup.config.model.g, &start);
+            (name.as_str(), verdict)
+        })
+        .collect()
+}
+
+/// The lines `ftcbf check` prints for [`condition_4_4_at_start`], grouped by barrier
+/// ([`group_by_barrier`]).
+pub fn condition_4_4_lines(setup: &ControlSetup) -> Vec<String> {
+    let lines = condition_4_4_at_start(setup)
+        .into_iter()
+        .map(|(name, v)| format!("(4.4) for {name} at the start estimate: {v}"));
+    group_by_barrier(lines, &setup.barrier_names)
 }
 
 fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
