@@ -1,8 +1,9 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
 use ftcbf::runner::prepare_batch;
-use ftcbf::{batch, falsify, regress, report};
+use ftcbf::{batch, regress, report};
 mod cli;
+mod falsify_cmd;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -126,8 +127,8 @@ fn dispatch(command: Command) -> Result<(), Failure> {
             })
         }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
-        Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
-            code: if e.is::<falsify::UsageError>() {
+        Command::Falsify(a) => falsify_cmd::falsify_command(&a).map_err(|e| Failure {
+            code: if e.is::<falsify_cmd::UsageError>() {
                 EXIT_USAGE
             } else {
                 code_of(&e)
