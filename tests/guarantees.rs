@@ -458,10 +458,13 @@ fn gyro_fusion_shrinks_the_odometry_variance() {
         &World::from_str(&text, &p, &[]).expect("world"),
         "wheel_speed",
     );
-    // The compass's 0.02 rad bias is unobservable to both: it enters as b_θ².
+    // The compass's 0.02 rad bias is unobservable to both: it enters as b_θ². Alone, the 10 Hz
+    // compass's sample is also up to 4 ticks (0.08 s) old while the burger turns at up to
+    // 2.75 rad/s: (ω_max·age)² more (issue #30 item 4).
     let bias = 0.02f64.powi(2);
+    let stale = (2.75f64 * 0.08).powi(2);
     assert!(
-        (alone - (1e-4 + 0.22f64.powi(2) * (0.01 + bias))).abs() < 1e-9,
+        (alone - (1e-4 + 0.22f64.powi(2) * (0.01 + bias + stale))).abs() < 1e-9,
         "{alone}"
     );
     assert!(
@@ -656,6 +659,69 @@ fn a_compass_bias_is_named_with_its_dead_reckoning_drift() {
     );
     assert!(h.detail.contains("v_max·b_θ = 0.0044 m/s"), "{}", h.detail);
     assert!(h.detail.contains("0.088 m over 20 s"), "{}", h.detail);
+}
+
+/// Issue #30 item 4: a slow compass without a gyro fused into it leaves the odometry's world
+/// velocity turned with a heading up to (every − 1)·dt old, while the robot turns at up to ω_max.
+/// `tests/worlds_check/slow_compass.toml` (2 Hz compass, 50 Hz control: held up to 0.48 s; burger
+/// v_max 0.22 m/s, ω_max 2.75 rad/s): before, R took only the compass's noise and `check` said
+/// "applies" (batch, 200 trials: 184 safe, the honest filter over γ in 184). Now the conversion's
+/// variance carries (ω_max·age)², and the white-noise hypothesis fails, naming the compass.
+#[test]
+fn a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise() {
+    use ftcbf_sim::runner::setup::{heading_hold, ControlSetup};
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_check/slow_compass.toml");
+    let slow = World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let hold = heading_hold(&slow).expect("odometry is turned with the compass");
+    assert!(!hold.fused);
+    assert_eq!(hold.every, 25, "{hold:?}");
+    assert!((hold.age - 0.48).abs() < 1e-12, "{hold:?}");
+    let r = check_world(&slow).expect("check");
+    assert!(!r.verdict.applies, "{r}");
+    let h = hypothesis(&r, "white, unbiased noise");
+    assert_eq!(h.status, Status::Fails, "{}", h.detail);
+    assert!(
+        h.detail
+            .contains("\"compass\" (no gyro fused) is held up to 0.480 s"),
+        "{}",
+        h.detail
+    );
+    assert!(
+        h.detail.contains("v_max·ω_max·age = 0.2904 m/s"),
+        "{}",
+        h.detail
+    );
+    // R of the converted channels: σ_v² + v_max²·(σ_θ² + (ω_max·age)²), against σ_v² + v_max²·σ_θ²
+    // for the same compass read every tick.
+    let text = std::fs::read_to_string(&p).expect("world");
+    let every_tick = World::from_str(&text.replace("rate_hz = 2.0\n", ""), &p, &[]).expect("world");
+    assert!(heading_hold(&every_tick).expect("converted").age == 0.0);
+    let kind = slow.file.control.controller;
+    let r_of = |w: &World| {
+        let s = ControlSetup::new(w, kind).expect("setup");
+        let c = s
+            .conversion
+            .iter()
+            .position(|c| *c != ftcbf_sim::runner::setup::Conversion::Direct)
+            .expect("a converted channel");
+        s.config.model.r[c]
+    };
+    let (v_max, sv, sth, stale) = (0.22_f64, 0.01_f64, 0.005_f64, 2.75 * 0.48);
+    let expect_slow = sv * sv + v_max * v_max * (sth * sth + stale * stale);
+    let expect_fast = sv * sv + v_max * v_max * sth * sth;
+    assert!(
+        (r_of(&slow) / expect_slow - 1.0).abs() < 1e-3,
+        "{} vs {expect_slow}",
+        r_of(&slow)
+    );
+    assert!(
+        (r_of(&every_tick) / expect_fast - 1.0).abs() < 1e-3,
+        "{} vs {expect_fast}",
+        r_of(&every_tick)
+    );
+    // With the staleness in R the world's run keeps the floor.
+    let s = ftcbf_sim::runner::run(&slow, &RunOptions::default()).expect("runs");
+    assert!(s.safe, "{:?}", s.min_barrier);
 }
 
 /// Issue #30 item 4: γ, θ and η come from the sensors as declared. `corridor_spoof` with

@@ -448,45 +448,80 @@ pub fn validate_attacks(
         .collect()
 }
 
+/// One attack checked: its channels exist, once each (returned as indices), its window is
+/// finite and not empty, and its kind's parameters are in range.
 fn validate_one(
     index: usize,
     spec: &AttackSpec,
     channels: &[ChannelSpec],
 ) -> Result<Vec<usize>, AttackError> {
     let attack = attack_name(index, spec);
-    let invalid =
-        |field: &'static str, value: f64, expected: &'static str| AttackError::InvalidField {
-            attack: attack.clone(),
-            field,
-            value,
-            expected,
-        };
+    let targets = attack_targets(&attack, spec, channels)?;
+    check_window(&attack, spec)?;
+    check_kind(&attack, spec)?;
+    Ok(targets)
+}
+
+/// `attack`'s `field` is `value`, not what was `expected`.
+fn invalid_field(
+    attack: &str,
+    field: &'static str,
+    value: f64,
+    expected: &'static str,
+) -> AttackError {
+    AttackError::InvalidField {
+        attack: attack.to_string(),
+        field,
+        value,
+        expected,
+    }
+}
+
+/// The indices of the channels the attack names: at least one, each known and named once.
+fn attack_targets(
+    attack: &str,
+    spec: &AttackSpec,
+    channels: &[ChannelSpec],
+) -> Result<Vec<usize>, AttackError> {
     if spec.channels.is_empty() {
-        return Err(AttackError::NoChannels { attack });
+        return Err(AttackError::NoChannels {
+            attack: attack.to_string(),
+        });
     }
     let mut targets = Vec::with_capacity(spec.channels.len());
     for name in &spec.channels {
         let Some(i) = channels.iter().position(|c| &c.name == name) else {
             return Err(AttackError::UnknownChannel {
-                attack,
+                attack: attack.to_string(),
                 channel: name.clone(),
                 known: join_names(channels.iter().map(|c| c.name.as_str())),
             });
         };
         if targets.contains(&i) {
             return Err(AttackError::RepeatedChannel {
-                attack,
+                attack: attack.to_string(),
                 channel: name.clone(),
             });
         }
         targets.push(i);
     }
+    Ok(targets)
+}
+
+/// A finite start, and an end (if any) that is finite and after it.
+fn check_window(attack: &str, spec: &AttackSpec) -> Result<(), AttackError> {
     if !spec.start.is_finite() {
-        return Err(invalid("start", spec.start, "a finite time in seconds"));
+        return Err(invalid_field(
+            attack,
+            "start",
+            spec.start,
+            "a finite time in seconds",
+        ));
     }
     if let Some(end) = spec.end {
         if !end.is_finite() {
-            return Err(invalid(
+            return Err(invalid_field(
+                attack,
                 "end",
                 end,
                 "a finite time in seconds (or omit it: forever)",
@@ -494,12 +529,19 @@ fn validate_one(
         }
         if end <= spec.start {
             return Err(AttackError::EmptyWindow {
-                attack,
+                attack: attack.to_string(),
                 start: spec.start,
                 end,
             });
         }
     }
+    Ok(())
+}
+
+/// The kind's parameters in range: finite values, positive caps, lengths and rates, a
+/// probability in [0, 1], a replay recorded before it plays, one velocity per channel.
+fn check_kind(attack: &str, spec: &AttackSpec) -> Result<(), AttackError> {
+    let invalid = |field, value, expected| invalid_field(attack, field, value, expected);
     let finite = |field: &'static str, v: f64| {
         if v.is_finite() {
             Ok(())
@@ -548,7 +590,7 @@ fn validate_one(
             let record_end = record_start + length;
             if record_end > spec.start + WINDOW_EPS {
                 return Err(AttackError::ReplayOverlap {
-                    attack,
+                    attack: attack.to_string(),
                     record_start: *record_start,
                     record_end,
                     start: spec.start,
@@ -592,7 +634,7 @@ fn validate_one(
         AttackKind::Coordinated { velocity, cap } => {
             if velocity.len() != spec.channels.len() {
                 return Err(AttackError::VelocityLength {
-                    attack,
+                    attack: attack.to_string(),
                     got: velocity.len(),
                     expected: spec.channels.len(),
                 });
@@ -603,7 +645,7 @@ fn validate_one(
             positive_cap("cap", *cap)?;
         }
     }
-    Ok(targets)
+    Ok(())
 }
 
 /// How a value-transforming injector changes the readings of one sample.

@@ -52,9 +52,9 @@ use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::liveness::{self, LivenessReport};
 use crate::runner::setup::{
-    channel_mask, ellipse_prop1, heading_fusion, heading_sensor, initial_covariance, process_model,
-    process_noise, rest_hold, sensor_dependents, speed_bound, ControlSetup, Conversion,
-    NoiseSource, MIN_VARIANCE,
+    channel_mask, ellipse_prop1, heading_fusion, heading_hold, heading_sensor, initial_covariance,
+    process_model, process_noise, rest_hold, sensor_dependents, speed_bound, turn_rate_bound,
+    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
 };
 use crate::runner::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
@@ -1056,6 +1056,23 @@ fn check_white_noise(world: &World, setup: &ControlSetup, found: &mut Findings) 
             }
         })
         .collect();
+    let stale = heading_hold(world)
+        .filter(|h| h.age > 0.0 && feeding.contains(&h.sensor))
+        .map(|h| {
+            let s = &sensors[h.sensor];
+            let omega_max = turn_rate_bound(world).unwrap_or(f64::INFINITY);
+            let held = if h.age.is_finite() {
+                format!("up to {:.3} s", h.age)
+            } else {
+                "for the whole run (no finite gap fits the budget)".to_string()
+            };
+            format!(
+                "\"{}\" (no gyro fused) is held {held} between fresh samples: the world velocity made with it errs by up to v_max·ω_max·age = {:.4} m/s while the robot turns, an error that follows the turn, not white noise (its bound is in the conversion's variance); fuse a gyro (`gyro = \"…\"` on the heading channel) or read the heading every control step",
+                s.name,
+                v_max * omega_max * h.age
+            )
+        });
+    let biased: Vec<String> = biased.into_iter().chain(stale).collect();
     let name = "white, unbiased noise on every filter channel (γ, θ, η model no bias)".to_string();
     if biased.is_empty() {
         found.record(
@@ -1869,6 +1886,15 @@ impl fmt::Display for Suggestion {
                 "suggest: nothing to change: Theorem 3 applies and the path is live"
             );
         }
+        if self.changes.is_empty() && self.tried == 0 {
+            return write!(
+                f,
+                "suggest: nothing to try: control.cbf_gain is already at its ceiling (1/(2·dt)) and control.input_limit at or above {} m/s², and no other [control] key is searched, so what fails below needs a change to the world itself (its sensors, fault patterns, obstacles or path); as written:\n  {}\n  liveness: {}",
+                liveness::LIMIT_CANDIDATES[liveness::LIMIT_CANDIDATES.len() - 1],
+                self.verdict,
+                self.liveness
+            );
+        }
         if self.changes.is_empty() {
             return write!(
                 f,
@@ -1981,6 +2007,22 @@ pub fn suggest(world: &World) -> Result<Suggestion, RunError> {
 #[cfg(test)]
 mod non_finite_tests {
     use super::*;
+
+    #[test]
+    fn a_suggestion_with_nothing_to_try_says_so_instead_of_counting_zero_worlds() {
+        let none = Suggestion {
+            changes: Vec::new(),
+            already: false,
+            verdict: "verdict: Theorem 3 does NOT apply: …".into(),
+            liveness: "live".into(),
+            tried: 0,
+        };
+        let text = none.to_string();
+        assert!(text.starts_with("suggest: nothing to try"), "{text}");
+        assert!(!text.contains("0 worlds checked"), "{text}");
+        let searched = Suggestion { tried: 7, ..none };
+        assert!(searched.to_string().contains("(7 worlds checked)"));
+    }
 
     #[test]
     fn a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply() {

@@ -44,9 +44,9 @@ use ftcbf_controller::params::{
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
-use crate::attacks::{open_loop_offset, AttackKind, StealthyPlay};
+use crate::attacks::{open_loop_offset, AttackKind, AttackSpec, StealthyPlay};
 use crate::runner::setup::{channel_mask, initial_covariance, ControlSetup};
-use crate::sensors::Quantity;
+use crate::sensors::{ChannelSpec, Quantity};
 use crate::summary::{RunSummary, SETTLE_WINDOW};
 use crate::world::World;
 use rand::SeedableRng;
@@ -385,6 +385,21 @@ struct Model<'a> {
 }
 
 /// The offsets of every unit's estimate [m], indexed like `Model::units`.
+/// A filter's sequential updates: per used channel, its index, Kalman gain and I − K c.
+type UpdateGains = Vec<(usize, State, StateMatrix)>;
+
+/// A channel's sensor and the attacks on it: (attack index, attack, the channel's place in it).
+type ChannelHits<'a> = (&'a ChannelSpec, Vec<(usize, &'a AttackSpec, usize)>);
+
+/// What the attack offsets of `Model::responses` draw on: the detector a stealthy attacker
+/// hides under, each stealthy attack's per-channel state, and the honest innovations' source
+/// (seeded by the world).
+struct OffsetSource {
+    detector: Option<(UpdateGains, Vec<f64>)>,
+    players: Vec<Vec<StealthyPlay>>,
+    rng: ChaCha20Rng,
+}
+
 type Offsets = Vec<[f64; 2]>;
 
 /// The unit of a filter that keeps `mask`, with its gain terms: steady state, or the worst
@@ -647,17 +662,8 @@ impl<'a> Model<'a> {
     #[allow(clippy::type_complexity)]
     fn responses(&self) -> Option<(Vec<Vec<[f64; 2]>>, Vec<(Vec<f64>, usize)>)> {
         let f = &self.world.file;
-        if f.attacks.is_empty() || self.spoofed.is_empty() {
+        if f.attacks.is_empty() || self.spoofed.is_empty() || !self.attacks_read_as_fixes() {
             return None;
-        }
-        for a in &f.attacks {
-            for c in &a.channels {
-                let s = f.sensors.iter().find(|s| &s.name == c)?;
-                if !(direct_fix(s.measures) || (s.measures == Quantity::Speed && s.world_velocity))
-                {
-                    return None;
-                }
-            }
         }
         let cfg = &self.setup.config;
         let gains = self
@@ -675,110 +681,27 @@ impl<'a> Model<'a> {
         let mut e = vec![State::zeros(); gains.len()];
         let mut out = vec![Vec::with_capacity(n); gains.len()];
         let mut d = vec![0.0; q];
-        // Each update's innovation variance S = c P cᵀ + r along the sequential updates.
-        let variances: Vec<Vec<f64>> = self
-            .spoofed
-            .iter()
-            .zip(&gains)
-            .map(|(&(ui, _), g)| {
-                let mut p = self.units[ui].prior.unwrap_or_default();
-                g.iter()
-                    .map(|(ch, kg, ikc)| {
-                        let c = cfg.model.c[*ch];
-                        let s = (c * p * c.transpose())[0] + cfg.model.r[*ch];
-                        p = ikc * p * ikc.transpose() + kg * kg.transpose() * cfg.model.r[*ch];
-                        s
-                    })
-                    .collect()
-            })
-            .collect();
+        let variances = self.innovation_variances(&gains);
         let mut nis: Vec<(Vec<f64>, usize)> = gains
             .iter()
             .map(|g| (Vec::with_capacity(n), g.len()))
             .collect();
-        // A stealthy attacker hides under the all-channel filter's detector (as in a run):
-        // that filter's response to the attack, and its innovation std per channel, decide how
-        // far the bias can grow; its honest innovations are drawn (seeded by the world) because
-        // the injector's bias drops whenever one of them leaves it less room.
-        let stealthy = f
-            .attacks
-            .iter()
-            .any(|a| matches!(a.kind, AttackKind::Stealthy { .. }));
-        let detector = stealthy
-            .then(|| {
-                let all = unit(self.world, self.setup, vec![true; q], 0.0);
-                let prior = all.prior?;
-                let s: Vec<f64> = (0..q)
-                    .map(|ch| {
-                        let c = cfg.model.c[ch];
-                        ((c * prior * c.transpose())[0] + cfg.model.r[ch]).sqrt()
-                    })
-                    .collect();
-                Some((update_gains(&cfg.model, &all.mask, &prior), s))
-            })
-            .flatten();
+        let mut offsets = OffsetSource {
+            detector: self.stealth_detector(),
+            players: f
+                .attacks
+                .iter()
+                .map(|a| vec![StealthyPlay::default(); a.channels.len()])
+                .collect(),
+            rng: ChaCha20Rng::seed_from_u64(f.seed ^ 0x5354_4541_4c54_4859),
+        };
         let mut e_all = State::zeros();
-        let mut players: Vec<Vec<StealthyPlay>> = f
-            .attacks
-            .iter()
-            .map(|a| vec![StealthyPlay::default(); a.channels.len()])
-            .collect();
-        let mut rng = ChaCha20Rng::seed_from_u64(f.seed ^ 0x5354_4541_4c54_4859);
-        // Per channel: its sensor, and the attacks on it with the channel's place in each.
-        let on_channel: Vec<_> = (0..q)
-            .map(|ch| {
-                let s = &f.sensors[self.setup.sensor_of_channel[ch]];
-                let hits: Vec<_> = f
-                    .attacks
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(ai, a)| {
-                        Some((ai, a, a.channels.iter().position(|c| c == &s.name)?))
-                    })
-                    .collect();
-                (s, hits)
-            })
-            .collect();
+        let on_channel = self.attacks_by_channel();
         for k in 0..n {
             let t = k as f64 * dt;
-            // The heading a `speed` channel is read along: the path's direction now.
-            let heading = self.truth_at(t).1;
             let all_prior = phi * e_all;
-            for ((ch, dk), (s, hits)) in d.iter_mut().enumerate().zip(&on_channel) {
-                let truth = |tt: f64| {
-                    let (p, tan, v) = self.truth_at(tt);
-                    match s.measures {
-                        Quantity::X => p[0],
-                        Quantity::Y => p[1],
-                        Quantity::Vx => v * tan[0],
-                        Quantity::Vy => v * tan[1],
-                        _ => v,
-                    }
-                };
-                let mut off = 0.0;
-                for &(ai, a, j) in hits {
-                    off += match (&a.kind, &detector) {
-                        (AttackKind::Stealthy { .. }, Some((_, sd))) if direct_fix(s.measures) => {
-                            let nu =
-                                sd[ch] * Distribution::<f64>::sample(&StandardNormal, &mut rng);
-                            let moved = (cfg.model.c[ch] * all_prior)[0];
-                            players[ai][j].offset(a, j, t, nu, moved, sd[ch])
-                        }
-                        _ => open_loop_offset(a, j, t, &truth),
-                    };
-                }
-                *dk = if s.measures == Quantity::Speed {
-                    // Read as world velocity along the heading.
-                    off * if cfg.model.c[ch][2] != 0.0 {
-                        heading[0]
-                    } else {
-                        heading[1]
-                    }
-                } else {
-                    off
-                };
-            }
-            if let Some((g, _)) = &detector {
+            self.channel_offsets(t, all_prior, &on_channel, &mut offsets, &mut d);
+            if let Some((g, _)) = &offsets.detector {
                 let mut x = all_prior;
                 for (ch, kg, ikc) in g {
                     x = ikc * x + kg * d[*ch];
@@ -804,6 +727,133 @@ impl<'a> Model<'a> {
             }
         }
         Some((out, nis))
+    }
+
+    /// Whether every attacked channel is a position or velocity fix, or a speed the filters
+    /// read as world velocity (the only readings [`Self::responses`] can follow).
+    fn attacks_read_as_fixes(&self) -> bool {
+        let f = &self.world.file;
+        f.attacks.iter().flat_map(|a| &a.channels).all(|c| {
+            f.sensors.iter().find(|s| &s.name == c).is_some_and(|s| {
+                direct_fix(s.measures) || (s.measures == Quantity::Speed && s.world_velocity)
+            })
+        })
+    }
+
+    /// Per spoofed unit, each sequential update's innovation variance S = c P cᵀ + r.
+    fn innovation_variances(&self, gains: &[UpdateGains]) -> Vec<Vec<f64>> {
+        let model = &self.setup.config.model;
+        self.spoofed
+            .iter()
+            .zip(gains)
+            .map(|(&(ui, _), g)| {
+                let mut p = self.units[ui].prior.unwrap_or_default();
+                g.iter()
+                    .map(|(ch, kg, ikc)| {
+                        let c = model.c[*ch];
+                        let s = (c * p * c.transpose())[0] + model.r[*ch];
+                        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[*ch];
+                        s
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// A stealthy attacker hides under the all-channel filter's detector (as in a run): that
+    /// filter's response to the attack, and its innovation std per channel, decide how far the
+    /// bias can grow. `None` without a stealthy attack or when that filter has no prior.
+    fn stealth_detector(&self) -> Option<(UpdateGains, Vec<f64>)> {
+        let f = &self.world.file;
+        let cfg = &self.setup.config;
+        let q = cfg.model.channels();
+        let stealthy = f
+            .attacks
+            .iter()
+            .any(|a| matches!(a.kind, AttackKind::Stealthy { .. }));
+        stealthy
+            .then(|| {
+                let all = unit(self.world, self.setup, vec![true; q], 0.0);
+                let prior = all.prior?;
+                let s: Vec<f64> = (0..q)
+                    .map(|ch| {
+                        let c = cfg.model.c[ch];
+                        ((c * prior * c.transpose())[0] + cfg.model.r[ch]).sqrt()
+                    })
+                    .collect();
+                Some((update_gains(&cfg.model, &all.mask, &prior), s))
+            })
+            .flatten()
+    }
+
+    /// Per channel: its sensor, and the attacks on it with the attack's index and the
+    /// channel's place in it.
+    fn attacks_by_channel(&self) -> Vec<ChannelHits<'_>> {
+        let f = &self.world.file;
+        (0..self.setup.config.model.channels())
+            .map(|ch| {
+                let s = &f.sensors[self.setup.sensor_of_channel[ch]];
+                let hits: Vec<_> = f
+                    .attacks
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(ai, a)| {
+                        Some((ai, a, a.channels.iter().position(|c| c == &s.name)?))
+                    })
+                    .collect();
+                (s, hits)
+            })
+            .collect()
+    }
+
+    /// Each channel's reading offset at `t` into `d`: the sum of the attacks on it, a stealthy
+    /// one played against the detector's prior `all_prior` with a drawn honest innovation, and
+    /// a `speed` reading turned into world velocity along the path's heading.
+    fn channel_offsets(
+        &self,
+        t: f64,
+        all_prior: State,
+        on_channel: &[ChannelHits],
+        src: &mut OffsetSource,
+        d: &mut [f64],
+    ) {
+        let cfg = &self.setup.config;
+        // The heading a `speed` channel is read along: the path's direction now.
+        let heading = self.truth_at(t).1;
+        for ((ch, dk), (s, hits)) in d.iter_mut().enumerate().zip(on_channel) {
+            let truth = |tt: f64| {
+                let (p, tan, v) = self.truth_at(tt);
+                match s.measures {
+                    Quantity::X => p[0],
+                    Quantity::Y => p[1],
+                    Quantity::Vx => v * tan[0],
+                    Quantity::Vy => v * tan[1],
+                    _ => v,
+                }
+            };
+            let mut off = 0.0;
+            for &(ai, a, j) in hits {
+                off += match (&a.kind, &src.detector) {
+                    (AttackKind::Stealthy { .. }, Some((_, sd))) if direct_fix(s.measures) => {
+                        let nu =
+                            sd[ch] * Distribution::<f64>::sample(&StandardNormal, &mut src.rng);
+                        let moved = (cfg.model.c[ch] * all_prior)[0];
+                        src.players[ai][j].offset(a, j, t, nu, moved, sd[ch])
+                    }
+                    _ => open_loop_offset(a, j, t, &truth),
+                };
+            }
+            *dk = if s.measures == Quantity::Speed {
+                // Read as world velocity along the heading.
+                off * if cfg.model.c[ch][2] != 0.0 {
+                    heading[0]
+                } else {
+                    heading[1]
+                }
+            } else {
+                off
+            };
+        }
     }
 
     /// How far the attack moves the spoofed unit `k` (index into `spoofed`)'s windowed χ²
@@ -1202,7 +1252,10 @@ fn offsets(axes: [bool; 2], reach: f64) -> Vec<[f64; 2]> {
 }
 
 /// One case for κ and the box: without attack (`attack = false`), or under the declared attack
-/// with the spoofed estimates where the attack has moved them when the robot gets there.
+/// with the spoofed estimates where the attack has moved them when the robot gets there. In
+/// phases: the walk along the path, the reach while at the goal, whether the goal holds over
+/// the hold period, and whether a spoofed estimate misleads the tracker as it settles (the
+/// last two from one evaluation of the offsets at each hold time).
 fn case(
     model: &Model,
     name: String,
@@ -1210,40 +1263,97 @@ fn case(
     kappa: f64,
     limit: Option<Input>,
 ) -> LivenessCase {
-    let offs_at = |t: f64| model.scenarios_at(t, attack);
-    let mut applied: f64 = 0.0;
     let mut rows = Vec::new();
-    let mut least = (f64::INFINITY, model.path[0]);
-    let mut stall = None;
-    let mut through_step3 = 0;
-    let mut joint_infeasible = None;
-    // How long the robot has waited so far for an attack's offset to pass [s].
-    let mut delay = 0.0;
-    let mut waited: Option<(f64, [f64; 2])> = None;
+    let walk = walk_path(model, attack, (kappa, limit), &mut rows);
+    let reach = reach_at_goal(model, attack, walk.delay, walk.applied);
+    // Holding: u = 0 satisfies every row at rest at some point of the goal set, at every time
+    // from the robot's arrival (or from HOLD_WINDOW before the end, when it arrives earlier) to
+    // the end of the run. `settled` is judged over the run's last SETTLE_WINDOW: an offset that
+    // pushes the robot out of its goal earlier and then ends (an attack window that closes)
+    // leaves it time to come back.
+    let hold: Vec<(f64, Vec<Offsets>)> = hold_times(model, walk.delay)
+        .into_iter()
+        .map(|t| (t, model.scenarios_at(t, attack)))
+        .collect();
+    let goal_holds = goal_holds(model, &hold, kappa, &mut rows);
+    let misled = if attack && model.response.is_some() {
+        misled(model, &hold)
+    } else {
+        None
+    };
+    LivenessCase {
+        name,
+        reach,
+        stall: walk.stall,
+        least_progress: walk.least,
+        goal_holds,
+        misled,
+        through_step3: walk.through_step3,
+        joint_infeasible: walk.joint_infeasible,
+        waited: walk.waited,
+    }
+}
+
+/// What the walk along the path found.
+struct PathWalk {
+    /// The largest spoofed offset within θ met on the way \[m\].
+    applied: f64,
+    /// The least progress the rows allowed, and where.
+    least: (f64, [f64; 2]),
+    /// Where the robot stopped for good, if it did.
+    stall: Option<Stall>,
+    /// Samples passed only through Step 3's joint problem.
+    through_step3: usize,
+    /// The first place the joint problem had no solution.
+    joint_infeasible: Option<Stall>,
+    /// Time waited for offsets to pass \[s\].
+    delay: f64,
+    /// The total wait and where the robot first waited.
+    waited: Option<(f64, [f64; 2])>,
+}
+
+/// Walks the path's samples at the planned times: each must be passable; under attack a
+/// blocked robot waits where it is (in steps of `WAIT_STEP`) while a time-varying offset may
+/// still let it on, and stalls when none does.
+fn walk_path(
+    model: &Model,
+    attack: bool,
+    (kappa, limit): (f64, Option<Input>),
+    rows: &mut Vec<(HalfSpace, usize, f64)>,
+) -> PathWalk {
+    let mut w = PathWalk {
+        applied: 0.0,
+        least: (f64::INFINITY, model.path[0]),
+        stall: None,
+        through_step3: 0,
+        joint_infeasible: None,
+        delay: 0.0,
+        waited: None,
+    };
     let last_wait = model.world.file.duration - HOLD_WINDOW;
     'path: for (p, t, along) in samples(&model.path) {
-        let planned = model.time_at(along) + delay;
+        let planned = model.time_at(along) + w.delay;
         let mut time = planned;
         loop {
-            match model.passable(p, t, time, attack, (kappa, limit), &mut rows) {
+            match model.passable(p, t, time, attack, (kappa, limit), rows) {
                 Ok((a, q, r, step3)) => {
                     if r <= model.theta_max(time) {
-                        applied = applied.max(r);
+                        w.applied = w.applied.max(r);
                     }
-                    if a < least.0 {
-                        least = (a, q);
+                    if a < w.least.0 {
+                        w.least = (a, q);
                     }
                     if let Some(mut st) = step3 {
                         st.along = along;
-                        through_step3 += 1;
-                        joint_infeasible.get_or_insert(st);
+                        w.through_step3 += 1;
+                        w.joint_infeasible.get_or_insert(st);
                     }
                     break;
                 }
                 Err(mut st) => {
                     st.along = along;
-                    if st.blocked == Blocked::Infeasible && joint_infeasible.is_none() {
-                        joint_infeasible = Some(st.clone());
+                    if st.blocked == Blocked::Infeasible && w.joint_infeasible.is_none() {
+                        w.joint_infeasible = Some(st.clone());
                     }
                     // A time-varying offset (an attack window that closes, a sinusoid) may
                     // let the robot on later: it waits where it is.
@@ -1255,31 +1365,32 @@ fn case(
                     if time > planned {
                         // Blocked until the end: report it where and as it first was.
                         if let Err(first) =
-                            model.passable(p, t, planned, attack, (kappa, limit), &mut rows)
+                            model.passable(p, t, planned, attack, (kappa, limit), rows)
                         {
                             st = Stall { along, ..first };
                         }
                     }
-                    stall = Some(st);
+                    w.stall = Some(st);
                     break 'path;
                 }
             }
         }
         if time > planned {
-            delay += time - planned;
-            waited = Some((delay, waited.map_or(p, |w| w.1)));
+            w.delay += time - planned;
+            w.waited = Some((w.delay, w.waited.map_or(p, |x| x.1)));
         }
     }
-    // Holding: u = 0 satisfies every row at rest at some point of the goal set, at every time
-    // from the robot's arrival (or from HOLD_WINDOW before the end, when it arrives earlier) to
-    // the end of the run. `settled` is judged over the run's last SETTLE_WINDOW: an offset that
-    // pushes the robot out of its goal earlier and then ends (an attack window that closes)
-    // leaves it time to come back.
-    // The spoofed estimates' offsets while the robot is at its goal, for the case's reach.
-    let at_goal = (model.time_at(model.length()) + delay).min(model.world.file.duration);
+    w
+}
+
+/// The case's reach: `applied` on the way, raised by the spoofed estimates' offsets within θ
+/// while the robot is at its goal (from its arrival, `delay` late, to the end of the run).
+fn reach_at_goal(model: &Model, attack: bool, delay: f64, mut applied: f64) -> f64 {
+    let duration = model.world.file.duration;
+    let at_goal = (model.time_at(model.length()) + delay).min(duration);
     let mut t = at_goal;
-    while t <= model.world.file.duration {
-        for o in offs_at(t) {
+    while t <= duration {
+        for o in model.scenarios_at(t, attack) {
             for &(ui, _) in &model.spoofed {
                 let r = o[ui][0].hypot(o[ui][1]);
                 if r <= model.theta_max(t) {
@@ -1289,76 +1400,85 @@ fn case(
         }
         t += HOLD_STEP;
     }
+    applied
+}
+
+/// The hold period's times, `HOLD_STEP` apart: from the robot's arrival (`delay` late), or
+/// from `HOLD_WINDOW` before the end when it arrives earlier, to the end of the run.
+fn hold_times(model: &Model, delay: f64) -> Vec<f64> {
+    let duration = model.world.file.duration;
     let arrive = (model.time_at(model.length()) + delay)
-        .max(model.world.file.duration - HOLD_WINDOW)
-        .min(model.world.file.duration);
-    let n_hold = ((model.world.file.duration - arrive) / HOLD_STEP)
-        .ceil()
-        .max(0.0) as u32;
-    let times: Vec<f64> = (0..=n_hold)
-        .map(|k| (arrive + f64::from(k) * HOLD_STEP).min(model.world.file.duration))
-        .collect();
+        .max(duration - HOLD_WINDOW)
+        .min(duration);
+    let n_hold = ((duration - arrive) / HOLD_STEP).ceil().max(0.0) as u32;
+    (0..=n_hold)
+        .map(|k| (arrive + f64::from(k) * HOLD_STEP).min(duration))
+        .collect()
+}
+
+/// Whether u = 0 satisfies every row at rest, at every hold time and offset of `hold`, at the
+/// goal's centre or else at one of 32 points on two rings inside the goal.
+fn goal_holds(
+    model: &Model,
+    hold: &[(f64, Vec<Offsets>)],
+    kappa: f64,
+    rows: &mut Vec<(HalfSpace, usize, f64)>,
+) -> bool {
     let mut holds_at = |g: [f64; 2]| {
-        times.iter().all(|&t| {
-            offs_at(t).iter().all(|o| {
-                model.rows(g, o, t, kappa, &mut rows);
+        hold.iter().all(|(t, offs)| {
+            offs.iter().all(|o| {
+                model.rows(g, o, *t, kappa, rows);
                 rows.iter()
                     .all(|(h, _, _)| h.offset.is_finite() && h.offset >= -1e-12)
             })
         })
     };
-    let mut goal_holds = holds_at(model.goal);
-    if !goal_holds {
-        let r = model.goal_radius * 0.8;
-        'ring: for ring in [0.5, 1.0] {
-            for k in 0..16 {
-                let a = std::f64::consts::TAU * f64::from(k) / 16.0;
-                let g = [
-                    model.goal[0] + ring * r * a.cos(),
-                    model.goal[1] + ring * r * a.sin(),
-                ];
-                if holds_at(g) {
-                    goal_holds = true;
-                    break 'ring;
-                }
+    if holds_at(model.goal) {
+        return true;
+    }
+    let r = model.goal_radius * 0.8;
+    for ring in [0.5, 1.0] {
+        for k in 0..16 {
+            let a = std::f64::consts::TAU * f64::from(k) / 16.0;
+            let g = [
+                model.goal[0] + ring * r * a.cos(),
+                model.goal[1] + ring * r * a.sin(),
+            ];
+            if holds_at(g) {
+                return true;
             }
         }
     }
-    // Settling: the tracker follows the kept unit Step 3 ranks first; a spoofed estimate Step 2
-    // cannot isolate may rank first, and the robot then rests where that estimate is in the goal.
+    false
+}
+
+/// Settling: the tracker follows the kept unit Step 3 ranks first; a spoofed estimate Step 2
+/// cannot isolate may rank first, and the robot then rests where that estimate is in the goal.
+/// The largest such offset beyond the goal radius over the run's last `SETTLE_WINDOW` of
+/// `hold`, with its θ.
+fn misled(model: &Model, hold: &[(f64, Vec<Offsets>)]) -> Option<(f64, f64)> {
     let mut misled: Option<(f64, f64)> = None;
-    if attack && model.response.is_some() {
-        let end = model.world.file.duration;
-        for &t in times.iter().filter(|&&t| t >= end - SETTLE_WINDOW) {
-            for o in offs_at(t) {
-                for (k, &(ui, a)) in model.spoofed.iter().enumerate() {
-                    if model.ranking_shift(k, t) >= RANKING_SHIFT {
-                        // Its innovations give it away: the tracker does not follow it.
-                        continue;
-                    }
-                    let r = o[ui][0].hypot(o[ui][1]);
-                    let theta = match model.setup.config.kind {
-                        ControllerKind::FtCbfClf => theta_at(model.setup, model.patterns, ui, a, t),
-                        _ => f64::INFINITY,
-                    };
-                    if r <= theta && r > model.goal_radius && misled.is_none_or(|m| r > m.0) {
-                        misled = Some((r, theta));
-                    }
+    let end = model.world.file.duration;
+    for (t, offs) in hold.iter().filter(|(t, _)| *t >= end - SETTLE_WINDOW) {
+        let t = *t;
+        for o in offs {
+            for (k, &(ui, a)) in model.spoofed.iter().enumerate() {
+                if model.ranking_shift(k, t) >= RANKING_SHIFT {
+                    // Its innovations give it away: the tracker does not follow it.
+                    continue;
+                }
+                let r = o[ui][0].hypot(o[ui][1]);
+                let theta = match model.setup.config.kind {
+                    ControllerKind::FtCbfClf => theta_at(model.setup, model.patterns, ui, a, t),
+                    _ => f64::INFINITY,
+                };
+                if r <= theta && r > model.goal_radius && misled.is_none_or(|m| r > m.0) {
+                    misled = Some((r, theta));
                 }
             }
         }
     }
-    LivenessCase {
-        name,
-        reach: applied,
-        stall,
-        least_progress: least,
-        goal_holds,
-        misled,
-        through_step3,
-        joint_infeasible,
-        waited,
-    }
+    misled
 }
 
 /// The barriers whose rows demand a push (ω̄ > 0), most demanding first, each named once.

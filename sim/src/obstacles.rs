@@ -258,231 +258,304 @@ fn v3(p: [f64; 3]) -> Vector {
     Vector::new(p[0] as f32, p[1] as f32, p[2] as f32)
 }
 
+/// Obstacle `name`'s `key` is not what was `expected`.
+fn invalid(name: &str, key: &str, expected: &str, got: String) -> ObstacleError {
+    ObstacleError::Invalid {
+        name: name.to_string(),
+        key: key.to_string(),
+        expected: expected.to_string(),
+        got,
+    }
+}
+
+/// `shape.KEY` of obstacle `name` is a positive finite length.
+fn positive(name: &str, key: &str, v: f64) -> Result<(), ObstacleError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            name,
+            &format!("shape.{key}"),
+            "a positive finite number [m]",
+            format!("{v}"),
+        ))
+    }
+}
+
+/// `shape.KEY` of obstacle `name` is a finite length ≥ 0.
+fn nonneg(name: &str, key: &str, v: f64) -> Result<(), ObstacleError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            name,
+            &format!("shape.{key}"),
+            "a finite number ≥ 0 [m]",
+            format!("{v}"),
+        ))
+    }
+}
+
+/// The spec's name is not blank and its position and orientation are finite.
+fn check_placement(spec: &ObstacleSpec) -> Result<(), ObstacleError> {
+    let name = &spec.name;
+    if spec.name.trim().is_empty() {
+        return Err(invalid(
+            name,
+            "name",
+            "a non-empty string",
+            format!("{:?}", spec.name),
+        ));
+    }
+    if !spec.position.iter().all(|v| v.is_finite()) {
+        return Err(invalid(
+            name,
+            "position",
+            "three finite numbers [m]",
+            format!("{:?}", spec.position),
+        ));
+    }
+    if !spec.rpy.iter().all(|v| v.is_finite()) {
+        return Err(invalid(
+            name,
+            "rpy",
+            "three finite angles [rad]",
+            format!("{:?}", spec.rpy),
+        ));
+    }
+    Ok(())
+}
+
+/// The spec's shape checked and built: the parry shape, its pose in the world (parry's round
+/// shapes stand on y, the spec's on z) and the closed-form distance when the shape has one.
+fn shape_of(
+    spec: &ObstacleSpec,
+    world: Isometry3<f64>,
+    base_dir: Option<&Path>,
+) -> Result<(SharedShape, Isometry3<f64>, Option<Closed>), ObstacleError> {
+    let name = spec.name.as_str();
+    // Rotation taking parry's y axis to the obstacle frame's z axis.
+    let y_to_z = Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+    );
+    let axis_world = world.rotation * Vector3::z();
+    let vertical = axis_world.z.abs() > 1.0 - 1e-9;
+    let centre = world.translation.vector;
+    Ok(match &spec.shape {
+        ShapeSpec::Cuboid { half_extents: h } => {
+            for (i, v) in h.iter().enumerate() {
+                positive(name, &format!("half_extents[{i}]"), *v)?;
+            }
+            (
+                SharedShape::cuboid(h[0] as f32, h[1] as f32, h[2] as f32),
+                world,
+                None,
+            )
+        }
+        ShapeSpec::Ball { radius } => {
+            positive(name, "radius", *radius)?;
+            (
+                SharedShape::ball(*radius as f32),
+                world,
+                Some(Closed::RoundSegment {
+                    c: centre.xy(),
+                    z_lo: centre.z,
+                    z_hi: centre.z,
+                    radius: *radius,
+                }),
+            )
+        }
+        ShapeSpec::Cylinder {
+            radius,
+            half_height,
+        } => {
+            positive(name, "radius", *radius)?;
+            positive(name, "half_height", *half_height)?;
+            (
+                SharedShape::cylinder(*half_height as f32, *radius as f32),
+                world * y_to_z,
+                vertical.then_some(Closed::VerticalCylinder {
+                    c: centre.xy(),
+                    z_lo: centre.z - half_height,
+                    z_hi: centre.z + half_height,
+                    radius: *radius,
+                }),
+            )
+        }
+        ShapeSpec::Capsule {
+            radius,
+            half_height,
+        } => {
+            positive(name, "radius", *radius)?;
+            nonneg(name, "half_height", *half_height)?;
+            (
+                SharedShape::capsule_y(*half_height as f32, *radius as f32),
+                world * y_to_z,
+                vertical.then_some(Closed::RoundSegment {
+                    c: centre.xy(),
+                    z_lo: centre.z - half_height,
+                    z_hi: centre.z + half_height,
+                    radius: *radius,
+                }),
+            )
+        }
+        ShapeSpec::Cone {
+            radius,
+            half_height,
+        } => {
+            positive(name, "radius", *radius)?;
+            positive(name, "half_height", *half_height)?;
+            (
+                SharedShape::cone(*half_height as f32, *radius as f32),
+                world * y_to_z,
+                None,
+            )
+        }
+        ShapeSpec::ConvexHull { points } => (convex_hull(name, points)?, world, None),
+        ShapeSpec::HalfSpace { normal } => half_space(name, normal, world)?,
+        ShapeSpec::TriMesh {
+            vertices,
+            indices,
+            file,
+            scale,
+        } => {
+            let (verts, idx) =
+                mesh_data(name, vertices, indices, file.as_deref(), *scale, base_dir)?;
+            (tri_mesh(name, verts, idx)?, world, None)
+        }
+    })
+}
+
+/// A half-space below the plane through the obstacle's origin with outward `normal` (in the
+/// obstacle frame, non-zero and finite), with its closed-form distance.
+fn half_space(
+    name: &str,
+    normal: &[f64; 3],
+    world: Isometry3<f64>,
+) -> Result<(SharedShape, Isometry3<f64>, Option<Closed>), ObstacleError> {
+    let n = Vector3::from(*normal);
+    let norm = n.norm();
+    if !(norm.is_finite() && norm > 1e-12) {
+        return Err(invalid(
+            name,
+            "shape.normal",
+            "a non-zero finite vector",
+            format!("{normal:?}"),
+        ));
+    }
+    let n_local = n / norm;
+    let n_world = world.rotation * n_local;
+    Ok((
+        SharedShape::halfspace(v3([n_local.x, n_local.y, n_local.z]).normalize()),
+        world,
+        Some(Closed::HalfSpace {
+            n: n_world,
+            p0: world.translation.vector,
+        }),
+    ))
+}
+
+/// The convex hull of finite `points`, at least four and not in one plane.
+fn convex_hull(name: &str, points: &[[f64; 3]]) -> Result<SharedShape, ObstacleError> {
+    if points.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(invalid(
+            name,
+            "shape.points",
+            "finite coordinates [m]",
+            "a non-finite value".into(),
+        ));
+    }
+    let pts: Vec<Vector> = points.iter().map(|p| v3(*p)).collect();
+    (pts.len() >= 4 && !coplanar(points))
+        .then(|| SharedShape::convex_hull(&pts))
+        .flatten()
+        .ok_or_else(|| ObstacleError::DegenerateHull {
+            name: name.to_string(),
+            count: points.len(),
+        })
+}
+
+fn mesh_err(name: &str, message: String) -> ObstacleError {
+    ObstacleError::Mesh {
+        name: name.to_string(),
+        message,
+    }
+}
+
+/// A triangle mesh: its vertices \[m\] and its triangles as vertex indices.
+type Triangles = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+
+/// A triangle mesh's vertices and triangles: read from `file` (relative to `base_dir`) and
+/// scaled, or written inline, not both.
+fn mesh_data(
+    name: &str,
+    vertices: &[[f64; 3]],
+    indices: &[[u32; 3]],
+    file: Option<&Path>,
+    scale: Option<f64>,
+    base_dir: Option<&Path>,
+) -> Result<Triangles, ObstacleError> {
+    match file {
+        Some(f) => {
+            if !vertices.is_empty() || !indices.is_empty() {
+                return Err(mesh_err(
+                    name,
+                    "give either `file` or `vertices`/`indices`, not both".into(),
+                ));
+            }
+            let s = scale.unwrap_or(1.0);
+            positive(name, "scale", s)?;
+            let path = match base_dir {
+                Some(d) if f.is_relative() => d.join(f),
+                _ => f.to_path_buf(),
+            };
+            let (v, i) = crate::robot::read_mesh(&path)
+                .map_err(|m| mesh_err(name, format!("{}: {m}", path.display())))?;
+            Ok((v.into_iter().map(|p| p.map(|c| c * s)).collect(), i))
+        }
+        None => {
+            if scale.is_some() {
+                return Err(mesh_err(name, "`scale` applies only to `file`".into()));
+            }
+            Ok((vertices.to_vec(), indices.to_vec()))
+        }
+    }
+}
+
+/// A triangle mesh from checked vertices and triangles (oriented where parry can orient it).
+fn tri_mesh(
+    name: &str,
+    verts: Vec<[f64; 3]>,
+    idx: Vec<[u32; 3]>,
+) -> Result<SharedShape, ObstacleError> {
+    if idx.is_empty() {
+        return Err(mesh_err(name, "no triangles".into()));
+    }
+    if verts.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(mesh_err(name, "non-finite vertex coordinates".into()));
+    }
+    if let Some(bad) = idx.iter().flatten().find(|&&i| i as usize >= verts.len()) {
+        return Err(mesh_err(
+            name,
+            format!("index {bad} out of range ({} vertices)", verts.len()),
+        ));
+    }
+    let pts: Vec<Vector> = verts.iter().map(|p| v3(*p)).collect();
+    let oriented = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
+    SharedShape::trimesh_with_flags(pts.clone(), idx.clone(), oriented)
+        .or_else(|_| SharedShape::trimesh(pts, idx))
+        .map_err(|e| mesh_err(name, format!("{e:?}")))
+}
+
 impl Obstacle {
-    /// Validates a spec. `base_dir` resolves relative `tri_mesh.file` paths.
+    /// Validates a spec. `base_dir` resolves relative `tri_mesh.file` paths. In phases: the
+    /// name and placement checked, then the shape (checked and built) with its closed-form
+    /// distance where there is one.
     pub fn from_spec(spec: &ObstacleSpec, base_dir: Option<&Path>) -> Result<Self, ObstacleError> {
-        let name = spec.name.clone();
-        let invalid = |key: &str, expected: &str, got: String| ObstacleError::Invalid {
-            name: name.clone(),
-            key: key.to_string(),
-            expected: expected.to_string(),
-            got,
-        };
-        if spec.name.trim().is_empty() {
-            return Err(invalid(
-                "name",
-                "a non-empty string",
-                format!("{:?}", spec.name),
-            ));
-        }
-        if !spec.position.iter().all(|v| v.is_finite()) {
-            return Err(invalid(
-                "position",
-                "three finite numbers [m]",
-                format!("{:?}", spec.position),
-            ));
-        }
-        if !spec.rpy.iter().all(|v| v.is_finite()) {
-            return Err(invalid(
-                "rpy",
-                "three finite angles [rad]",
-                format!("{:?}", spec.rpy),
-            ));
-        }
-        let positive = |key: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(invalid(
-                    &format!("shape.{key}"),
-                    "a positive finite number [m]",
-                    format!("{v}"),
-                ))
-            }
-        };
-        let nonneg = |key: &str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(invalid(
-                    &format!("shape.{key}"),
-                    "a finite number ≥ 0 [m]",
-                    format!("{v}"),
-                ))
-            }
-        };
+        check_placement(spec)?;
         let world = iso(spec.position, spec.rpy);
-        // Rotation taking parry's y axis to the obstacle frame's z axis.
-        let y_to_z = Isometry3::from_parts(
-            Translation3::identity(),
-            UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
-        );
-        let axis_world = world.rotation * Vector3::z();
-        let vertical = axis_world.z.abs() > 1.0 - 1e-9;
-        let centre = world.translation.vector;
-        let (shape, pose, closed) = match &spec.shape {
-            ShapeSpec::Cuboid { half_extents: h } => {
-                for (i, v) in h.iter().enumerate() {
-                    positive(&format!("half_extents[{i}]"), *v)?;
-                }
-                (
-                    SharedShape::cuboid(h[0] as f32, h[1] as f32, h[2] as f32),
-                    world,
-                    None,
-                )
-            }
-            ShapeSpec::Ball { radius } => {
-                positive("radius", *radius)?;
-                (
-                    SharedShape::ball(*radius as f32),
-                    world,
-                    Some(Closed::RoundSegment {
-                        c: centre.xy(),
-                        z_lo: centre.z,
-                        z_hi: centre.z,
-                        radius: *radius,
-                    }),
-                )
-            }
-            ShapeSpec::Cylinder {
-                radius,
-                half_height,
-            } => {
-                positive("radius", *radius)?;
-                positive("half_height", *half_height)?;
-                (
-                    SharedShape::cylinder(*half_height as f32, *radius as f32),
-                    world * y_to_z,
-                    vertical.then_some(Closed::VerticalCylinder {
-                        c: centre.xy(),
-                        z_lo: centre.z - half_height,
-                        z_hi: centre.z + half_height,
-                        radius: *radius,
-                    }),
-                )
-            }
-            ShapeSpec::Capsule {
-                radius,
-                half_height,
-            } => {
-                positive("radius", *radius)?;
-                nonneg("half_height", *half_height)?;
-                (
-                    SharedShape::capsule_y(*half_height as f32, *radius as f32),
-                    world * y_to_z,
-                    vertical.then_some(Closed::RoundSegment {
-                        c: centre.xy(),
-                        z_lo: centre.z - half_height,
-                        z_hi: centre.z + half_height,
-                        radius: *radius,
-                    }),
-                )
-            }
-            ShapeSpec::Cone {
-                radius,
-                half_height,
-            } => {
-                positive("radius", *radius)?;
-                positive("half_height", *half_height)?;
-                (
-                    SharedShape::cone(*half_height as f32, *radius as f32),
-                    world * y_to_z,
-                    None,
-                )
-            }
-            ShapeSpec::ConvexHull { points } => {
-                if points.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
-                    return Err(invalid(
-                        "shape.points",
-                        "finite coordinates [m]",
-                        "a non-finite value".into(),
-                    ));
-                }
-                let pts: Vec<Vector> = points.iter().map(|p| v3(*p)).collect();
-                let hull = (pts.len() >= 4 && !coplanar(points))
-                    .then(|| SharedShape::convex_hull(&pts))
-                    .flatten()
-                    .ok_or_else(|| ObstacleError::DegenerateHull {
-                        name: name.clone(),
-                        count: points.len(),
-                    })?;
-                (hull, world, None)
-            }
-            ShapeSpec::HalfSpace { normal } => {
-                let n = Vector3::from(*normal);
-                let norm = n.norm();
-                if !(norm.is_finite() && norm > 1e-12) {
-                    return Err(invalid(
-                        "shape.normal",
-                        "a non-zero finite vector",
-                        format!("{normal:?}"),
-                    ));
-                }
-                let n_local = n / norm;
-                let n_world = world.rotation * n_local;
-                (
-                    SharedShape::halfspace(v3([n_local.x, n_local.y, n_local.z]).normalize()),
-                    world,
-                    Some(Closed::HalfSpace {
-                        n: n_world,
-                        p0: centre,
-                    }),
-                )
-            }
-            ShapeSpec::TriMesh {
-                vertices,
-                indices,
-                file,
-                scale,
-            } => {
-                let mesh_err = |message: String| ObstacleError::Mesh {
-                    name: name.clone(),
-                    message,
-                };
-                let (verts, idx) = match file {
-                    Some(f) => {
-                        if !vertices.is_empty() || !indices.is_empty() {
-                            return Err(mesh_err(
-                                "give either `file` or `vertices`/`indices`, not both".into(),
-                            ));
-                        }
-                        let s = scale.unwrap_or(1.0);
-                        positive("scale", s)?;
-                        let path = match base_dir {
-                            Some(d) if f.is_relative() => d.join(f),
-                            _ => f.clone(),
-                        };
-                        let (v, i) = crate::robot::read_mesh(&path)
-                            .map_err(|m| mesh_err(format!("{}: {m}", path.display())))?;
-                        (v.into_iter().map(|p| p.map(|c| c * s)).collect(), i)
-                    }
-                    None => {
-                        if scale.is_some() {
-                            return Err(mesh_err("`scale` applies only to `file`".into()));
-                        }
-                        (vertices.clone(), indices.clone())
-                    }
-                };
-                if idx.is_empty() {
-                    return Err(mesh_err("no triangles".into()));
-                }
-                if verts.iter().any(|p| !p.iter().all(|v| v.is_finite())) {
-                    return Err(mesh_err("non-finite vertex coordinates".into()));
-                }
-                if let Some(bad) = idx.iter().flatten().find(|&&i| i as usize >= verts.len()) {
-                    return Err(mesh_err(format!(
-                        "index {bad} out of range ({} vertices)",
-                        verts.len()
-                    )));
-                }
-                let pts: Vec<Vector> = verts.iter().map(|p| v3(*p)).collect();
-                let oriented = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
-                let shape = SharedShape::trimesh_with_flags(pts.clone(), idx.clone(), oriented)
-                    .or_else(|_| SharedShape::trimesh(pts, idx))
-                    .map_err(|e| mesh_err(format!("{e:?}")))?;
-                (shape, world, None)
-            }
-        };
+        let (shape, pose, closed) = shape_of(spec, world, base_dir)?;
         Ok(Self {
             name: spec.name.clone(),
             spec: spec.clone(),

@@ -26,7 +26,7 @@ use rapier3d::prelude::{
 };
 
 use crate::obstacles::{to_pose, Obstacle};
-use crate::robot::{CollisionShape, JointKind, RobotDescription};
+use crate::robot::{CollisionShape, JointKind, RobotCollider, RobotDescription};
 use crate::state::TruthState;
 
 /// Errors of world construction.
@@ -184,205 +184,261 @@ fn vec3(v: &Vector3<f64>) -> rp::Vector {
     rp::Vector::new(v.x as f32, v.y as f32, v.z as f32)
 }
 
+/// Every setting in range: positive rates, forces and scales, friction and contact distance
+/// ≥ 0, at least one solver iteration.
+fn check_config(cfg: &PhysicsConfig) -> Result<(), PhysicsError> {
+    positive("dt", cfg.dt)?;
+    positive("gravity", cfg.gravity)?;
+    positive("motor_damping", cfg.motor_damping)?;
+    positive("motor_max_force", cfg.motor_max_force)?;
+    positive("length_unit", cfg.length_unit)?;
+    positive("static_contact_hz", cfg.static_contact_hz)?;
+    positive(
+        "static_contact_damping_ratio",
+        cfg.static_contact_damping_ratio,
+    )?;
+    if !(cfg.friction.is_finite() && cfg.friction >= 0.0) {
+        return Err(PhysicsError::InvalidConfig {
+            key: "friction",
+            expected: "a finite number ≥ 0",
+            value: cfg.friction,
+        });
+    }
+    if !(cfg.contact_distance.is_finite() && cfg.contact_distance >= 0.0) {
+        return Err(PhysicsError::InvalidConfig {
+            key: "contact_distance",
+            expected: "a finite number ≥ 0 [m]",
+            value: cfg.contact_distance,
+        });
+    }
+    if cfg.solver_iterations == 0 {
+        return Err(PhysicsError::InvalidConfig {
+            key: "solver_iterations",
+            expected: "at least 1",
+            value: 0.0,
+        });
+    }
+    Ok(())
+}
+
+/// Collision groups: a member of `member` that meets `filter`.
+fn groups(member: Group, filter: Group) -> InteractionGroups {
+    InteractionGroups::new(member, filter, InteractionTestMode::And)
+}
+
+/// The rapier world with the settings' gravity, step and solver, and the ground: a half-space
+/// under z = 0 that meets the robot only.
+fn empty_world(cfg: &PhysicsConfig) -> rp::PhysicsWorld {
+    let mut world = rp::PhysicsWorld::new();
+    world.gravity = rp::Vector::new(0.0, 0.0, -cfg.gravity as f32);
+    world.integration_parameters.dt = cfg.dt as f32;
+    world.integration_parameters.num_solver_iterations = cfg.solver_iterations;
+    world.integration_parameters.length_unit = cfg.length_unit as f32;
+    let soft = &mut world.integration_parameters.static_contact_softness;
+    soft.natural_frequency = cfg.static_contact_hz as f32;
+    soft.damping_ratio = cfg.static_contact_damping_ratio as f32;
+    let ground = ColliderBuilder::halfspace(nalgebra::Unit::new_unchecked(rp::Vector::Z))
+        .friction(cfg.friction as f32)
+        .collision_groups(groups(GROUND, ROBOT))
+        .build();
+    world.colliders.insert(ground);
+    world
+}
+
+/// The robot's bodies as dynamic rigid bodies placed from `start`, each with its colliders;
+/// returns the body handles (in the description's order) and the collider handles.
+fn add_robot_bodies(
+    world: &mut rp::PhysicsWorld,
+    robot: &RobotDescription,
+    start: Pose2,
+    cfg: &PhysicsConfig,
+) -> Result<(Vec<RigidBodyHandle>, Vec<ColliderHandle>), PhysicsError> {
+    let start_iso = Isometry3::from_parts(
+        Translation3::new(start.x, start.y, 0.0),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, start.theta),
+    );
+    let mut bodies = Vec::with_capacity(robot.bodies.len());
+    let mut robot_colliders = Vec::new();
+    for b in &robot.bodies {
+        let pose = to_pose(&(start_iso * b.pose_in_root));
+        let mprops =
+            MassProperties::with_inertia_matrix(vec3(&b.com), b.mass as f32, mat3(&b.inertia));
+        let rb = RigidBodyBuilder::dynamic()
+            .pose(pose)
+            .additional_mass_properties(mprops)
+            .can_sleep(false)
+            .build();
+        let h = world.bodies.insert(rb);
+        for c in &b.colliders {
+            robot_colliders.push(add_robot_collider(world, h, c, cfg)?);
+        }
+        bodies.push(h);
+    }
+    Ok((bodies, robot_colliders))
+}
+
+/// A robot collider's rapier shape and its pose in the body (rapier's cylinders stand on y,
+/// the description's on z).
+fn robot_shape(c: &RobotCollider) -> Result<(SharedShape, Isometry3<f64>), PhysicsError> {
+    let y_to_z = UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0);
+    Ok(match &c.shape {
+        CollisionShape::Box { half_extents: e } => (
+            SharedShape::cuboid(e[0] as f32, e[1] as f32, e[2] as f32),
+            c.pose_in_body,
+        ),
+        CollisionShape::Cylinder {
+            radius,
+            half_length,
+        } => (
+            SharedShape::cylinder(*half_length as f32, *radius as f32),
+            c.pose_in_body * y_to_z,
+        ),
+        CollisionShape::Capsule {
+            radius,
+            half_length,
+        } => (
+            SharedShape::capsule_z(*half_length as f32, *radius as f32),
+            c.pose_in_body,
+        ),
+        CollisionShape::Sphere { radius } => (SharedShape::ball(*radius as f32), c.pose_in_body),
+        CollisionShape::Mesh { vertices, .. } => {
+            // A dynamic body's mesh collides as its convex hull.
+            let pts: Vec<rp::Vector> = vertices
+                .iter()
+                .map(|v| rp::Vector::new(v[0] as f32, v[1] as f32, v[2] as f32))
+                .collect();
+            let shape = SharedShape::convex_hull(&pts).ok_or_else(|| PhysicsError::Mesh {
+                link: c.link.clone(),
+                message: "the mesh's convex hull is degenerate".into(),
+            })?;
+            (shape, c.pose_in_body)
+        }
+    })
+}
+
+/// Collider `c` on body `h`. A wheel's cylinder meets obstacles and rolls on a ball of its
+/// radius (inserted first) that meets the ground; other wheel colliders have the settings'
+/// friction, the chassis none.
+fn add_robot_collider(
+    world: &mut rp::PhysicsWorld,
+    h: RigidBodyHandle,
+    c: &RobotCollider,
+    cfg: &PhysicsConfig,
+) -> Result<ColliderHandle, PhysicsError> {
+    let (shape, local) = robot_shape(c)?;
+    let wheel_ball = match (&c.shape, c.is_wheel) {
+        (CollisionShape::Cylinder { radius, .. }, true) => Some(*radius),
+        _ => None,
+    };
+    let mut builder = ColliderBuilder::new(shape)
+        .position(to_pose(&local))
+        .density(0.0)
+        .restitution(0.0);
+    builder = if let Some(radius) = wheel_ball {
+        // The wheel's cylinder meets obstacles; its ground contact is the ball below.
+        let ball = ColliderBuilder::ball(radius as f32)
+            .position(to_pose(&local))
+            .density(0.0)
+            .restitution(0.0)
+            .friction(cfg.friction as f32)
+            .collision_groups(groups(ROBOT, GROUND))
+            .build();
+        world
+            .colliders
+            .insert_with_parent(ball, h, &mut world.bodies);
+        builder
+            .friction(cfg.friction as f32)
+            .collision_groups(groups(ROBOT, OBSTACLES))
+    } else if c.is_wheel {
+        builder
+            .friction(cfg.friction as f32)
+            .collision_groups(groups(ROBOT, GROUND | OBSTACLES))
+    } else {
+        builder
+            .friction(0.0)
+            .friction_combine_rule(CoefficientCombineRule::Min)
+            .collision_groups(groups(ROBOT, GROUND | OBSTACLES))
+    };
+    Ok(world
+        .colliders
+        .insert_with_parent(builder.build(), h, &mut world.bodies))
+}
+
+/// The robot's joints as impulse joints between the body handles (the joint axis along the
+/// local x of both frames); returns their handles in the description's order.
+fn add_joints(
+    world: &mut rp::PhysicsWorld,
+    robot: &RobotDescription,
+    bodies: &[RigidBodyHandle],
+) -> Vec<ImpulseJointHandle> {
+    let mut joint_handles = Vec::with_capacity(robot.joints.len());
+    for j in &robot.joints {
+        let x_to_axis = UnitQuaternion::rotation_between(&Vector3::x(), &j.axis)
+            .unwrap_or_else(|| UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::PI));
+        let frame1 = j.frame_in_parent * Isometry3::from_parts(Translation3::identity(), x_to_axis);
+        let frame2 = Isometry3::from_parts(Translation3::identity(), x_to_axis);
+        let mut builder = match j.kind {
+            JointKind::Continuous => GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES),
+            JointKind::Revolute { lower, upper } => {
+                GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+                    .limits(JointAxis::AngX, [lower as f32, upper as f32])
+            }
+            JointKind::Prismatic { lower, upper } => {
+                GenericJointBuilder::new(JointAxesMask::LOCKED_PRISMATIC_AXES)
+                    .limits(JointAxis::LinX, [lower as f32, upper as f32])
+            }
+        };
+        builder = builder
+            .local_frame1(to_pose(&frame1))
+            .local_frame2(to_pose(&frame2))
+            .contacts_enabled(false);
+        let jh =
+            world
+                .impulse_joints
+                .insert(bodies[j.parent], bodies[j.child], builder.build(), true);
+        joint_handles.push(jh);
+    }
+    joint_handles
+}
+
+/// The obstacles as fixed colliders that meet the robot only, each with its index as user
+/// data; returns their handles.
+fn add_obstacles(
+    world: &mut rp::PhysicsWorld,
+    obstacles: &[Obstacle],
+    cfg: &PhysicsConfig,
+) -> Vec<ColliderHandle> {
+    let mut obstacle_colliders = Vec::with_capacity(obstacles.len());
+    for (i, o) in obstacles.iter().enumerate() {
+        let c = ColliderBuilder::new(o.shape().clone())
+            .position(*o.shape_pose())
+            .friction(cfg.friction as f32)
+            .collision_groups(groups(OBSTACLES, ROBOT))
+            .user_data(i as u128)
+            .build();
+        obstacle_colliders.push(world.colliders.insert(c));
+    }
+    obstacle_colliders
+}
+
 impl PhysicsWorld {
     /// Builds the world with the robot's root frame at `start` (on the ground) and the
-    /// obstacles as fixed colliders (obstacle index = position in `obstacles`).
+    /// obstacles as fixed colliders (obstacle index = position in `obstacles`). In phases: the
+    /// settings checked, the rapier world with its ground, the robot's bodies and colliders,
+    /// its joints and wheel motors, the obstacles.
     pub fn new(
         robot: &RobotDescription,
         start: Pose2,
         obstacles: &[Obstacle],
         cfg: &PhysicsConfig,
     ) -> Result<Self, PhysicsError> {
-        positive("dt", cfg.dt)?;
-        positive("gravity", cfg.gravity)?;
-        positive("motor_damping", cfg.motor_damping)?;
-        positive("motor_max_force", cfg.motor_max_force)?;
-        positive("length_unit", cfg.length_unit)?;
-        positive("static_contact_hz", cfg.static_contact_hz)?;
-        positive(
-            "static_contact_damping_ratio",
-            cfg.static_contact_damping_ratio,
-        )?;
-        if !(cfg.friction.is_finite() && cfg.friction >= 0.0) {
-            return Err(PhysicsError::InvalidConfig {
-                key: "friction",
-                expected: "a finite number ≥ 0",
-                value: cfg.friction,
-            });
-        }
-        if !(cfg.contact_distance.is_finite() && cfg.contact_distance >= 0.0) {
-            return Err(PhysicsError::InvalidConfig {
-                key: "contact_distance",
-                expected: "a finite number ≥ 0 [m]",
-                value: cfg.contact_distance,
-            });
-        }
-        if cfg.solver_iterations == 0 {
-            return Err(PhysicsError::InvalidConfig {
-                key: "solver_iterations",
-                expected: "at least 1",
-                value: 0.0,
-            });
-        }
+        check_config(cfg)?;
         if !(start.x.is_finite() && start.y.is_finite() && start.theta.is_finite()) {
             return Err(PhysicsError::InvalidStart(start));
         }
-
-        let mut world = rp::PhysicsWorld::new();
-        world.gravity = rp::Vector::new(0.0, 0.0, -cfg.gravity as f32);
-        world.integration_parameters.dt = cfg.dt as f32;
-        world.integration_parameters.num_solver_iterations = cfg.solver_iterations;
-        world.integration_parameters.length_unit = cfg.length_unit as f32;
-        let soft = &mut world.integration_parameters.static_contact_softness;
-        soft.natural_frequency = cfg.static_contact_hz as f32;
-        soft.damping_ratio = cfg.static_contact_damping_ratio as f32;
-
-        let robot_groups =
-            InteractionGroups::new(ROBOT, GROUND | OBSTACLES, InteractionTestMode::And);
-        let wheel_ground_groups = InteractionGroups::new(ROBOT, GROUND, InteractionTestMode::And);
-        let wheel_obstacle_groups =
-            InteractionGroups::new(ROBOT, OBSTACLES, InteractionTestMode::And);
-        let ground_groups = InteractionGroups::new(GROUND, ROBOT, InteractionTestMode::And);
-        let obstacle_groups = InteractionGroups::new(OBSTACLES, ROBOT, InteractionTestMode::And);
-
-        // Ground.
-        let ground = ColliderBuilder::halfspace(nalgebra::Unit::new_unchecked(rp::Vector::Z))
-            .friction(cfg.friction as f32)
-            .collision_groups(ground_groups)
-            .build();
-        world.colliders.insert(ground);
-
-        // Robot bodies.
-        let start_iso = Isometry3::from_parts(
-            Translation3::new(start.x, start.y, 0.0),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, start.theta),
-        );
-        let y_to_z = UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0);
-        let mut bodies = Vec::with_capacity(robot.bodies.len());
-        let mut robot_colliders = Vec::new();
-        for b in &robot.bodies {
-            let pose = to_pose(&(start_iso * b.pose_in_root));
-            let mprops =
-                MassProperties::with_inertia_matrix(vec3(&b.com), b.mass as f32, mat3(&b.inertia));
-            let rb = RigidBodyBuilder::dynamic()
-                .pose(pose)
-                .additional_mass_properties(mprops)
-                .can_sleep(false)
-                .build();
-            let h = world.bodies.insert(rb);
-            for c in &b.colliders {
-                let (shape, local) = match &c.shape {
-                    CollisionShape::Box { half_extents: e } => (
-                        SharedShape::cuboid(e[0] as f32, e[1] as f32, e[2] as f32),
-                        c.pose_in_body,
-                    ),
-                    CollisionShape::Cylinder {
-                        radius,
-                        half_length,
-                    } => (
-                        SharedShape::cylinder(*half_length as f32, *radius as f32),
-                        c.pose_in_body * y_to_z,
-                    ),
-                    CollisionShape::Capsule {
-                        radius,
-                        half_length,
-                    } => (
-                        SharedShape::capsule_z(*half_length as f32, *radius as f32),
-                        c.pose_in_body,
-                    ),
-                    CollisionShape::Sphere { radius } => {
-                        (SharedShape::ball(*radius as f32), c.pose_in_body)
-                    }
-                    CollisionShape::Mesh { vertices, .. } => {
-                        // A dynamic body's mesh collides as its convex hull.
-                        let pts: Vec<rp::Vector> = vertices
-                            .iter()
-                            .map(|v| rp::Vector::new(v[0] as f32, v[1] as f32, v[2] as f32))
-                            .collect();
-                        let shape =
-                            SharedShape::convex_hull(&pts).ok_or_else(|| PhysicsError::Mesh {
-                                link: c.link.clone(),
-                                message: "the mesh's convex hull is degenerate".into(),
-                            })?;
-                        (shape, c.pose_in_body)
-                    }
-                };
-                let wheel_ball = match (&c.shape, c.is_wheel) {
-                    (CollisionShape::Cylinder { radius, .. }, true) => Some(*radius),
-                    _ => None,
-                };
-                let mut builder = ColliderBuilder::new(shape)
-                    .position(to_pose(&local))
-                    .density(0.0)
-                    .restitution(0.0);
-                builder = if let Some(radius) = wheel_ball {
-                    // The wheel's cylinder meets obstacles; its ground contact is the ball below.
-                    let ball = ColliderBuilder::ball(radius as f32)
-                        .position(to_pose(&local))
-                        .density(0.0)
-                        .restitution(0.0)
-                        .friction(cfg.friction as f32)
-                        .collision_groups(wheel_ground_groups)
-                        .build();
-                    world
-                        .colliders
-                        .insert_with_parent(ball, h, &mut world.bodies);
-                    builder
-                        .friction(cfg.friction as f32)
-                        .collision_groups(wheel_obstacle_groups)
-                } else if c.is_wheel {
-                    builder
-                        .friction(cfg.friction as f32)
-                        .collision_groups(robot_groups)
-                } else {
-                    builder
-                        .friction(0.0)
-                        .friction_combine_rule(CoefficientCombineRule::Min)
-                        .collision_groups(robot_groups)
-                };
-                let ch = world
-                    .colliders
-                    .insert_with_parent(builder.build(), h, &mut world.bodies);
-                robot_colliders.push(ch);
-            }
-            bodies.push(h);
-        }
-
-        // Joints.
-        let mut joint_handles = Vec::with_capacity(robot.joints.len());
-        for j in &robot.joints {
-            let x_to_axis = UnitQuaternion::rotation_between(&Vector3::x(), &j.axis)
-                .unwrap_or_else(|| {
-                    UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::PI)
-                });
-            let frame1 =
-                j.frame_in_parent * Isometry3::from_parts(Translation3::identity(), x_to_axis);
-            let frame2 = Isometry3::from_parts(Translation3::identity(), x_to_axis);
-            let mut builder = match j.kind {
-                JointKind::Continuous => {
-                    GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
-                }
-                JointKind::Revolute { lower, upper } => {
-                    GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
-                        .limits(JointAxis::AngX, [lower as f32, upper as f32])
-                }
-                JointKind::Prismatic { lower, upper } => {
-                    GenericJointBuilder::new(JointAxesMask::LOCKED_PRISMATIC_AXES)
-                        .limits(JointAxis::LinX, [lower as f32, upper as f32])
-                }
-            };
-            builder = builder
-                .local_frame1(to_pose(&frame1))
-                .local_frame2(to_pose(&frame2))
-                .contacts_enabled(false);
-            let jh = world.impulse_joints.insert(
-                bodies[j.parent],
-                bodies[j.child],
-                builder.build(),
-                true,
-            );
-            joint_handles.push(jh);
-        }
+        let mut world = empty_world(cfg);
+        let (bodies, robot_colliders) = add_robot_bodies(&mut world, robot, start, cfg)?;
+        let joint_handles = add_joints(&mut world, robot, &bodies);
         let motor = |w: &crate::robot::Wheel| WheelMotor {
             joint: joint_handles[w.joint],
             sign: w.forward_sign,
@@ -390,19 +446,7 @@ impl PhysicsWorld {
         };
         let left = robot.wheels.left.iter().map(motor).collect();
         let right = robot.wheels.right.iter().map(motor).collect();
-
-        // Obstacles.
-        let mut obstacle_colliders = Vec::with_capacity(obstacles.len());
-        for (i, o) in obstacles.iter().enumerate() {
-            let c = ColliderBuilder::new(o.shape().clone())
-                .position(*o.shape_pose())
-                .friction(cfg.friction as f32)
-                .collision_groups(obstacle_groups)
-                .user_data(i as u128)
-                .build();
-            obstacle_colliders.push(world.colliders.insert(c));
-        }
-
+        let obstacle_colliders = add_obstacles(&mut world, obstacles, cfg);
         let link_names = robot.bodies.iter().map(|b| b.name.clone()).collect();
         let mut out = Self {
             world,

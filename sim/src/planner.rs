@@ -2,18 +2,22 @@
 //! nominal tracker (`[goal] plan`, on by default with `form = "safety_filter"`).
 //!
 //! Each leg (start → waypoint → … → goal) is kept straight when it has line of sight; otherwise
-//! an A* search on an 8-connected grid (cell `resolution`, default 5 cm) finds a path through
-//! cells whose clearance — the signed distance of the robot disc to the nearest obstacle,
-//! half-spaces included — is at least `inflate` (the obstacle barrier margin plus a corridor of
-//! 8 cm by default, so the tracker does not ask the safety filter to cut corners). The grid
-//! path is then shortened by line of sight (string pulling). Clearances are evaluated lazily,
-//! only for the cells the search visits, and the plan is made once per run.
+//! an A* search (the `pathfinding` crate's) on an 8-connected grid (cell `resolution`, default
+//! 5 cm) finds a path through cells whose clearance — the signed distance of the robot disc to
+//! the nearest obstacle, half-spaces included — is at least `inflate` (the obstacle barrier
+//! margin plus a corridor of 8 cm by default, so the tracker does not ask the safety filter to
+//! cut corners). The grid path is then shortened by line of sight (string pulling). Clearances
+//! are evaluated lazily, only for the cells the search visits, and the plan is made once per
+//! run.
 //!
 //! Closed-form safe sets (half-planes in the state, ellipses) are not obstacles to the planner:
 //! they constrain the state, and the safety filter keeps them.
 
+use std::cell::RefCell;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::HashMap;
+
+use pathfinding::directed::astar::astar;
 
 /// Planner settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,27 +52,6 @@ pub struct Plan {
     pub unplanned_legs: usize,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Open {
-    f: f64,
-    cell: (i64, i64),
-}
-
-impl Eq for Open {}
-
-impl Ord for Open {
-    fn cmp(&self, o: &Self) -> Ordering {
-        // min-heap on f, ties broken by the cell (deterministic)
-        o.f.total_cmp(&self.f).then_with(|| o.cell.cmp(&self.cell))
-    }
-}
-
-impl PartialOrd for Open {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
@@ -88,7 +71,79 @@ fn line_of_sight(
     })
 }
 
-/// A* from `a` to `b` on the grid; `None` when no free path exists in the grid's bounds.
+/// The cost of a grid path for the A* search: its length \[m\], and a tie-break key that only
+/// the heuristic carries (the cell itself; steps add none). Ordered by length, then by key, so
+/// of the open cells with equal f = g + h the search expands the smallest cell first: the order
+/// is deterministic, whatever the heap's internal order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Cost {
+    length: f64,
+    key: Cell,
+}
+
+/// A grid cell (column, row) from the grid's origin.
+type Cell = (i64, i64);
+
+impl Cost {
+    fn step(length: f64) -> Self {
+        Self {
+            length,
+            key: (0, 0),
+        }
+    }
+}
+
+impl std::ops::Add for Cost {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            length: self.length + o.length,
+            key: (self.key.0 + o.key.0, self.key.1 + o.key.1),
+        }
+    }
+}
+
+impl pathfinding::num_traits::Zero for Cost {
+    fn zero() -> Self {
+        Self::step(0.0)
+    }
+    fn is_zero(&self) -> bool {
+        self.length == 0.0 && self.key == (0, 0)
+    }
+}
+
+impl Eq for Cost {}
+
+impl Ord for Cost {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.length
+            .total_cmp(&o.length)
+            .then_with(|| self.key.cmp(&o.key))
+    }
+}
+
+impl PartialOrd for Cost {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// The 8 neighbour offsets, in the order the search tries them.
+const NEIGHBOURS: [Cell; 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
+/// A* (the `pathfinding` crate's) from `a` to `b` on the grid; `None` when no free path exists
+/// in the grid's bounds. Cells are free when their centre's clearance is at least `inflate`
+/// (evaluated once per cell, on first visit); the start and goal cells always are. A diagonal
+/// step needs both cells beside it free (no corner cutting).
 fn grid_path(
     a: [f64; 2],
     b: [f64; 2],
@@ -105,10 +160,10 @@ fn grid_path(
             ((p[1] - origin[1]) / r).round() as i64,
         )
     };
-    let centre = |q: (i64, i64)| [origin[0] + q.0 as f64 * r, origin[1] + q.1 as f64 * r];
+    let centre = |q: Cell| [origin[0] + q.0 as f64 * r, origin[1] + q.1 as f64 * r];
     let (start, goal) = (cell_of(a), cell_of(b));
-    let mut free_cache: HashMap<(i64, i64), bool> = HashMap::new();
-    let mut free = |q: (i64, i64)| -> bool {
+    let free_cache: RefCell<HashMap<Cell, bool>> = RefCell::default();
+    let free = |q: Cell| -> bool {
         if q == start || q == goal {
             return true;
         }
@@ -116,77 +171,37 @@ fn grid_path(
             return false;
         }
         *free_cache
+            .borrow_mut()
             .entry(q)
             .or_insert_with(|| clear(centre(q)) >= c.inflate)
     };
-    let h = |q: (i64, i64)| {
-        let (dx, dy) = ((q.0 - goal.0).abs() as f64, (q.1 - goal.1).abs() as f64);
-        r * (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy))
-    };
-    let mut g: HashMap<(i64, i64), f64> = HashMap::new();
-    let mut parent: HashMap<(i64, i64), (i64, i64)> = HashMap::new();
-    let mut open = BinaryHeap::new();
-    g.insert(start, 0.0);
-    open.push(Open {
-        f: h(start),
-        cell: start,
-    });
-    while let Some(Open { cell, f }) = open.pop() {
-        let gc = g[&cell];
-        if f > gc + h(cell) + 1e-12 {
-            continue; // stale entry
-        }
-        if cell == goal {
-            let mut cells = vec![cell];
-            let mut q = cell;
-            while let Some(&p) = parent.get(&q) {
-                cells.push(p);
-                q = p;
-            }
-            cells.reverse();
-            let mut pts: Vec<[f64; 2]> = cells.into_iter().map(centre).collect();
-            pts[0] = a;
-            let last = pts.len() - 1;
-            pts[last] = b;
-            return Some(pts);
-        }
-        for (dx, dy) in [
-            (1, 0),
-            (-1, 0),
-            (0, 1),
-            (0, -1),
-            (1, 1),
-            (1, -1),
-            (-1, 1),
-            (-1, -1),
-        ] {
+    let successors = |&cell: &Cell| {
+        NEIGHBOURS.iter().filter_map(move |&(dx, dy)| {
             let q = (cell.0 + dx, cell.1 + dy);
-            if !free(q) {
-                continue;
-            }
-            // no corner cutting between two blocked cells
-            if dx != 0 && dy != 0 && !(free((cell.0 + dx, cell.1)) && free((cell.0, cell.1 + dy))) {
-                continue;
-            }
-            let step = if dx != 0 && dy != 0 {
+            let diagonal = dx != 0 && dy != 0;
+            let corner_free = || free((cell.0 + dx, cell.1)) && free((cell.0, cell.1 + dy));
+            let step = if diagonal {
                 r * std::f64::consts::SQRT_2
             } else {
                 r
             };
-            let gq = gc + step;
-            if g.get(&q).is_none_or(|&old| gq < old) {
-                g.insert(q, gq);
-                parent.insert(q, cell);
-                open.push(Open {
-                    f: gq + h(q),
-                    cell: q,
-                });
-            }
+            (free(q) && (!diagonal || corner_free())).then_some((q, Cost::step(step)))
+        })
+    };
+    let heuristic = |&q: &Cell| {
+        let (dx, dy) = ((q.0 - goal.0).abs() as f64, (q.1 - goal.1).abs() as f64);
+        Cost {
+            length: r * (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy)),
+            key: q,
         }
-    }
-    None
+    };
+    let (cells, _) = astar(&start, successors, heuristic, |&q| q == goal)?;
+    let mut pts: Vec<[f64; 2]> = cells.into_iter().map(centre).collect();
+    pts[0] = a;
+    let last = pts.len() - 1;
+    pts[last] = b;
+    Some(pts)
 }
-
 /// Shortens a grid path by line of sight.
 fn string_pull(
     pts: &[[f64; 2]],
@@ -304,5 +319,27 @@ mod tests {
         );
         assert_eq!(p.unplanned_legs, 1);
         assert_eq!(p.points, vec![[2.0, 0.0]]);
+    }
+
+    /// A block centred on a diagonal leg leaves two detours of equal length, round either
+    /// side. The search takes the same one every time: of the open cells with equal
+    /// f = g + h it expands the smallest first (the order the hand-written A* had, kept through
+    /// [`Cost`]'s tie-break key). Without the key the crate breaks those ties by its heap's
+    /// order and this plan passes the other side, through (1.35, 0.6).
+    #[test]
+    fn equal_detours_resolve_the_same_way() {
+        let block = |p: [f64; 2]| ((p[0] - 1.0).abs() - 0.2).max((p[1] - 1.0).abs() - 0.3);
+        let p = plan(
+            [0.0, 0.0],
+            &[],
+            [2.0, 2.0],
+            &block,
+            &PlannerConfig::default(),
+        );
+        let want = [[0.7, 1.4], [2.0, 2.0]];
+        assert_eq!(p.points.len(), want.len(), "{:?}", p.points);
+        for (got, want) in p.points.iter().zip(want) {
+            assert!(dist(*got, want) < 1e-12, "{:?}", p.points);
+        }
     }
 }

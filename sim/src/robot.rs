@@ -730,260 +730,429 @@ impl MassAcc {
     }
 }
 
+/// A robot description from a parsed URDF, in phases: the link tree, the walk that merges links
+/// over fixed joints into bodies, the links' mass and geometry, the bodies' masses, the drive
+/// wheels, the drive limits and the footprint.
 fn build(
     parsed: &urdf::Parsed,
     origin: &str,
     base_dir: Option<&Path>,
     opts: &LoadOptions,
 ) -> Result<RobotDescription, RobotError> {
-    let robot = &parsed.robot;
-    let err_struct = |message: String| RobotError::Structure {
+    let cx = Build {
+        parsed,
+        robot: &parsed.robot,
+        origin,
+        base_dir,
+        opts,
+    };
+    if cx.robot.links.is_empty() {
+        return Err(cx.structure("the URDF has no <link>".into()));
+    }
+    let tree = cx.link_tree()?;
+    let mut kin = cx.walk(&tree)?;
+    let (acc, mut warnings) = cx.link_contents(&mut kin)?;
+    warnings.append(&mut kin.notes);
+    let massless_wheels = cx.body_masses(&mut kin, &acc)?;
+    let fixed_wheels = cx.fixed_wheel_joints(&tree, &kin);
+    let wheels = find_wheels(
+        cx.robot,
+        origin,
+        &kin.bodies,
+        &kin.joints,
+        &kin.joint_of_urdf,
+        &fixed_wheels,
+        opts,
+    )?;
+    wheel_colliders(&mut kin.bodies, &kin.joints, &wheels);
+    cx.massless_wheel_masses(&mut kin, &massless_wheels, &mut warnings)?;
+    let (limits, limits_source) = cx.drive_limits(&wheels)?;
+    let (footprint_radius, centre_height) = cx.footprint(&kin.bodies)?;
+    Ok(RobotDescription {
+        name: cx.robot.name.clone(),
         origin: origin.to_string(),
-        message,
-    };
-    let invalid = |what: String| RobotError::InvalidValue {
-        origin: origin.to_string(),
-        what,
-    };
-    // `joint `x` (line N)` / `link `y` (line M)` for messages.
-    let jname = |ji: usize| {
-        format!(
-            "joint `{}` (line {})",
-            robot.joints[ji].name, parsed.joint_lines[ji]
-        )
-    };
-    if robot.links.is_empty() {
-        return Err(err_struct("the URDF has no <link>".into()));
-    }
-    // Names are unique (the reader refuses duplicates).
-    let link_index: HashMap<&str, usize> = robot
-        .links
-        .iter()
-        .enumerate()
-        .map(|(i, l)| (l.name.as_str(), i))
-        .collect();
-    // Parent joint of each link.
-    let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
-    let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
-    for (ji, j) in robot.joints.iter().enumerate() {
-        let p = *link_index.get(j.parent.link.as_str()).ok_or_else(|| {
-            err_struct(format!(
-                "{} names parent link `{}`, which does not exist",
-                jname(ji),
-                j.parent.link
-            ))
-        })?;
-        let c = *link_index.get(j.child.link.as_str()).ok_or_else(|| {
-            err_struct(format!(
-                "{} names child link `{}`, which does not exist",
-                jname(ji),
-                j.child.link
-            ))
-        })?;
-        if let Some(first) = parent_joint[c] {
-            return Err(err_struct(format!(
-                "link `{}` is the child of two joints, {} and {}",
-                j.child.link,
-                jname(first),
-                jname(ji)
-            )));
-        }
-        parent_joint[c] = Some(ji);
-        children[p].push(ji);
-    }
-    let roots: Vec<usize> = (0..robot.links.len())
-        .filter(|&i| parent_joint[i].is_none())
-        .collect();
-    if roots.is_empty() {
-        // Every link has a parent joint: following parents from any link must cycle.
-        return Err(err_struct(format!(
-            "no root link: the joints form a cycle ({})",
-            joint_cycle(0, &parent_joint, robot, &jname)
-        )));
-    }
-    if roots.len() != 1 {
-        let names: Vec<String> = roots
-            .iter()
-            .map(|&i| format!("`{}` (line {})", robot.links[i].name, parsed.link_lines[i]))
-            .collect();
-        return Err(err_struct(format!(
-            "the links must form one tree with a single root; roots found: {}",
-            names.join(", ")
-        )));
-    }
-    let root = roots[0];
+        bodies: kin.bodies,
+        joints: kin.joints,
+        wheels,
+        limits,
+        limits_source,
+        footprint_radius,
+        centre_height,
+        warnings,
+        xacro_output: None,
+    })
+}
 
-    // Walk the tree from the root: assign links to bodies, compute rest poses.
-    struct LinkInfo {
-        body: usize,
-        pose_in_body: Isometry3<f64>,
-    }
-    let mut info: Vec<Option<LinkInfo>> = (0..robot.links.len()).map(|_| None).collect();
-    let mut bodies: Vec<RobotBody> = Vec::new();
-    let mut body_joint: Vec<Option<usize>> = Vec::new(); // URDF joint making the body movable
-    let mut joints: Vec<RobotJoint> = Vec::new();
-    let mut joint_of_urdf: HashMap<usize, usize> = HashMap::new();
+/// What [`build`] reads and reports against: the parsed file, its origin for messages, the
+/// folder meshes resolve from, and the load options.
+struct Build<'a> {
+    parsed: &'a urdf::Parsed,
+    robot: &'a urdf_rs::Robot,
+    origin: &'a str,
+    base_dir: Option<&'a Path>,
+    opts: &'a LoadOptions,
+}
 
-    bodies.push(RobotBody {
-        name: robot.links[root].name.clone(),
-        links: vec![robot.links[root].name.clone()],
-        pose_in_root: Isometry3::identity(),
+/// The links as a tree: index by name, each link's parent joint and child joints, the root.
+struct LinkTree<'a> {
+    link_index: HashMap<&'a str, usize>,
+    parent_joint: Vec<Option<usize>>,
+    children: Vec<Vec<usize>>,
+    root: usize,
+}
+
+/// Where a link went: its body and its pose in that body.
+struct LinkInfo {
+    body: usize,
+    pose_in_body: Isometry3<f64>,
+}
+
+/// The bodies and joints the walk from the root makes.
+struct Kinematics {
+    /// Per link: its body and pose (`None` for a link the walk did not reach).
+    info: Vec<Option<LinkInfo>>,
+    bodies: Vec<RobotBody>,
+    /// Per body: the URDF joint making it movable (`None` for the root).
+    body_joint: Vec<Option<usize>>,
+    joints: Vec<RobotJoint>,
+    /// URDF joint index → index in `joints`.
+    joint_of_urdf: HashMap<usize, usize>,
+    /// Bodies of fixed joints driven as wheels because `[robot] wheels` names them.
+    promoted_bodies: Vec<usize>,
+    /// Notes for the warnings (one per promoted joint).
+    notes: Vec<String>,
+}
+
+/// A body holding one link at its origin, with no mass or geometry yet.
+fn empty_body(link: &str, pose_in_root: Isometry3<f64>) -> RobotBody {
+    RobotBody {
+        name: link.to_string(),
+        links: vec![link.to_string()],
+        pose_in_root,
         mass: 0.0,
         com: Vector3::zeros(),
         inertia: Matrix3::zeros(),
         colliders: Vec::new(),
         visuals: Vec::new(),
-    });
-    body_joint.push(None);
-    info[root] = Some(LinkInfo {
-        body: 0,
-        pose_in_body: Isometry3::identity(),
-    });
-    // Fixed joints a world names as drive wheels (`[robot] wheels`): some published files
-    // describe their drive wheels with fixed joints (a display model: Adept's Pioneer 3-DX fixes
-    // `left_hub_joint` with `<!-- type="continuous" -->`); those are driven as continuous joints.
-    let named_wheel = |name: &str| {
-        opts.wheel_joints
-            .as_ref()
-            .is_some_and(|(l, r)| l == name || r == name)
-    };
-    let mut promoted_bodies: Vec<usize> = Vec::new();
-    let mut notes: Vec<String> = Vec::new();
-    let mut stack = vec![root];
-    let mut visited = 1usize;
-    while let Some(l) = stack.pop() {
-        let (lbody, lpose) = match &info[l] {
-            Some(i) => (i.body, i.pose_in_body),
-            None => continue,
-        };
-        for &ji in &children[l] {
-            let j = &robot.joints[ji];
-            let c = link_index[j.child.link.as_str()];
-            if info[c].is_some() {
-                return Err(err_struct(format!("{} closes a kinematic loop", jname(ji))));
-            }
-            visited += 1;
-            let origin_iso = iso_from_pose(&j.origin);
-            let promoted = j.joint_type == urdf_rs::JointType::Fixed && named_wheel(&j.name);
-            match j.joint_type {
-                urdf_rs::JointType::Fixed if !promoted => {
-                    info[c] = Some(LinkInfo {
-                        body: lbody,
-                        pose_in_body: lpose * origin_iso,
-                    });
-                    bodies[lbody].links.push(j.child.link.clone());
-                }
-                urdf_rs::JointType::Fixed
-                | urdf_rs::JointType::Continuous
-                | urdf_rs::JointType::Revolute
-                | urdf_rs::JointType::Prismatic => {
-                    let axis_v = if promoted {
-                        let (axis_v, from) = promoted_axis(parsed, ji, &robot.links[c])
-                            .ok_or_else(|| {
-                                invalid(format!(
-                                    "{} is `fixed`, and [robot] wheels names it as a drive wheel: \
-                                     to drive it as a continuous joint it needs an <axis xyz> or \
-                                     a <cylinder> collision on link `{}` to take the axis from{}",
-                                    jname(ji),
-                                    j.child.link,
-                                    wheel_above(robot, &j.name)
-                                ))
-                            })?;
-                        // Rounded to 1e-6 (a cylinder turned by rpy -1.57079635 gives
-                        // 2.7e-9 components); `+ 0.0` prints -0 as 0.
-                        let short = |x: f64| (x * 1e6).round() / 1e6 + 0.0;
-                        notes.push(format!(
-                            "{origin}: {} is `fixed` in the URDF; [robot] wheels names it, so it \
-                             is driven as a continuous wheel joint about ({}, {}, {}) ({from})",
-                            jname(ji),
-                            short(axis_v.x),
-                            short(axis_v.y),
-                            short(axis_v.z)
-                        ));
-                        axis_v
-                    } else {
-                        Vector3::from(j.axis.xyz.0)
-                    };
-                    let axis = Unit::try_new(axis_v, 1e-9)
-                        .ok_or_else(|| invalid(format!("{}: <axis xyz> is zero", jname(ji))))?;
-                    let kind = match j.joint_type {
-                        urdf_rs::JointType::Continuous | urdf_rs::JointType::Fixed => {
-                            JointKind::Continuous
-                        }
-                        urdf_rs::JointType::Revolute => JointKind::Revolute {
-                            lower: j.limit.lower,
-                            upper: j.limit.upper,
-                        },
-                        _ => JointKind::Prismatic {
-                            lower: j.limit.lower,
-                            upper: j.limit.upper,
-                        },
-                    };
-                    let frame_in_parent = lpose * origin_iso;
-                    let pose_in_root = bodies[lbody].pose_in_root * frame_in_parent;
-                    let b = bodies.len();
-                    bodies.push(RobotBody {
-                        name: j.child.link.clone(),
-                        links: vec![j.child.link.clone()],
-                        pose_in_root,
-                        mass: 0.0,
-                        com: Vector3::zeros(),
-                        inertia: Matrix3::zeros(),
-                        colliders: Vec::new(),
-                        visuals: Vec::new(),
-                    });
-                    body_joint.push(Some(ji));
-                    if promoted {
-                        promoted_bodies.push(b);
-                    }
-                    joint_of_urdf.insert(ji, joints.len());
-                    joints.push(RobotJoint {
-                        name: j.name.clone(),
-                        kind,
-                        parent: lbody,
-                        child: b,
-                        frame_in_parent,
-                        axis,
-                    });
-                    info[c] = Some(LinkInfo {
-                        body: b,
-                        pose_in_body: Isometry3::identity(),
-                    });
-                }
-                ref other => {
-                    return Err(err_struct(format!(
-                        "{} has type {other:?}; only fixed, continuous, revolute and \
-                         prismatic joints are supported",
-                        jname(ji)
-                    )))
-                }
-            }
-            stack.push(c);
+    }
+}
+
+impl Build<'_> {
+    fn structure(&self, message: String) -> RobotError {
+        RobotError::Structure {
+            origin: self.origin.to_string(),
+            message,
         }
     }
-    if visited != robot.links.len() {
-        // One root and one parent per link: a link the walk missed hangs off a cycle.
-        let missed = (0..robot.links.len())
-            .find(|&i| info[i].is_none())
-            .unwrap_or(0);
-        return Err(err_struct(format!(
-            "link `{}` is not connected to the root `{}`: the joints form a cycle ({})",
-            robot.links[missed].name,
-            robot.links[root].name,
-            joint_cycle(missed, &parent_joint, robot, &jname)
-        )));
+
+    fn invalid(&self, what: String) -> RobotError {
+        RobotError::InvalidValue {
+            origin: self.origin.to_string(),
+            what,
+        }
     }
 
-    // Mass properties and colliders per body.
-    let mut acc = vec![MassAcc::zero(); bodies.len()];
-    let mut warnings = parsed.warnings.clone();
-    for (li, link) in robot.links.iter().enumerate() {
-        let Some(li_info) = &info[li] else { continue };
-        let (b, pose) = (li_info.body, li_info.pose_in_body);
+    /// `joint `x` (line N)`, for messages.
+    fn jname(&self, ji: usize) -> String {
+        format!(
+            "joint `{}` (line {})",
+            self.robot.joints[ji].name, self.parsed.joint_lines[ji]
+        )
+    }
+
+    /// The link tree: every joint names existing links, no link has two parent joints, and
+    /// exactly one link has none (the root).
+    fn link_tree(&self) -> Result<LinkTree<'_>, RobotError> {
+        let robot = self.robot;
+        // Names are unique (the reader refuses duplicates).
+        let link_index: HashMap<&str, usize> = robot
+            .links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (l.name.as_str(), i))
+            .collect();
+        let mut parent_joint: Vec<Option<usize>> = vec![None; robot.links.len()];
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
+        let find = |ji: usize, which: &str, link: &str| {
+            link_index.get(link).copied().ok_or_else(|| {
+                self.structure(format!(
+                    "{} names {which} link `{link}`, which does not exist",
+                    self.jname(ji)
+                ))
+            })
+        };
+        for (ji, j) in robot.joints.iter().enumerate() {
+            let p = find(ji, "parent", &j.parent.link)?;
+            let c = find(ji, "child", &j.child.link)?;
+            if let Some(first) = parent_joint[c] {
+                return Err(self.structure(format!(
+                    "link `{}` is the child of two joints, {} and {}",
+                    j.child.link,
+                    self.jname(first),
+                    self.jname(ji)
+                )));
+            }
+            parent_joint[c] = Some(ji);
+            children[p].push(ji);
+        }
+        let roots: Vec<usize> = (0..robot.links.len())
+            .filter(|&i| parent_joint[i].is_none())
+            .collect();
+        if roots.is_empty() {
+            // Every link has a parent joint: following parents from any link must cycle.
+            return Err(self.structure(format!(
+                "no root link: the joints form a cycle ({})",
+                joint_cycle(0, &parent_joint, robot, &|ji| self.jname(ji))
+            )));
+        }
+        if roots.len() != 1 {
+            let names: Vec<String> = roots
+                .iter()
+                .map(|&i| {
+                    format!(
+                        "`{}` (line {})",
+                        robot.links[i].name, self.parsed.link_lines[i]
+                    )
+                })
+                .collect();
+            return Err(self.structure(format!(
+                "the links must form one tree with a single root; roots found: {}",
+                names.join(", ")
+            )));
+        }
+        Ok(LinkTree {
+            link_index,
+            parent_joint,
+            children,
+            root: roots[0],
+        })
+    }
+
+    /// Walks the tree from the root: a fixed joint merges its child link into the parent's
+    /// body, any other joint starts a body of its own. Refuses loops, unsupported joint types
+    /// and links the walk cannot reach.
+    fn walk(&self, tree: &LinkTree) -> Result<Kinematics, RobotError> {
+        let robot = self.robot;
+        let root = tree.root;
+        let mut info: Vec<Option<LinkInfo>> = (0..robot.links.len()).map(|_| None).collect();
+        info[root] = Some(LinkInfo {
+            body: 0,
+            pose_in_body: Isometry3::identity(),
+        });
+        let mut kin = Kinematics {
+            info,
+            bodies: vec![empty_body(&robot.links[root].name, Isometry3::identity())],
+            body_joint: vec![None],
+            joints: Vec::new(),
+            joint_of_urdf: HashMap::new(),
+            promoted_bodies: Vec::new(),
+            notes: Vec::new(),
+        };
+        let mut stack = vec![root];
+        let mut visited = 1usize;
+        while let Some(l) = stack.pop() {
+            let (lbody, lpose) = match &kin.info[l] {
+                Some(i) => (i.body, i.pose_in_body),
+                None => continue,
+            };
+            for &ji in &tree.children[l] {
+                let j = &robot.joints[ji];
+                let c = tree.link_index[j.child.link.as_str()];
+                if kin.info[c].is_some() {
+                    return Err(
+                        self.structure(format!("{} closes a kinematic loop", self.jname(ji)))
+                    );
+                }
+                visited += 1;
+                self.joint(&mut kin, ji, c, lbody, lpose)?;
+                stack.push(c);
+            }
+        }
+        if visited != robot.links.len() {
+            // One root and one parent per link: a link the walk missed hangs off a cycle.
+            let missed = (0..robot.links.len())
+                .find(|&i| kin.info[i].is_none())
+                .unwrap_or(0);
+            return Err(self.structure(format!(
+                "link `{}` is not connected to the root `{}`: the joints form a cycle ({})",
+                robot.links[missed].name,
+                robot.links[root].name,
+                joint_cycle(missed, &tree.parent_joint, robot, &|ji| self.jname(ji))
+            )));
+        }
+        Ok(kin)
+    }
+
+    /// URDF joint `ji` from a link of body `lbody` (at `lpose` in it) to link `c`: merges `c`
+    /// into the body over a fixed joint, else makes `c` a body of its own and the joint a
+    /// [`RobotJoint`]. A fixed joint that `[robot] wheels` names is driven as continuous.
+    fn joint(
+        &self,
+        kin: &mut Kinematics,
+        ji: usize,
+        c: usize,
+        lbody: usize,
+        lpose: Isometry3<f64>,
+    ) -> Result<(), RobotError> {
+        let j = &self.robot.joints[ji];
+        let origin_iso = iso_from_pose(&j.origin);
+        // Fixed joints a world names as drive wheels (`[robot] wheels`): some published files
+        // describe their drive wheels with fixed joints (a display model: Adept's Pioneer 3-DX
+        // fixes `left_hub_joint` with `<!-- type="continuous" -->`); those are driven as
+        // continuous joints.
+        let named_wheel = self
+            .opts
+            .wheel_joints
+            .as_ref()
+            .is_some_and(|(l, r)| *l == j.name || *r == j.name);
+        let promoted = j.joint_type == urdf_rs::JointType::Fixed && named_wheel;
+        let kind = match j.joint_type {
+            urdf_rs::JointType::Fixed if !promoted => {
+                kin.info[c] = Some(LinkInfo {
+                    body: lbody,
+                    pose_in_body: lpose * origin_iso,
+                });
+                kin.bodies[lbody].links.push(j.child.link.clone());
+                return Ok(());
+            }
+            urdf_rs::JointType::Continuous | urdf_rs::JointType::Fixed => JointKind::Continuous,
+            urdf_rs::JointType::Revolute => JointKind::Revolute {
+                lower: j.limit.lower,
+                upper: j.limit.upper,
+            },
+            urdf_rs::JointType::Prismatic => JointKind::Prismatic {
+                lower: j.limit.lower,
+                upper: j.limit.upper,
+            },
+            ref other => {
+                return Err(self.structure(format!(
+                    "{} has type {other:?}; only fixed, continuous, revolute and \
+                     prismatic joints are supported",
+                    self.jname(ji)
+                )))
+            }
+        };
+        let axis_v = if promoted {
+            self.promoted_joint_axis(ji, c, &mut kin.notes)?
+        } else {
+            Vector3::from(j.axis.xyz.0)
+        };
+        let axis = Unit::try_new(axis_v, 1e-9)
+            .ok_or_else(|| self.invalid(format!("{}: <axis xyz> is zero", self.jname(ji))))?;
+        let frame_in_parent = lpose * origin_iso;
+        let pose_in_root = kin.bodies[lbody].pose_in_root * frame_in_parent;
+        let b = kin.bodies.len();
+        kin.bodies.push(empty_body(&j.child.link, pose_in_root));
+        kin.body_joint.push(Some(ji));
+        if promoted {
+            kin.promoted_bodies.push(b);
+        }
+        kin.joint_of_urdf.insert(ji, kin.joints.len());
+        kin.joints.push(RobotJoint {
+            name: j.name.clone(),
+            kind,
+            parent: lbody,
+            child: b,
+            frame_in_parent,
+            axis,
+        });
+        kin.info[c] = Some(LinkInfo {
+            body: b,
+            pose_in_body: Isometry3::identity(),
+        });
+        Ok(())
+    }
+
+    /// The axis of fixed joint `ji` (child link `c`) driven as a wheel, with a note saying
+    /// where it came from; an error when the file gives none.
+    fn promoted_joint_axis(
+        &self,
+        ji: usize,
+        c: usize,
+        notes: &mut Vec<String>,
+    ) -> Result<Vector3<f64>, RobotError> {
+        let j = &self.robot.joints[ji];
+        let (axis_v, from) =
+            promoted_axis(self.parsed, ji, &self.robot.links[c]).ok_or_else(|| {
+                self.invalid(format!(
+                    "{} is `fixed`, and [robot] wheels names it as a drive wheel: \
+                     to drive it as a continuous joint it needs an <axis xyz> or \
+                     a <cylinder> collision on link `{}` to take the axis from{}",
+                    self.jname(ji),
+                    j.child.link,
+                    wheel_above(self.robot, &j.name)
+                ))
+            })?;
+        // Rounded to 1e-6 (a cylinder turned by rpy -1.57079635 gives 2.7e-9 components);
+        // `+ 0.0` prints -0 as 0.
+        let short = |x: f64| (x * 1e6).round() / 1e6 + 0.0;
+        notes.push(format!(
+            "{}: {} is `fixed` in the URDF; [robot] wheels names it, so it \
+             is driven as a continuous wheel joint about ({}, {}, {}) ({from})",
+            self.origin,
+            self.jname(ji),
+            short(axis_v.x),
+            short(axis_v.y),
+            short(axis_v.z)
+        ));
+        Ok(axis_v)
+    }
+
+    /// Each reached link's inertial summed into its body's mass accumulator, its collisions
+    /// added to the body's colliders and its visuals to the body's visuals. Returns the
+    /// accumulators and the warnings so far (the parser's, then visuals that could not load).
+    fn link_contents(
+        &self,
+        kin: &mut Kinematics,
+    ) -> Result<(Vec<MassAcc>, Vec<String>), RobotError> {
+        let mut acc = vec![MassAcc::zero(); kin.bodies.len()];
+        let mut warnings = self.parsed.warnings.clone();
+        for (li, link) in self.robot.links.iter().enumerate() {
+            let Some(li_info) = &kin.info[li] else {
+                continue;
+            };
+            let (b, pose) = (li_info.body, li_info.pose_in_body);
+            self.add_inertial(link, pose, &mut acc[b])?;
+            for col in &link.collision {
+                let cpose = pose * iso_from_pose(&col.origin);
+                let shape = collision_shape(
+                    &col.geometry,
+                    &link.name,
+                    self.origin,
+                    self.base_dir,
+                    self.opts,
+                )?;
+                kin.bodies[b].colliders.push(RobotCollider {
+                    link: link.name.clone(),
+                    pose_in_body: cpose,
+                    shape,
+                    is_wheel: false,
+                });
+            }
+            for vis in &link.visual {
+                let vpose = pose * iso_from_pose(&vis.origin);
+                match visual_mesh(&vis.geometry, &link.name, vpose, self.base_dir, self.opts) {
+                    Ok(Some(v)) => kin.bodies[b].visuals.push(v),
+                    Ok(None) => {}
+                    Err(w) => warnings.push(format!("{}: {w}", self.origin)),
+                }
+            }
+        }
+        Ok((acc, warnings))
+    }
+
+    /// Adds `link`'s `<inertial>` (the link at `pose` in its body) to `acc`, after checking
+    /// that its mass and inertia are finite and non-negative.
+    fn add_inertial(
+        &self,
+        link: &urdf_rs::Link,
+        pose: Isometry3<f64>,
+        acc: &mut MassAcc,
+    ) -> Result<(), RobotError> {
         let inertial = &link.inertial;
         let m = inertial.mass.value;
         if !m.is_finite() || m < 0.0 {
-            return Err(invalid(format!(
+            return Err(self.invalid(format!(
                 "link `{}`: <mass value> must be a finite number ≥ 0, got {m}",
                 link.name
             )));
@@ -992,7 +1161,7 @@ fn build(
             let i = &inertial.inertia;
             let vals = [i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz];
             if vals.iter().any(|v| !v.is_finite()) || i.ixx < 0.0 || i.iyy < 0.0 || i.izz < 0.0 {
-                return Err(invalid(format!(
+                return Err(self.invalid(format!(
                     "link `{}`: <inertia> must be finite with ixx, iyy, izz ≥ 0",
                     link.name
                 )));
@@ -1001,96 +1170,167 @@ fn build(
                 i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
             );
             let io = pose * iso_from_pose(&inertial.origin);
-            acc[b].add(m, io.translation.vector, &io.rotation, &i_com);
+            acc.add(m, io.translation.vector, &io.rotation, &i_com);
         }
-        for col in &link.collision {
-            let cpose = pose * iso_from_pose(&col.origin);
-            let shape = collision_shape(&col.geometry, &link.name, origin, base_dir, opts)?;
-            bodies[b].colliders.push(RobotCollider {
-                link: link.name.clone(),
-                pose_in_body: cpose,
-                shape,
-                is_wheel: false,
-            });
-        }
-        for vis in &link.visual {
-            let vpose = pose * iso_from_pose(&vis.origin);
-            match visual_mesh(&vis.geometry, &link.name, vpose, base_dir, opts) {
-                Ok(Some(v)) => bodies[b].visuals.push(v),
-                Ok(None) => {}
-                Err(w) => warnings.push(format!("{origin}: {w}")),
-            }
-        }
-    }
-    warnings.append(&mut notes);
-    // A promoted wheel whose links carry no <inertial> (the file fixes them to the chassis and
-    // gives them no mass of their own) gets its mass once its wheel cylinder is known.
-    let mut massless_wheels: Vec<usize> = Vec::new();
-    for (b, a) in acc.iter().enumerate() {
-        let (m, c, i) = a.finish();
-        if m == 0.0 && promoted_bodies.contains(&b) {
-            massless_wheels.push(b);
-            continue;
-        }
-        if m <= 0.0 {
-            let joint = match body_joint[b] {
-                Some(ji) => robot.joints[ji].name.clone(),
-                None => "root".to_string(),
-            };
-            return Err(RobotError::NonPositiveMass {
-                origin: origin.to_string(),
-                link: bodies[b].name.clone(),
-                joint,
-                mass: m,
-            });
-        }
-        bodies[b].mass = m;
-        bodies[b].com = c;
-        bodies[b].inertia = i;
+        Ok(())
     }
 
-    // Fixed joints on the chassis shaped like drive wheels (a lateral axis, a wheel-like
-    // collision on the child link): named when no wheel is found.
-    let fixed_wheels: Vec<String> = robot
-        .joints
-        .iter()
-        .enumerate()
-        .filter(|(ji, j)| {
-            let (p, c) = (
-                link_index[j.parent.link.as_str()],
-                link_index[j.child.link.as_str()],
-            );
-            let Some(parent) = info[p].as_ref().filter(|i| i.body == 0) else {
-                return false;
-            };
-            let wheel_like = robot.links[c].collision.iter().any(|col| {
-                matches!(
-                    col.geometry,
-                    urdf_rs::Geometry::Cylinder { .. } | urdf_rs::Geometry::Mesh { .. }
-                )
+    /// Each body's mass, centre of mass and inertia from its accumulator; an error for a body
+    /// without mass, except a promoted wheel (returned: it gets its mass from its cylinder once
+    /// the wheels are known).
+    fn body_masses(&self, kin: &mut Kinematics, acc: &[MassAcc]) -> Result<Vec<usize>, RobotError> {
+        // A promoted wheel whose links carry no <inertial> (the file fixes them to the chassis
+        // and gives them no mass of their own) gets its mass once its wheel cylinder is known.
+        let mut massless_wheels: Vec<usize> = Vec::new();
+        for (b, a) in acc.iter().enumerate() {
+            let (m, c, i) = a.finish();
+            if m == 0.0 && kin.promoted_bodies.contains(&b) {
+                massless_wheels.push(b);
+                continue;
+            }
+            if m <= 0.0 {
+                let joint = match kin.body_joint[b] {
+                    Some(ji) => self.robot.joints[ji].name.clone(),
+                    None => "root".to_string(),
+                };
+                return Err(RobotError::NonPositiveMass {
+                    origin: self.origin.to_string(),
+                    link: kin.bodies[b].name.clone(),
+                    joint,
+                    mass: m,
+                });
+            }
+            kin.bodies[b].mass = m;
+            kin.bodies[b].com = c;
+            kin.bodies[b].inertia = i;
+        }
+        Ok(massless_wheels)
+    }
+
+    /// Fixed joints on the chassis shaped like drive wheels (a lateral axis, a wheel-like
+    /// collision on the child link), named when no wheel is found.
+    fn fixed_wheel_joints(&self, tree: &LinkTree, kin: &Kinematics) -> Vec<String> {
+        let robot = self.robot;
+        robot
+            .joints
+            .iter()
+            .enumerate()
+            .filter(|(ji, j)| {
+                let (p, c) = (
+                    tree.link_index[j.parent.link.as_str()],
+                    tree.link_index[j.child.link.as_str()],
+                );
+                let Some(parent) = kin.info[p].as_ref().filter(|i| i.body == 0) else {
+                    return false;
+                };
+                let wheel_like = robot.links[c].collision.iter().any(|col| {
+                    matches!(
+                        col.geometry,
+                        urdf_rs::Geometry::Cylinder { .. } | urdf_rs::Geometry::Mesh { .. }
+                    )
+                });
+                let rotation = (parent.pose_in_body * iso_from_pose(&j.origin)).rotation;
+                j.joint_type == urdf_rs::JointType::Fixed
+                    && wheel_like
+                    && promoted_axis(self.parsed, *ji, &robot.links[c])
+                        .is_some_and(|(a, _)| (rotation * a.normalize()).y.abs() >= 0.99)
+            })
+            .map(|(ji, _)| self.jname(ji))
+            .collect()
+    }
+
+    /// A promoted wheel body without mass of its own gets the mass of its collision cylinder
+    /// at [`WHEEL_DENSITY`], with a warning; an error when it has no cylinder.
+    fn massless_wheel_masses(
+        &self,
+        kin: &mut Kinematics,
+        massless_wheels: &[usize],
+        warnings: &mut Vec<String>,
+    ) -> Result<(), RobotError> {
+        for &b in massless_wheels {
+            let body = &mut kin.bodies[b];
+            let cylinder = body.colliders.iter().find_map(|c| match c.shape {
+                CollisionShape::Cylinder {
+                    radius,
+                    half_length,
+                } if c.is_wheel => Some((c.pose_in_body, radius, 2.0 * half_length)),
+                _ => None,
             });
-            let rotation = (parent.pose_in_body * iso_from_pose(&j.origin)).rotation;
-            j.joint_type == urdf_rs::JointType::Fixed
-                && wheel_like
-                && promoted_axis(parsed, *ji, &robot.links[c])
-                    .is_some_and(|(a, _)| (rotation * a.normalize()).y.abs() >= 0.99)
-        })
-        .map(|(ji, _)| jname(ji))
-        .collect();
-    let wheels = find_wheels(
-        robot,
-        origin,
-        &bodies,
-        &joints,
-        &joint_of_urdf,
-        &fixed_wheels,
-        opts,
-    )?;
+            let Some((pose, r, width)) = cylinder else {
+                return Err(RobotError::NonPositiveMass {
+                    origin: self.origin.to_string(),
+                    link: body.name.clone(),
+                    joint: kin.body_joint[b]
+                        .map(|ji| self.robot.joints[ji].name.clone())
+                        .unwrap_or_default(),
+                    mass: 0.0,
+                });
+            };
+            let m = WHEEL_DENSITY * PI * r * r * width;
+            let across = m * (3.0 * r * r + width * width) / 12.0;
+            let i_com = Matrix3::from_diagonal(&Vector3::new(across, across, m * r * r / 2.0));
+            let mut a = MassAcc::zero();
+            a.add(m, pose.translation.vector, &pose.rotation, &i_com);
+            let (m, c, i) = a.finish();
+            (body.mass, body.com, body.inertia) = (m, c, i);
+            warnings.push(format!(
+                "{}: wheel link `{}` has no <inertial> (the URDF fixes it to the chassis); \
+                 it is given the mass of its collision cylinder (radius {r:.4} m, width {width:.4} m) \
+                 at {WHEEL_DENSITY} kg/m³: {m:.4} kg",
+                self.origin, body.name
+            ));
+        }
+        Ok(())
+    }
+
+    /// The drive limits: the options' override (positive and finite), else from the URDF.
+    fn drive_limits(
+        &self,
+        wheels: &DriveWheels,
+    ) -> Result<(DriveLimits, LimitsSource), RobotError> {
+        match self.opts.limits {
+            Some(l) => {
+                let ok = |x: f64| x.is_finite() && x > 0.0;
+                if !(ok(l.v_max) && ok(l.omega_max) && ok(l.wheel_speed_max)) {
+                    return Err(self.invalid(format!(
+                        "drive limits override must be positive and finite, got {l:?}"
+                    )));
+                }
+                Ok((l, LimitsSource::Explicit))
+            }
+            None => derive_limits(self.parsed, self.origin, wheels),
+        }
+    }
+
+    /// The footprint: the circumscribed radius of the collision geometry in the plane, and the
+    /// middle height of it (from the ground up); an error when there is no collision geometry.
+    fn footprint(&self, bodies: &[RobotBody]) -> Result<(f64, f64), RobotError> {
+        let mut r_max: f64 = 0.0;
+        let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
+        for body in bodies {
+            for c in &body.colliders {
+                let to_root = body.pose_in_root * c.pose_in_body;
+                for p in c.shape.bounding_points() {
+                    let q = to_root * p;
+                    r_max = r_max.max(q.x.hypot(q.y));
+                    z_min = z_min.min(q.z);
+                    z_max = z_max.max(q.z);
+                }
+            }
+        }
+        if !z_min.is_finite() {
+            return Err(self.structure("the robot has no collision geometry".into()));
+        }
+        Ok((r_max, 0.5 * (z_min.max(0.0) + z_max)))
+    }
+}
+
+/// Marks the wheel bodies' colliders as wheels; a wheel measured from its mesh rolls on the
+/// cylinder of that extent instead (the mesh's convex hull is a polygon and would roll bumpily).
+fn wheel_colliders(bodies: &mut [RobotBody], joints: &[RobotJoint], wheels: &DriveWheels) {
     for w in wheels.all() {
         let axis = joints[w.joint].axis;
         let body = &mut bodies[w.body];
-        // A wheel measured from its mesh rolls on the cylinder of that extent: the mesh's
-        // convex hull is a polygon and would roll bumpily.
         if wheel_size(body, axis).is_some_and(|s| s.from_mesh) {
             if let Some(m) = mesh_extent(body, axis) {
                 let z_to_axis = UnitQuaternion::rotation_between(&Vector3::z(), &axis)
@@ -1121,83 +1361,6 @@ fn build(
             c.is_wheel = true;
         }
     }
-    for b in massless_wheels {
-        let body = &mut bodies[b];
-        let cylinder = body.colliders.iter().find_map(|c| match c.shape {
-            CollisionShape::Cylinder {
-                radius,
-                half_length,
-            } if c.is_wheel => Some((c.pose_in_body, radius, 2.0 * half_length)),
-            _ => None,
-        });
-        let Some((pose, r, width)) = cylinder else {
-            return Err(RobotError::NonPositiveMass {
-                origin: origin.to_string(),
-                link: body.name.clone(),
-                joint: body_joint[b]
-                    .map(|ji| robot.joints[ji].name.clone())
-                    .unwrap_or_default(),
-                mass: 0.0,
-            });
-        };
-        let m = WHEEL_DENSITY * PI * r * r * width;
-        let across = m * (3.0 * r * r + width * width) / 12.0;
-        let i_com = Matrix3::from_diagonal(&Vector3::new(across, across, m * r * r / 2.0));
-        let mut a = MassAcc::zero();
-        a.add(m, pose.translation.vector, &pose.rotation, &i_com);
-        let (m, c, i) = a.finish();
-        (body.mass, body.com, body.inertia) = (m, c, i);
-        warnings.push(format!(
-            "{origin}: wheel link `{}` has no <inertial> (the URDF fixes it to the chassis); \
-             it is given the mass of its collision cylinder (radius {r:.4} m, width {width:.4} m) \
-             at {WHEEL_DENSITY} kg/m³: {m:.4} kg",
-            body.name
-        ));
-    }
-    let (limits, limits_source) = match opts.limits {
-        Some(l) => {
-            let ok = |x: f64| x.is_finite() && x > 0.0;
-            if !(ok(l.v_max) && ok(l.omega_max) && ok(l.wheel_speed_max)) {
-                return Err(invalid(format!(
-                    "drive limits override must be positive and finite, got {l:?}"
-                )));
-            }
-            (l, LimitsSource::Explicit)
-        }
-        None => derive_limits(parsed, origin, &wheels)?,
-    };
-
-    // Footprint: circumscribed radius in the plane, and the middle height of the geometry.
-    let mut r_max: f64 = 0.0;
-    let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
-    for body in &bodies {
-        for c in &body.colliders {
-            let to_root = body.pose_in_root * c.pose_in_body;
-            for p in c.shape.bounding_points() {
-                let q = to_root * p;
-                r_max = r_max.max(q.x.hypot(q.y));
-                z_min = z_min.min(q.z);
-                z_max = z_max.max(q.z);
-            }
-        }
-    }
-    if !z_min.is_finite() {
-        return Err(err_struct("the robot has no collision geometry".into()));
-    }
-
-    Ok(RobotDescription {
-        name: robot.name.clone(),
-        origin: origin.to_string(),
-        bodies,
-        joints,
-        wheels,
-        limits,
-        limits_source,
-        footprint_radius: r_max,
-        centre_height: 0.5 * (z_min.max(0.0) + z_max),
-        warnings,
-        xacro_output: None,
-    })
 }
 
 /// The axis a `fixed` joint named as a drive wheel turns about, and where it came from: the
@@ -1628,6 +1791,9 @@ struct WheelCandidate {
     effort: Option<f64>,
 }
 
+/// The drive wheels, in phases: the candidate joints (those `[robot] wheels` names, else the
+/// wheel-like continuous joints on the chassis), each measured in the root frame, split into
+/// left and right, and checked for equal radii and a separation.
 fn find_wheels(
     robot: &urdf_rs::Robot,
     origin: &str,
@@ -1637,107 +1803,18 @@ fn find_wheels(
     fixed_wheels: &[String],
     opts: &LoadOptions,
 ) -> Result<DriveWheels, RobotError> {
-    let werr = |message: String| RobotError::Wheels {
-        origin: origin.to_string(),
-        message,
+    let search = WheelSearch {
+        robot,
+        origin,
+        bodies,
+        joints,
     };
-    let size = |k: usize| wheel_size(&bodies[joints[k].child], joints[k].axis);
-    // Lateral in the root frame: a drive wheel's axle, not a swivel's vertical axis.
-    let lateral = |k: usize| {
-        let j = &joints[k];
-        let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
-        (frame_root.rotation * j.axis.into_inner()).y.abs() >= 0.99
-    };
-    let candidates: Vec<usize> = match &opts.wheel_joints {
-        Some((l, r)) => {
-            let mut v = Vec::new();
-            for name in [l, r] {
-                let ji = robot
-                    .joints
-                    .iter()
-                    .position(|j| &j.name == name)
-                    .ok_or_else(|| werr(format!("no joint named `{name}`")))?;
-                let k = *joint_of_urdf.get(&ji).ok_or_else(|| {
-                    werr(format!("joint `{name}` is not a joint a wheel can turn on"))
-                })?;
-                v.push(k);
-            }
-            v
-        }
-        // Continuous joints on the chassis (the root body) with a lateral axis and a cylinder or
-        // mesh collision; a caster's wheel hangs from its swivel, not from the chassis.
-        None => joints
-            .iter()
-            .enumerate()
-            .filter(|&(k, j)| {
-                matches!(j.kind, JointKind::Continuous)
-                    && j.parent == 0
-                    && lateral(k)
-                    && size(k).is_some()
-            })
-            .map(|(k, _)| k)
-            .collect(),
-    };
-    let names = |ks: &mut dyn Iterator<Item = usize>| -> String {
-        ks.map(|k| format!("`{}`", joints[k].name))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    if candidates.len() < 2 {
-        let fixed = if fixed_wheels.is_empty() {
-            String::new()
-        } else {
-            format!(
-                "; the URDF fixes {} to the chassis, shaped like wheels (a display model \
-                 describes its drive wheels so): name two of them in [robot] wheels to drive \
-                 them as continuous joints",
-                fixed_wheels.join(", ")
-            )
-        };
-        return Err(werr(format!(
-            "expected 2 (differential drive) or 4 or more (skid steer) continuous joints on the \
-             chassis with a lateral axis whose child link has a <cylinder> or <mesh> collision, \
-             found {} [{}]; name the wheel joints explicitly if the URDF has others{fixed}",
-            candidates.len(),
-            names(&mut candidates.iter().copied())
-        )));
-    }
-    let mut wheels = Vec::with_capacity(candidates.len());
-    for &k in &candidates {
-        let j = &joints[k];
-        if matches!(j.kind, JointKind::Prismatic { .. }) {
-            return Err(werr(format!("joint `{}` is prismatic", j.name)));
-        }
-        let WheelSize { radius, from_mesh } = size(k).ok_or_else(|| {
-            werr(format!(
-                "wheel link of joint `{}` has no <cylinder> or <mesh> collision to read the \
-                 radius from{}",
-                j.name,
-                wheel_above(robot, &j.name)
-            ))
-        })?;
-        let frame_root = bodies[j.parent].pose_in_root * j.frame_in_parent;
-        let axis_root = frame_root.rotation * j.axis.into_inner();
-        if axis_root.y.abs() < 0.99 {
-            return Err(werr(format!(
-                "joint `{}`: the wheel axis in the root frame is {:?}, not lateral (±y)",
-                j.name,
-                axis_root.as_slice()
-            )));
-        }
-        let urdf_j = robot.joints.iter().find(|u| u.name == j.name);
-        let effort = urdf_j
-            .map(|u| u.limit.effort)
-            .filter(|e| e.is_finite() && *e > 0.0);
-        wheels.push(WheelCandidate {
-            joint: k,
-            radius,
-            from_mesh,
-            position: frame_root.translation.vector,
-            forward_sign: axis_root.y.signum(),
-            effort,
-        });
-    }
+    let werr = |message: String| search.error(message);
+    let candidates = search.candidates(joint_of_urdf, fixed_wheels, opts)?;
+    let wheels = candidates
+        .iter()
+        .map(|&k| search.measure(k))
+        .collect::<Result<Vec<_>, _>>()?;
     let (left, right) = match &opts.wheel_joints {
         // Named: the caller says which is which; it must agree with the geometry.
         Some(_) => {
@@ -1752,37 +1829,8 @@ fn find_wheels(
         }
         None => group_sides(&wheels, joints, &werr)?,
     };
-    // Cylinders must agree within 0.1 mm; a radius measured from a mesh within 1 % (a mesh is
-    // a polygon, and left and right meshes are often exported separately).
-    let tolerance = if wheels.iter().any(|w| w.from_mesh) {
-        (0.01 * wheels[0].radius).max(1e-4)
-    } else {
-        1e-4
-    };
-    if let Some(w) = wheels
-        .iter()
-        .find(|w| (w.radius - wheels[0].radius).abs() > tolerance)
-    {
-        return Err(werr(format!(
-            "the wheels have different radii (`{}` {} m, `{}` {} m)",
-            joints[wheels[0].joint].name, wheels[0].radius, joints[w.joint].name, w.radius
-        )));
-    }
-    let centroid = |side: &[WheelCandidate]| {
-        side.iter().map(|w| w.position).sum::<Vector3<f64>>() / side.len() as f64
-    };
-    let separation = if left.len() == 1 {
-        (left[0].position.xy() - right[0].position.xy()).norm()
-    } else {
-        (centroid(&left).xy() - centroid(&right).xy()).norm()
-    };
-    if separation <= 0.0 || !separation.is_finite() {
-        return Err(werr(format!(
-            "the wheel joints {} and {} are at the same place",
-            names(&mut left.iter().map(|w| w.joint)),
-            names(&mut right.iter().map(|w| w.joint))
-        )));
-    }
+    search.check_radii(&wheels)?;
+    let separation = search.separation(&left, &right)?;
     let radius = wheels.iter().map(|w| w.radius).sum::<f64>() / wheels.len() as f64;
     let mk = |w: &WheelCandidate| Wheel {
         joint_name: joints[w.joint].name.clone(),
@@ -1796,6 +1844,200 @@ fn find_wheels(
         right: right.iter().map(mk).collect(),
         geometry: WheelGeometry { radius, separation },
     })
+}
+
+/// What [`find_wheels`] measures: the robot's bodies and joints, and the file for messages.
+struct WheelSearch<'a> {
+    robot: &'a urdf_rs::Robot,
+    origin: &'a str,
+    bodies: &'a [RobotBody],
+    joints: &'a [RobotJoint],
+}
+
+impl WheelSearch<'_> {
+    fn error(&self, message: String) -> RobotError {
+        RobotError::Wheels {
+            origin: self.origin.to_string(),
+            message,
+        }
+    }
+
+    /// The wheel size of joint `k`'s child body, from its collision geometry.
+    fn size(&self, k: usize) -> Option<WheelSize> {
+        wheel_size(&self.bodies[self.joints[k].child], self.joints[k].axis)
+    }
+
+    /// Joint `k`'s frame in the root frame.
+    fn frame_in_root(&self, k: usize) -> Isometry3<f64> {
+        let j = &self.joints[k];
+        self.bodies[j.parent].pose_in_root * j.frame_in_parent
+    }
+
+    /// The joints as "`a`, `b`", for messages.
+    fn names(&self, ks: &mut dyn Iterator<Item = usize>) -> String {
+        ks.map(|k| format!("`{}`", self.joints[k].name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The candidate wheel joints (indices into the joints): the two `[robot] wheels` names,
+    /// else every continuous joint on the chassis with a lateral axis and a wheel-like
+    /// collision. An error when fewer than two are found, naming fixed joints that look like
+    /// wheels.
+    fn candidates(
+        &self,
+        joint_of_urdf: &HashMap<usize, usize>,
+        fixed_wheels: &[String],
+        opts: &LoadOptions,
+    ) -> Result<Vec<usize>, RobotError> {
+        // Lateral in the root frame: a drive wheel's axle, not a swivel's vertical axis.
+        let lateral = |k: usize| {
+            (self.frame_in_root(k).rotation * self.joints[k].axis.into_inner())
+                .y
+                .abs()
+                >= 0.99
+        };
+        let candidates: Vec<usize> = match &opts.wheel_joints {
+            Some((l, r)) => {
+                let mut v = Vec::new();
+                for name in [l, r] {
+                    let ji = self
+                        .robot
+                        .joints
+                        .iter()
+                        .position(|j| &j.name == name)
+                        .ok_or_else(|| self.error(format!("no joint named `{name}`")))?;
+                    let k = *joint_of_urdf.get(&ji).ok_or_else(|| {
+                        self.error(format!("joint `{name}` is not a joint a wheel can turn on"))
+                    })?;
+                    v.push(k);
+                }
+                v
+            }
+            // Continuous joints on the chassis (the root body) with a lateral axis and a
+            // cylinder or mesh collision; a caster's wheel hangs from its swivel, not from the
+            // chassis.
+            None => self
+                .joints
+                .iter()
+                .enumerate()
+                .filter(|&(k, j)| {
+                    matches!(j.kind, JointKind::Continuous)
+                        && j.parent == 0
+                        && lateral(k)
+                        && self.size(k).is_some()
+                })
+                .map(|(k, _)| k)
+                .collect(),
+        };
+        if candidates.len() < 2 {
+            let fixed = if fixed_wheels.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; the URDF fixes {} to the chassis, shaped like wheels (a display model \
+                     describes its drive wheels so): name two of them in [robot] wheels to drive \
+                     them as continuous joints",
+                    fixed_wheels.join(", ")
+                )
+            };
+            return Err(self.error(format!(
+                "expected 2 (differential drive) or 4 or more (skid steer) continuous joints on the \
+                 chassis with a lateral axis whose child link has a <cylinder> or <mesh> collision, \
+                 found {} [{}]; name the wheel joints explicitly if the URDF has others{fixed}",
+                candidates.len(),
+                self.names(&mut candidates.iter().copied())
+            )));
+        }
+        Ok(candidates)
+    }
+
+    /// Candidate joint `k` measured in the root frame: its radius, position, which way it turns
+    /// forward and its effort limit. An error for a prismatic joint, a wheel without a
+    /// cylinder or mesh collision, or an axis that is not lateral.
+    fn measure(&self, k: usize) -> Result<WheelCandidate, RobotError> {
+        let j = &self.joints[k];
+        if matches!(j.kind, JointKind::Prismatic { .. }) {
+            return Err(self.error(format!("joint `{}` is prismatic", j.name)));
+        }
+        let WheelSize { radius, from_mesh } = self.size(k).ok_or_else(|| {
+            self.error(format!(
+                "wheel link of joint `{}` has no <cylinder> or <mesh> collision to read the \
+                 radius from{}",
+                j.name,
+                wheel_above(self.robot, &j.name)
+            ))
+        })?;
+        let frame_root = self.frame_in_root(k);
+        let axis_root = frame_root.rotation * j.axis.into_inner();
+        if axis_root.y.abs() < 0.99 {
+            return Err(self.error(format!(
+                "joint `{}`: the wheel axis in the root frame is {:?}, not lateral (±y)",
+                j.name,
+                axis_root.as_slice()
+            )));
+        }
+        let urdf_j = self.robot.joints.iter().find(|u| u.name == j.name);
+        let effort = urdf_j
+            .map(|u| u.limit.effort)
+            .filter(|e| e.is_finite() && *e > 0.0);
+        Ok(WheelCandidate {
+            joint: k,
+            radius,
+            from_mesh,
+            position: frame_root.translation.vector,
+            forward_sign: axis_root.y.signum(),
+            effort,
+        })
+    }
+
+    /// The wheels' radii agree: cylinders within 0.1 mm, a radius measured from a mesh within
+    /// 1 % (a mesh is a polygon, and left and right meshes are often exported separately).
+    fn check_radii(&self, wheels: &[WheelCandidate]) -> Result<(), RobotError> {
+        let tolerance = if wheels.iter().any(|w| w.from_mesh) {
+            (0.01 * wheels[0].radius).max(1e-4)
+        } else {
+            1e-4
+        };
+        match wheels
+            .iter()
+            .find(|w| (w.radius - wheels[0].radius).abs() > tolerance)
+        {
+            Some(w) => Err(self.error(format!(
+                "the wheels have different radii (`{}` {} m, `{}` {} m)",
+                self.joints[wheels[0].joint].name,
+                wheels[0].radius,
+                self.joints[w.joint].name,
+                w.radius
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The distance in the plane between the left and right wheels (between the sides'
+    /// centroids for a skid steer); an error when it is zero.
+    fn separation(
+        &self,
+        left: &[WheelCandidate],
+        right: &[WheelCandidate],
+    ) -> Result<f64, RobotError> {
+        let centroid = |side: &[WheelCandidate]| {
+            side.iter().map(|w| w.position).sum::<Vector3<f64>>() / side.len() as f64
+        };
+        let separation = if left.len() == 1 {
+            (left[0].position.xy() - right[0].position.xy()).norm()
+        } else {
+            (centroid(left).xy() - centroid(right).xy()).norm()
+        };
+        if separation <= 0.0 || !separation.is_finite() {
+            return Err(self.error(format!(
+                "the wheel joints {} and {} are at the same place",
+                self.names(&mut left.iter().map(|w| w.joint)),
+                self.names(&mut right.iter().map(|w| w.joint))
+            )));
+        }
+        Ok(separation)
+    }
 }
 
 /// When joint `name`'s parent link is wheel-shaped (a `<cylinder>` or `<mesh>` collision) and is

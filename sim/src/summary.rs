@@ -286,8 +286,18 @@ impl RunSummary {
 /// estimation errors, fail-closed counts, attacks), each ending in a newline.
 impl std::fmt::Display for RunSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let s = self;
         // Each line as `ftcbf run` prints it, newline included.
+        self.write_outcome(f)?;
+        self.write_policy(f)?;
+        self.write_estimation(f)?;
+        self.write_faults(f)
+    }
+}
+
+impl RunSummary {
+    /// The run line, safety (with its first events and minima), goal and settling.
+    fn write_outcome(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
         writeln!(
             f,
             "{} · {} · seed {} · {:.1} s simulated, {} control steps",
@@ -330,6 +340,12 @@ impl std::fmt::Display for RunSummary {
             s.final_clf_value
                 .map_or("n/a".to_string(), |v| format!("{v:.5}"))
         )?;
+        Ok(())
+    }
+
+    /// The policy stages and the smoothness of the command.
+    fn write_policy(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
         let st = &s.steps;
         writeln!(
             f,
@@ -346,6 +362,12 @@ impl std::fmt::Display for RunSummary {
             sm.path_length,
             sm.stalls
         )?;
+        Ok(())
+    }
+
+    /// Each filter's estimation error against the truth and its γ.
+    fn write_estimation(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
         if !s.estimation_errors.is_empty() {
             writeln!(
                 f,
@@ -375,6 +397,12 @@ impl std::fmt::Display for RunSummary {
                 )?;
             }
         }
+        Ok(())
+    }
+
+    /// Rejected readings, fail-closed counts and the attack windows.
+    fn write_faults(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
         if s.rejected_readings > 0 {
             writeln!(
                 f,

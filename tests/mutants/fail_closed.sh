@@ -6,6 +6,8 @@
 #
 #   bash tests/mutants/fail_closed.sh            # every mutant
 #   MUTANTS='exit|range' bash tests/mutants/...  # only those whose name matches the regex
+#   MUTANTS_DRY=1 bash tests/mutants/fail_closed.sh  # only check that every fixed code is still
+#                                                    # there exactly once (seconds; CI runs it)
 #
 # The first mutant builds the workspace in the scratch copy (CARGO_TARGET_DIR, default
 # target/mutants: a copy of target/release there saves the dependencies' cold build); each
@@ -32,6 +34,20 @@ mutant() {
   local args=("$@")
   [ ${#args[@]} -eq 0 ] && args=(-p ftcbf-controller)
   if [ -n "${MUTANTS:-}" ] && ! [[ $name =~ $MUTANTS ]]; then
+    return
+  fi
+  if [ -n "${MUTANTS_DRY:-}" ]; then
+    if python3 - "$file" "$new" <<'PY'
+import sys
+f, new = sys.argv[1:]
+sys.exit(0 if open(f).read().count(new) == 1 else 1)
+PY
+    then
+      echo "applies  $name"
+    else
+      echo "MISSING  $name: the fixed code is not in $file exactly once: update the mutant"
+      survivors=$((survivors + 1))
+    fi
     return
   fi
   cp "$file" "$work/orig"
@@ -163,7 +179,7 @@ mutant "gamma, theta, eta ignore the filter channels' rates and dropouts" sim/sr
   a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap \
   --test guarantees a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap
 mutant "check ignores a declared bias on a filter channel" sim/src/check.rs \
-  '    check_white_noise(world, &setup, &mut found); // 1d' '' \
+  '    check_white_noise(world, setup, &mut found); // 1d' '' \
   a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis \
   --test guarantees a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis
 # Issue #36: a filter none of whose channels gave a reading for a whole χ² window ranks after
@@ -171,5 +187,16 @@ mutant "check ignores a declared bias on a filter channel" sim/src/check.rs \
 mutant "a filter with no reading in its window ranks first" controller/src/estimator.rs \
   '        } else if self.win_dof == 0 {' '        } else if false && self.win_dof == 0 {' \
   a_filter_silent_for_a_window_ranks_after_every_filter_with_evidence
+# Issue #30 item 4: a heading held between slow samples without a gyro is stale by up to
+# ω_max·age; R carries it.
+mutant "a slow heading's staleness is left out of R" sim/src/runner/setup.rs \
+  '            h.noise_std.hypot(stale)' '            h.noise_std + 0.0 * stale' \
+  a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise \
+  --test guarantees a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise
+if [ -n "${MUTANTS_DRY:-}" ]; then
+  echo "$survivors mutant(s) no longer apply"
+  [ "$survivors" -eq 0 ]
+  exit
+fi
 echo "$survivors mutant(s) survived"
 [ "$survivors" -eq 0 ]

@@ -590,7 +590,8 @@ impl<'a, 'input> Reader<'a, 'input> {
     }
 
     /// The joint, and for a `fixed` joint the `<axis xyz>` written on it (never an error: ROS
-    /// does not read it).
+    /// does not read it). Reads, in order: the type, origin, parent and child links, axis,
+    /// limit, and the optional calibration, dynamics, mimic and safety controller.
     fn joint(&mut self, n: Node) -> Result<(urdf_rs::Joint, Option<[f64; 3]>), RobotError> {
         let name = self.name(n, "<joint>")?;
         let what = describe(n);
@@ -610,6 +611,34 @@ impl<'a, 'input> Reader<'a, 'input> {
             ],
             &what,
         );
+        let (joint_type, type_str) = self.joint_type(n, &what)?;
+        let origin = self.origin_of(n, &what)?;
+        let parent = self.joint_link(n, "parent", &what)?;
+        let child = self.joint_link(n, "child", &what)?;
+        let (axis, fixed_axis) = self.joint_axis(n, &what, &joint_type)?;
+        let limit = self.joint_limit(n, &what, &joint_type, type_str)?;
+        let joint = urdf_rs::Joint {
+            name,
+            joint_type,
+            origin,
+            parent: urdf_rs::LinkName { link: parent },
+            child: urdf_rs::LinkName { link: child },
+            axis,
+            limit,
+            calibration: self.calibration(n, &what)?,
+            dynamics: self.dynamics(n, &what)?,
+            mimic: self.mimic(n, &what)?,
+            safety_controller: self.safety_controller(n, &what)?,
+        };
+        Ok((joint, fixed_axis))
+    }
+
+    /// The joint's `type` (required), with the text it was read from.
+    fn joint_type<'n>(
+        &self,
+        n: Node<'n, '_>,
+        what: &str,
+    ) -> Result<(urdf_rs::JointType, &'n str), RobotError> {
         use urdf_rs::JointType as T;
         let type_str = n
             .attribute("type")
@@ -631,18 +660,29 @@ impl<'a, 'input> Reader<'a, 'input> {
                 ))
             }
         };
-        let origin = self.origin_of(n, &what)?;
-        let mut link_of = |tag: &str| -> Result<String, RobotError> {
-            let e = first(n, tag)
-                .ok_or_else(|| self.err(n, format!("{what} has no <{tag} link=…> (required)")))?;
-            let ctx = format!("<{tag}> of {what}");
-            self.attrs(e, &["link"], &ctx);
-            e.attribute("link")
-                .map(str::to_string)
-                .ok_or_else(|| self.err(e, format!("{ctx} has no `link` (required)")))
-        };
-        let parent = link_of("parent")?;
-        let child = link_of("child")?;
+        Ok((joint_type, type_str))
+    }
+
+    /// The `link` of the joint's `<parent>` or `<child>` (`tag`), both required.
+    fn joint_link(&mut self, n: Node, tag: &str, what: &str) -> Result<String, RobotError> {
+        let e = first(n, tag)
+            .ok_or_else(|| self.err(n, format!("{what} has no <{tag} link=…> (required)")))?;
+        let ctx = format!("<{tag}> of {what}");
+        self.attrs(e, &["link"], &ctx);
+        e.attribute("link")
+            .map(str::to_string)
+            .ok_or_else(|| self.err(e, format!("{ctx} has no `link` (required)")))
+    }
+
+    /// The joint's `<axis>` (default (1, 0, 0), with a warning when `xyz` is missing), and for
+    /// a fixed joint the `xyz` written on it, which urdfdom does not read.
+    fn joint_axis(
+        &mut self,
+        n: Node,
+        what: &str,
+        joint_type: &urdf_rs::JointType,
+    ) -> Result<(urdf_rs::Axis, Option<[f64; 3]>), RobotError> {
+        use urdf_rs::JointType as T;
         let mut axis = urdf_rs::Axis::default();
         let mut fixed_axis = None;
         if let Some(a) = first(n, "axis") {
@@ -658,10 +698,22 @@ impl<'a, 'input> Reader<'a, 'input> {
                         self.warn(a, msg);
                     }
                 }
-            } else if joint_type == T::Fixed {
+            } else if *joint_type == T::Fixed {
                 fixed_axis = self.vector::<3>(a, "xyz", &ctx).ok().flatten();
             }
         }
+        Ok((axis, fixed_axis))
+    }
+
+    /// The joint's `<limit>`, required for revolute and prismatic joints.
+    fn joint_limit(
+        &mut self,
+        n: Node,
+        what: &str,
+        joint_type: &urdf_rs::JointType,
+        type_str: &str,
+    ) -> Result<urdf_rs::JointLimit, RobotError> {
+        use urdf_rs::JointType as T;
         let mut limit = urdf_rs::JointLimit::default();
         match first(n, "limit") {
             Some(l) => {
@@ -694,85 +746,88 @@ impl<'a, 'input> Reader<'a, 'input> {
             }
             None => {}
         }
-        let calibration = match first(n, "calibration") {
-            Some(c) => {
-                let ctx = format!("<calibration> of {what}");
-                self.attrs(c, &["rising", "falling", "reference_position"], &ctx);
-                Some(urdf_rs::Calibration {
-                    rising: self.number(c, "rising", &ctx)?,
-                    falling: self.number(c, "falling", &ctx)?,
-                })
-            }
-            None => None,
+        Ok(limit)
+    }
+
+    /// The joint's optional `<calibration>`.
+    fn calibration(
+        &mut self,
+        n: Node,
+        what: &str,
+    ) -> Result<Option<urdf_rs::Calibration>, RobotError> {
+        let Some(c) = first(n, "calibration") else {
+            return Ok(None);
         };
-        let dynamics = match first(n, "dynamics") {
-            Some(d) => {
-                let ctx = format!("<dynamics> of {what}");
-                self.attrs(d, &["damping", "friction"], &ctx);
-                let damping = self.number(d, "damping", &ctx)?;
-                let friction = self.number(d, "friction", &ctx)?;
-                if damping.is_none() && friction.is_none() {
-                    return Err(self.err(d, format!("{ctx} has neither `damping` nor `friction`")));
-                }
-                Some(urdf_rs::Dynamics {
-                    damping: damping.unwrap_or(0.0),
-                    friction: friction.unwrap_or(0.0),
-                })
-            }
-            None => None,
+        let ctx = format!("<calibration> of {what}");
+        self.attrs(c, &["rising", "falling", "reference_position"], &ctx);
+        Ok(Some(urdf_rs::Calibration {
+            rising: self.number(c, "rising", &ctx)?,
+            falling: self.number(c, "falling", &ctx)?,
+        }))
+    }
+
+    /// The joint's optional `<dynamics>`, which needs `damping` or `friction`.
+    fn dynamics(&mut self, n: Node, what: &str) -> Result<Option<urdf_rs::Dynamics>, RobotError> {
+        let Some(d) = first(n, "dynamics") else {
+            return Ok(None);
         };
-        let mimic = match first(n, "mimic") {
-            Some(m) => {
-                let ctx = format!("<mimic> of {what}");
-                self.attrs(m, &["joint", "multiplier", "offset"], &ctx);
-                let joint = m
-                    .attribute("joint")
-                    .ok_or_else(|| self.err(m, format!("{ctx} has no `joint` (required)")))?
-                    .to_string();
-                Some(urdf_rs::Mimic {
-                    joint,
-                    multiplier: self.number(m, "multiplier", &ctx)?,
-                    offset: self.number(m, "offset", &ctx)?,
-                })
-            }
-            None => None,
+        let ctx = format!("<dynamics> of {what}");
+        self.attrs(d, &["damping", "friction"], &ctx);
+        let damping = self.number(d, "damping", &ctx)?;
+        let friction = self.number(d, "friction", &ctx)?;
+        if damping.is_none() && friction.is_none() {
+            return Err(self.err(d, format!("{ctx} has neither `damping` nor `friction`")));
+        }
+        Ok(Some(urdf_rs::Dynamics {
+            damping: damping.unwrap_or(0.0),
+            friction: friction.unwrap_or(0.0),
+        }))
+    }
+
+    /// The joint's optional `<mimic>`, which needs `joint`.
+    fn mimic(&mut self, n: Node, what: &str) -> Result<Option<urdf_rs::Mimic>, RobotError> {
+        let Some(m) = first(n, "mimic") else {
+            return Ok(None);
         };
-        let safety_controller = match first(n, "safety_controller") {
-            Some(s) => {
-                let ctx = format!("<safety_controller> of {what}");
-                self.attrs(
-                    s,
-                    &[
-                        "soft_lower_limit",
-                        "soft_upper_limit",
-                        "k_position",
-                        "k_velocity",
-                    ],
-                    &ctx,
-                );
-                Some(urdf_rs::SafetyController {
-                    soft_lower_limit: self.number(s, "soft_lower_limit", &ctx)?.unwrap_or(0.0),
-                    soft_upper_limit: self.number(s, "soft_upper_limit", &ctx)?.unwrap_or(0.0),
-                    k_position: self.number(s, "k_position", &ctx)?.unwrap_or(0.0),
-                    k_velocity: self.required_number(s, "k_velocity", &ctx)?,
-                })
-            }
-            None => None,
+        let ctx = format!("<mimic> of {what}");
+        self.attrs(m, &["joint", "multiplier", "offset"], &ctx);
+        let joint = m
+            .attribute("joint")
+            .ok_or_else(|| self.err(m, format!("{ctx} has no `joint` (required)")))?
+            .to_string();
+        Ok(Some(urdf_rs::Mimic {
+            joint,
+            multiplier: self.number(m, "multiplier", &ctx)?,
+            offset: self.number(m, "offset", &ctx)?,
+        }))
+    }
+
+    /// The joint's optional `<safety_controller>`, which needs `k_velocity`.
+    fn safety_controller(
+        &mut self,
+        n: Node,
+        what: &str,
+    ) -> Result<Option<urdf_rs::SafetyController>, RobotError> {
+        let Some(s) = first(n, "safety_controller") else {
+            return Ok(None);
         };
-        let joint = urdf_rs::Joint {
-            name,
-            joint_type,
-            origin,
-            parent: urdf_rs::LinkName { link: parent },
-            child: urdf_rs::LinkName { link: child },
-            axis,
-            limit,
-            calibration,
-            dynamics,
-            mimic,
-            safety_controller,
-        };
-        Ok((joint, fixed_axis))
+        let ctx = format!("<safety_controller> of {what}");
+        self.attrs(
+            s,
+            &[
+                "soft_lower_limit",
+                "soft_upper_limit",
+                "k_position",
+                "k_velocity",
+            ],
+            &ctx,
+        );
+        Ok(Some(urdf_rs::SafetyController {
+            soft_lower_limit: self.number(s, "soft_lower_limit", &ctx)?.unwrap_or(0.0),
+            soft_upper_limit: self.number(s, "soft_upper_limit", &ctx)?.unwrap_or(0.0),
+            k_position: self.number(s, "k_position", &ctx)?.unwrap_or(0.0),
+            k_velocity: self.required_number(s, "k_velocity", &ctx)?,
+        }))
     }
 }
 

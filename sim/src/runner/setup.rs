@@ -286,45 +286,19 @@ impl SensorTiming {
 /// either wheel is, so it takes the shorter of their worst gaps.
 pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize) -> SensorTiming {
     let sensors = &world.file.sensors;
-    let dt = world.control_dt();
     let sources = |si: usize| -> Vec<usize> {
         crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec())
     };
-    let mut lossy: Vec<usize> = sensor_of_channel
-        .iter()
-        .flat_map(|&si| sources(si))
-        .filter(|&t| sensors[t].dropout_prob > 0.0)
-        .collect();
-    lossy.sort_unstable();
-    lossy.dedup();
+    let lossy = lossy_sensors(world, sensor_of_channel);
     let eps = world.file.control.epsilon;
     let eps_gaps = if lossy.is_empty() { 0.0 } else { eps / 2.0 };
-    let per_sensor = eps_gaps / lossy.len().max(1) as f64;
     let timing_of = |channel: usize, t: usize| -> ChannelTiming {
-        let s = &sensors[t];
-        let period = s
-            .rate_hz
-            .map_or(1, |r| ((1.0 / (r * dt)) - 1e-9).ceil().max(1.0) as usize);
-        let slots = horizon.div_ceil(period).max(1) as f64;
-        let p = s.dropout_prob;
-        let missed = if p <= 0.0 {
-            Some(0)
-        } else if p >= 1.0 {
-            None
-        } else {
-            // Smallest n with slots·p^(n+1) ≤ per_sensor.
-            let n = ((per_sensor / slots).ln() / p.ln() - 1.0).ceil().max(0.0);
-            (n.is_finite() && n < horizon as f64).then_some(n as usize)
-        };
-        let every = missed
-            .map(|n| period.saturating_mul(n + 1))
-            .filter(|&e| e == 1 || e <= horizon)
-            .unwrap_or(0);
+        let (period, missed, every) = sample_gaps(world, t, horizon, lossy.len());
         ChannelTiming {
             channel,
             sensor: t,
             period,
-            dropout: p,
+            dropout: sensors[t].dropout_prob,
             missed: missed.unwrap_or(usize::MAX),
             every,
         }
@@ -353,6 +327,108 @@ pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize)
         lossy_sensors: lossy.len(),
         schedule,
     }
+}
+
+/// The sensors whose dropouts the gap budget of [`sensor_timing`] covers: every sensor a filter
+/// channel is read from (both wheels of one derived from wheels) and, when a channel turns a
+/// speed into world-frame velocity, the heading channel it is turned with (a lost heading sample
+/// leaves the conversion with an older one).
+fn lossy_sensors(world: &World, sensor_of_channel: &[usize]) -> Vec<usize> {
+    let sensors = &world.file.sensors;
+    let converts = sensor_of_channel
+        .iter()
+        .any(|&si| sensors[si].world_velocity);
+    let mut lossy: Vec<usize> = sensor_of_channel
+        .iter()
+        .flat_map(|&si| crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec()))
+        .chain(heading_sensor(world).filter(|_| converts))
+        .filter(|&t| sensors[t].dropout_prob > 0.0)
+        .collect();
+    lossy.sort_unstable();
+    lossy.dedup();
+    lossy
+}
+
+/// Sensor `t`'s worst-case sampling over `horizon` ticks when the gap budget (ε/2) is split over
+/// `lossy` sensors with dropouts ([`sensor_timing`]): (ticks between its samples, the consecutive
+/// losses the budget allows — `None`: unbounded —, ticks between fresh samples in the worst case,
+/// 0 for never).
+fn sample_gaps(
+    world: &World,
+    t: usize,
+    horizon: usize,
+    lossy: usize,
+) -> (usize, Option<usize>, usize) {
+    let s = &world.file.sensors[t];
+    let dt = world.control_dt();
+    let per_sensor = world.file.control.epsilon / 2.0 / lossy.max(1) as f64;
+    let period = s
+        .rate_hz
+        .map_or(1, |r| ((1.0 / (r * dt)) - 1e-9).ceil().max(1.0) as usize);
+    let slots = horizon.div_ceil(period).max(1) as f64;
+    let p = s.dropout_prob;
+    let missed = if p <= 0.0 {
+        Some(0)
+    } else if p >= 1.0 {
+        None
+    } else {
+        // Smallest n with slots·p^(n+1) ≤ per_sensor.
+        let n = ((per_sensor / slots).ln() / p.ln() - 1.0).ceil().max(0.0);
+        (n.is_finite() && n < horizon as f64).then_some(n as usize)
+    };
+    let every = missed
+        .map(|n| period.saturating_mul(n + 1))
+        .filter(|&e| e == 1 || e <= horizon)
+        .unwrap_or(0);
+    (period, missed, every)
+}
+
+/// How old the heading a speed channel is turned into world-frame velocity with can be, in the
+/// worst case the gap budget allows ([`sensor_timing`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadingHold {
+    /// The heading sensor.
+    pub sensor: usize,
+    /// Control ticks between its fresh samples in the worst case (0: never).
+    pub every: usize,
+    /// Without gyro fusion, the age \[s\] of the held sample the conversion uses at worst,
+    /// (every − 1)·dt (∞ for never); with fusion 0 (the filter propagates the yaw with the gyro
+    /// between compass readings, and [`odometry::fused_yaw_variance`] covers that).
+    pub age: f64,
+    /// Whether the heading is fused with a gyro.
+    pub fused: bool,
+}
+
+/// The heading channel's worst-case hold when some channel converts a speed with it.
+pub fn heading_hold(world: &World) -> Option<HeadingHold> {
+    let sensors = &world.file.sensors;
+    let h = heading_sensor(world)?;
+    let channel_sensors: Vec<usize> = (0..sensors.len())
+        .filter(|&si| sensors[si].world_velocity || observation_row(sensors[si].measures).is_some())
+        .collect();
+    if !channel_sensors.iter().any(|&si| sensors[si].world_velocity) {
+        return None;
+    }
+    let horizon = (world.file.duration / world.control_dt()).ceil().max(1.0) as usize;
+    let lossy = lossy_sensors(world, &channel_sensors).len();
+    let (_, _, every) = sample_gaps(world, h, horizon, lossy);
+    let fused = heading_fusion(world).is_some();
+    let age = match (fused, every) {
+        (true, _) => 0.0,
+        (false, 0) => f64::INFINITY,
+        (false, e) => (e - 1) as f64 * world.control_dt(),
+    };
+    Some(HeadingHold {
+        sensor: h,
+        every,
+        age,
+        fused,
+    })
+}
+
+/// The robot's turn-rate bound \[rad/s\] (its drive limits), if it has one.
+pub fn turn_rate_bound(world: &World) -> Option<f64> {
+    world.robot.as_ref().map(|r| r.limits.omega_max)
 }
 
 /// The planar-state row of a sensed quantity, if the linear model observes it.
@@ -1075,13 +1151,32 @@ fn speed_conversion_variance(world: &World, si: usize) -> Result<f64, RunError> 
             "the conversion's variance needs a speed bound: give [linear] v_max".to_string(),
         ));
     };
+    let hold = heading_hold(world);
     let yaw_std = match heading_fusion(world) {
-        None => h.noise_std,
+        None => {
+            // A held sample is up to `age` old: the robot may have turned ω_max·age since.
+            let age = hold.map_or(0.0, |h| h.age);
+            let stale = if age > 0.0 {
+                let Some(omega_max) = turn_rate_bound(world) else {
+                    return Err(setup_err(
+                        world,
+                        &key,
+                        format!(
+                            "heading channel \"{}\" is read every {age:.3} s at worst, and the conversion's variance needs a turn-rate bound for the robot's turn in between: give a robot with drive limits, or read the heading every control step",
+                            h.name
+                        ),
+                    ));
+                };
+                omega_max * age
+            } else {
+                0.0
+            };
+            h.noise_std.hypot(stale)
+        }
         Some((_, params)) => {
             let dt = world.control_dt();
-            let every = h
-                .rate_hz
-                .map_or(1, |r| (1.0 / (r * dt)).round().max(1.0) as usize);
+            // Never a fresh compass reading: only the start's (`usize::MAX` ticks apart).
+            let every = hold.map_or(1, |h| if h.every == 0 { usize::MAX } else { h.every });
             let a_max = world
                 .file
                 .control

@@ -15,7 +15,7 @@ pub use overrides::Override;
 pub use schema::*;
 
 use crate::attacks::validate_attacks;
-use crate::obstacles::{Obstacle, ShapeSpec};
+use crate::obstacles::{Obstacle, ObstacleSpec, ShapeSpec};
 use crate::robot::{DriveLimits, LoadOptions, RobotDescription};
 use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 
@@ -316,10 +316,41 @@ impl Validator<'_> {
     }
 
     /// Every number of the file within its physical range ([`ranges`]) and every list within
-    /// its size: run before anything is derived from the file.
+    /// its size: run before anything is derived from the file. Section by section, in the
+    /// file's order, so the first value out of range is the one reported.
     fn check_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        self.range("duration", file.duration, ranges::DURATION)?;
+        self.check_dynamics_ranges(file)?;
+        self.check_robot_ranges(file)?;
+        self.check_control_ranges(file)?;
+        self.check_goal_ranges(file)?;
+        self.check_safe_set_ranges(file)?;
+        self.count("obstacles", file.obstacles.len(), ranges::MAX_OBSTACLES)?;
+        for (i, o) in file.obstacles.iter().enumerate() {
+            self.check_obstacle_ranges(&format!("obstacles[{i}]"), o)?;
+        }
+        self.check_sensor_ranges(file)?;
+        self.count(
+            "fault_patterns",
+            file.fault_patterns.len(),
+            ranges::MAX_FAULT_PATTERNS,
+        )?;
+        self.count("attacks", file.attacks.len(), ranges::MAX_ATTACKS)?;
+        Ok(())
+    }
+
+    /// Each `(key, value, range)` of `table` in order: a value that is `None` (left out) is not
+    /// checked.
+    fn table(&self, table: &[(&str, Option<f64>, ranges::Range)]) -> Result<(), WorldError> {
+        table
+            .iter()
+            .try_for_each(|&(key, v, r)| self.opt_range(key, v, r))
+    }
+
+    /// `[physics]` for the rapier plant; `[linear]` (and a process noise the filters can use)
+    /// for the linear one.
+    fn check_dynamics_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
         use ranges as r;
-        self.range("duration", file.duration, r::DURATION)?;
         match file.dynamics {
             Dynamics::Rapier => {
                 self.range("physics.dt", file.physics.dt, r::PHYSICS_DT)?;
@@ -351,31 +382,46 @@ impl Validator<'_> {
                 }
             }
         }
-        if let Some(rb) = &file.robot {
-            self.range("robot.start.x", rb.start.x, r::POSITION)?;
-            self.range("robot.start.y", rb.start.y, r::POSITION)?;
-            self.range("robot.start.theta", rb.start.theta, r::ANGLE)?;
-            if let Some(l) = rb.limits {
-                self.range("robot.limits.v_max", l.v_max, r::SPEED)?;
-                self.range("robot.limits.omega_max", l.omega_max, r::YAW_RATE)?;
-                self.range(
-                    "robot.limits.wheel_speed_max",
-                    l.wheel_speed_max,
-                    r::WHEEL_SPEED,
-                )?;
-            }
-        }
+        Ok(())
+    }
 
-        let c = &file.control;
-        self.range("control.rate_hz", c.rate_hz, r::CONTROL_RATE)?;
-        let steps = file.duration * c.rate_hz;
+    /// `[robot]`: the start pose and the drive-limit override.
+    fn check_robot_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
+        let Some(rb) = &file.robot else {
+            return Ok(());
+        };
+        let limits = rb.limits;
+        self.table(&[
+            ("robot.start.x", Some(rb.start.x), r::POSITION),
+            ("robot.start.y", Some(rb.start.y), r::POSITION),
+            ("robot.start.theta", Some(rb.start.theta), r::ANGLE),
+            ("robot.limits.v_max", limits.map(|l| l.v_max), r::SPEED),
+            (
+                "robot.limits.omega_max",
+                limits.map(|l| l.omega_max),
+                r::YAW_RATE,
+            ),
+            (
+                "robot.limits.wheel_speed_max",
+                limits.map(|l| l.wheel_speed_max),
+                r::WHEEL_SPEED,
+            ),
+        ])
+    }
+
+    /// The run's length in control and plant steps within what is supported.
+    fn check_step_counts(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
+        let rate_hz = file.control.rate_hz;
+        let steps = file.duration * rate_hz;
         if steps > r::MAX_CONTROL_STEPS {
             return Err(self.err(
                 "duration",
                 format!(
                     "{} s at control.rate_hz = {} Hz is {steps} control steps; at most {} are supported",
                     file.duration,
-                    c.rate_hz,
+                    rate_hz,
                     r::MAX_CONTROL_STEPS
                 ),
             ));
@@ -395,65 +441,85 @@ impl Validator<'_> {
                 ),
             ));
         }
-        self.opt_range("control.input_limit", c.input_limit, r::ACCELERATION)?;
-        if let Param::Value(g) = c.gamma {
-            self.range("control.gamma", g, r::ERROR_BOUND)?;
-        }
-        if let Param::Value(t) = c.theta {
-            self.range("control.theta", t, r::ERROR_BOUND)?;
-        }
-        self.opt_range("control.delta", c.delta, r::ERROR_BOUND)?;
-        self.range("control.cbf_gain", c.cbf_gain, r::GAIN)?;
-        self.range("control.epsilon", c.epsilon, r::EPSILON)?;
+        Ok(())
+    }
+
+    /// `[control]` with its `clf`, `nominal` and `drive` tables.
+    fn check_control_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
+        let c = &file.control;
+        self.range("control.rate_hz", c.rate_hz, r::CONTROL_RATE)?;
+        self.check_step_counts(file)?;
+        let value = |p: &Param| match p {
+            Param::Value(v) => Some(*v),
+            _ => None,
+        };
+        self.table(&[
+            ("control.input_limit", c.input_limit, r::ACCELERATION),
+            ("control.gamma", value(&c.gamma), r::ERROR_BOUND),
+            ("control.theta", value(&c.theta), r::ERROR_BOUND),
+            ("control.delta", c.delta, r::ERROR_BOUND),
+            ("control.cbf_gain", Some(c.cbf_gain), r::GAIN),
+            ("control.epsilon", Some(c.epsilon), r::EPSILON),
+        ])?;
         if let Some(q) = c.process_noise {
             self.noise_intensity("control.process_noise", q)?;
         }
         self.ranges("control.initial_std", &c.initial_std, r::INITIAL_STD)?;
-        self.opt_range("control.clf.v_bar", c.clf.v_bar, r::CLF_LEVEL)?;
-        self.opt_range("control.clf.rho", c.clf.rho, r::GAIN)?;
-        self.range("control.obstacle_margin", c.obstacle_margin, r::MARGIN)?;
-        self.range("control.obstacle_lift", c.obstacle_lift, r::LIFT)?;
-        let n = &c.nominal;
-        self.opt_range("control.nominal.cruise_speed", n.cruise_speed, r::SPEED)?;
-        self.opt_range("control.nominal.speed_gain", n.speed_gain, r::GAIN)?;
-        self.opt_range(
-            "control.nominal.arrive_accel",
-            n.arrive_accel,
-            r::ACCELERATION,
-        )?;
-        self.opt_range("control.nominal.lookahead", n.lookahead, r::TRACKER_LENGTH)?;
-        self.opt_range("control.nominal.smoothing", n.smoothing, r::SMOOTHING)?;
-        self.opt_range("control.nominal.jerk_limit", n.jerk_limit, r::JERK)?;
-        self.opt_range(
-            "control.nominal.stall_progress",
-            n.stall_progress,
-            r::TRACKER_LENGTH,
-        )?;
-        self.opt_range("control.nominal.stall_time", n.stall_time, r::TRACKER_TIME)?;
-        self.opt_range(
-            "control.nominal.escape_time",
-            n.escape_time,
-            r::TRACKER_TIME,
-        )?;
-        self.opt_range(
-            "control.nominal.escape_angle",
-            n.escape_angle,
-            r::ESCAPE_ANGLE,
-        )?;
-        let d = &c.drive;
-        self.opt_range(
-            "control.drive.low_speed_scale",
-            d.low_speed_scale,
-            r::LOW_SPEED_SCALE,
-        )?;
-        self.opt_range("control.drive.dv_max", d.dv_max, r::ACCELERATION)?;
-        self.opt_range("control.drive.domega_max", d.domega_max, r::ACCELERATION)?;
-        self.opt_range(
-            "control.drive.wheel_speed_resolution",
-            d.wheel_speed_resolution,
-            r::WHEEL_RESOLUTION,
-        )?;
+        let (n, d) = (&c.nominal, &c.drive);
+        self.table(&[
+            ("control.clf.v_bar", c.clf.v_bar, r::CLF_LEVEL),
+            ("control.clf.rho", c.clf.rho, r::GAIN),
+            (
+                "control.obstacle_margin",
+                Some(c.obstacle_margin),
+                r::MARGIN,
+            ),
+            ("control.obstacle_lift", Some(c.obstacle_lift), r::LIFT),
+            ("control.nominal.cruise_speed", n.cruise_speed, r::SPEED),
+            ("control.nominal.speed_gain", n.speed_gain, r::GAIN),
+            (
+                "control.nominal.arrive_accel",
+                n.arrive_accel,
+                r::ACCELERATION,
+            ),
+            ("control.nominal.lookahead", n.lookahead, r::TRACKER_LENGTH),
+            ("control.nominal.smoothing", n.smoothing, r::SMOOTHING),
+            ("control.nominal.jerk_limit", n.jerk_limit, r::JERK),
+            (
+                "control.nominal.stall_progress",
+                n.stall_progress,
+                r::TRACKER_LENGTH,
+            ),
+            ("control.nominal.stall_time", n.stall_time, r::TRACKER_TIME),
+            (
+                "control.nominal.escape_time",
+                n.escape_time,
+                r::TRACKER_TIME,
+            ),
+            (
+                "control.nominal.escape_angle",
+                n.escape_angle,
+                r::ESCAPE_ANGLE,
+            ),
+            (
+                "control.drive.low_speed_scale",
+                d.low_speed_scale,
+                r::LOW_SPEED_SCALE,
+            ),
+            ("control.drive.dv_max", d.dv_max, r::ACCELERATION),
+            ("control.drive.domega_max", d.domega_max, r::ACCELERATION),
+            (
+                "control.drive.wheel_speed_resolution",
+                d.wheel_speed_resolution,
+                r::WHEEL_RESOLUTION,
+            ),
+        ])
+    }
 
+    /// `[goal]`: centre, radius and waypoints.
+    fn check_goal_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
         self.ranges("goal.center", &file.goal.center, r::POSITION)?;
         self.range("goal.radius", file.goal.radius, r::SIZE)?;
         self.count(
@@ -464,7 +530,12 @@ impl Validator<'_> {
         for (i, w) in file.goal.waypoints.iter().enumerate() {
             self.ranges(&format!("goal.waypoints[{i}]"), w, r::POSITION)?;
         }
+        Ok(())
+    }
 
+    /// `[[safe_sets]]`: their number, and each one's half-plane or ellipse.
+    fn check_safe_set_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
         self.count("safe_sets", file.safe_sets.len(), r::MAX_SAFE_SETS)?;
         for (i, s) in file.safe_sets.iter().enumerate() {
             let key = format!("safe_sets[{i}]");
@@ -494,74 +565,80 @@ impl Validator<'_> {
                 }
             }
         }
+        Ok(())
+    }
 
-        self.count("obstacles", file.obstacles.len(), r::MAX_OBSTACLES)?;
-        for (i, o) in file.obstacles.iter().enumerate() {
-            let key = format!("obstacles[{i}]");
-            self.ranges(&format!("{key}.position"), &o.position, r::POSITION)?;
-            self.ranges(&format!("{key}.rpy"), &o.rpy, r::ANGLE)?;
-            let shape = format!("{key}.shape");
-            match &o.shape {
-                ShapeSpec::Cuboid { half_extents } => {
-                    self.ranges(&format!("{shape}.half_extents"), half_extents, r::SIZE)?;
+    /// One `[[obstacles]]` entry (`key`): its placement and its shape's sizes and lists.
+    fn check_obstacle_ranges(&self, key: &str, o: &ObstacleSpec) -> Result<(), WorldError> {
+        use ranges as r;
+        self.ranges(&format!("{key}.position"), &o.position, r::POSITION)?;
+        self.ranges(&format!("{key}.rpy"), &o.rpy, r::ANGLE)?;
+        let shape = format!("{key}.shape");
+        match &o.shape {
+            ShapeSpec::Cuboid { half_extents } => {
+                self.ranges(&format!("{shape}.half_extents"), half_extents, r::SIZE)?;
+            }
+            ShapeSpec::Ball { radius } => {
+                self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
+            }
+            ShapeSpec::Cylinder {
+                radius,
+                half_height,
+            }
+            | ShapeSpec::Capsule {
+                radius,
+                half_height,
+            }
+            | ShapeSpec::Cone {
+                radius,
+                half_height,
+            } => {
+                self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
+                self.range(&format!("{shape}.half_height"), *half_height, r::SIZE)?;
+            }
+            ShapeSpec::ConvexHull { points } => {
+                self.count(
+                    &format!("{shape}.points"),
+                    points.len(),
+                    r::MAX_SHAPE_POINTS,
+                )?;
+                for (k, p) in points.iter().enumerate() {
+                    self.ranges(&format!("{shape}.points[{k}]"), p, r::POSITION)?;
                 }
-                ShapeSpec::Ball { radius } => {
-                    self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
+            }
+            ShapeSpec::HalfSpace { normal } => {
+                self.ranges(&format!("{shape}.normal"), normal, r::NORMAL_COMPONENT)?;
+            }
+            ShapeSpec::TriMesh {
+                vertices,
+                indices,
+                scale,
+                ..
+            } => {
+                self.count(
+                    &format!("{shape}.vertices"),
+                    vertices.len(),
+                    r::MAX_SHAPE_POINTS,
+                )?;
+                self.count(
+                    &format!("{shape}.indices"),
+                    indices.len(),
+                    r::MAX_SHAPE_POINTS,
+                )?;
+                for (k, p) in vertices.iter().enumerate() {
+                    self.ranges(&format!("{shape}.vertices[{k}]"), p, r::POSITION)?;
                 }
-                ShapeSpec::Cylinder {
-                    radius,
-                    half_height,
-                }
-                | ShapeSpec::Capsule {
-                    radius,
-                    half_height,
-                }
-                | ShapeSpec::Cone {
-                    radius,
-                    half_height,
-                } => {
-                    self.range(&format!("{shape}.radius"), *radius, r::SIZE)?;
-                    self.range(&format!("{shape}.half_height"), *half_height, r::SIZE)?;
-                }
-                ShapeSpec::ConvexHull { points } => {
-                    self.count(
-                        &format!("{shape}.points"),
-                        points.len(),
-                        r::MAX_SHAPE_POINTS,
-                    )?;
-                    for (k, p) in points.iter().enumerate() {
-                        self.ranges(&format!("{shape}.points[{k}]"), p, r::POSITION)?;
-                    }
-                }
-                ShapeSpec::HalfSpace { normal } => {
-                    self.ranges(&format!("{shape}.normal"), normal, r::NORMAL_COMPONENT)?;
-                }
-                ShapeSpec::TriMesh {
-                    vertices,
-                    indices,
-                    scale,
-                    ..
-                } => {
-                    self.count(
-                        &format!("{shape}.vertices"),
-                        vertices.len(),
-                        r::MAX_SHAPE_POINTS,
-                    )?;
-                    self.count(
-                        &format!("{shape}.indices"),
-                        indices.len(),
-                        r::MAX_SHAPE_POINTS,
-                    )?;
-                    for (k, p) in vertices.iter().enumerate() {
-                        self.ranges(&format!("{shape}.vertices[{k}]"), p, r::POSITION)?;
-                    }
-                    if let Some(s) = scale {
-                        self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
-                    }
+                if let Some(s) = scale {
+                    self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
                 }
             }
         }
+        Ok(())
+    }
 
+    /// `[[sensors]]`: their number, and each channel's noise, bias, rate and encoder ticks.
+    fn check_sensor_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
+        use ranges as r;
         self.count("sensors", file.sensors.len(), r::MAX_SENSORS)?;
         for (i, s) in file.sensors.iter().enumerate() {
             let key = format!("sensors[{i}]");
@@ -575,28 +652,22 @@ impl Validator<'_> {
                     ),
                 ));
             }
-            self.range(&format!("{key}.noise_std"), s.noise_std, r::NOISE_STD)?;
-            self.range(&format!("{key}.bias"), s.bias, r::BIAS)?;
-            self.range(
-                &format!("{key}.bias_walk_std"),
-                s.bias_walk_std,
-                r::NOISE_STD,
-            )?;
-            self.opt_range(&format!("{key}.rate_hz"), s.rate_hz, r::SENSOR_RATE)?;
-            if let Some(n) = s.ticks_per_rev {
-                self.range(
+            self.table(&[
+                (&format!("{key}.noise_std"), Some(s.noise_std), r::NOISE_STD),
+                (&format!("{key}.bias"), Some(s.bias), r::BIAS),
+                (
+                    &format!("{key}.bias_walk_std"),
+                    Some(s.bias_walk_std),
+                    r::NOISE_STD,
+                ),
+                (&format!("{key}.rate_hz"), s.rate_hz, r::SENSOR_RATE),
+                (
                     &format!("{key}.ticks_per_rev"),
-                    f64::from(n),
+                    s.ticks_per_rev.map(f64::from),
                     r::TICKS_PER_REV,
-                )?;
-            }
+                ),
+            ])?;
         }
-        self.count(
-            "fault_patterns",
-            file.fault_patterns.len(),
-            r::MAX_FAULT_PATTERNS,
-        )?;
-        self.count("attacks", file.attacks.len(), r::MAX_ATTACKS)?;
         Ok(())
     }
 
@@ -604,7 +675,6 @@ impl Validator<'_> {
     /// collider extents and mesh vertices within [`ranges::ROBOT_EXTENT`] of the root, wheel
     /// radius, separation and footprint within [`ranges::ROBOT_SIZE`], limits within theirs.
     fn check_robot(&self, robot: &RobotDescription) -> Result<(), WorldError> {
-        use crate::robot::CollisionShape;
         use ranges as r;
         let bad = |what: String| {
             self.err(
@@ -691,60 +761,15 @@ impl Validator<'_> {
                 )));
             }
             for c in &b.colliders {
-                let extent = match &c.shape {
-                    CollisionShape::Box { half_extents } => {
-                        let min = half_extents.iter().copied().fold(f64::INFINITY, f64::min);
-                        let max = half_extents.iter().copied().fold(0.0, f64::max);
-                        Some((min, max))
-                    }
-                    CollisionShape::Cylinder {
-                        radius,
-                        half_length,
-                    }
-                    | CollisionShape::Capsule {
-                        radius,
-                        half_length,
-                    } => Some((radius.min(*half_length), radius.max(*half_length))),
-                    CollisionShape::Sphere { radius } => Some((*radius, *radius)),
-                    CollisionShape::Mesh { vertices, .. } => {
-                        if vertices.iter().any(|v| {
-                            !v.iter()
-                                .all(|c| c.is_finite() && c.abs() <= r::ROBOT_EXTENT)
-                        }) {
-                            return Err(bad(format!(
-                                "a collision mesh of link `{}` has a vertex beyond {} m",
-                                c.link,
-                                r::ROBOT_EXTENT
-                            )));
-                        }
-                        None
-                    }
-                };
-                if let Some((min, max)) = extent {
-                    if !(min.is_finite() && max.is_finite())
-                        || min < r::ROBOT_SHAPE.min
-                        || max > r::ROBOT_SHAPE.max
-                    {
-                        return Err(bad(format!(
-                            "a collision shape of link `{}` has a size outside {} (smallest {min} m, largest {max} m)",
-                            c.link,
-                            r::ROBOT_SHAPE.describe()
-                        )));
-                    }
-                }
-                if !within(&c.pose_in_body.translation.vector) {
-                    return Err(bad(format!(
-                        "a collision shape of link `{}` lies at {:?} m, beyond {} m of its body",
-                        c.link,
-                        c.pose_in_body.translation.vector.as_slice(),
-                        r::ROBOT_EXTENT
-                    )));
-                }
+                check_robot_collider(c, &bad)?;
             }
         }
         Ok(())
     }
 
+    /// The parsed file checked, section by section in the file's order, into a [`World`]: the
+    /// ranges, the plant, the control rate and parameters, the goal, the safe sets, the robot
+    /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
     fn validate(
         &self,
         file: WorldFile,
@@ -754,9 +779,53 @@ impl Validator<'_> {
         self.positive("duration", file.duration)?;
         self.check_ranges(&file)?;
         let base = self.path.parent().unwrap_or_else(|| Path::new("."));
+        let plant_dt = self.check_plant(&file)?;
+        let ticks = self.check_control(&file, plant_dt)?;
+        self.finite("goal.center", &file.goal.center)?;
+        self.positive("goal.radius", file.goal.radius)?;
+        let mut names = self.check_safe_sets(&file)?;
+        let robot = match (&file.dynamics, &file.robot) {
+            (Dynamics::Rapier, Some(r)) => {
+                let robot = match loaded {
+                    Some(robot) => robot,
+                    None => self.load_robot(base, r)?,
+                };
+                self.check_robot(&robot)?;
+                Some(robot)
+            }
+            _ => None,
+        };
+        let mut obstacles = Vec::with_capacity(file.obstacles.len());
+        for (i, spec) in file.obstacles.iter().enumerate() {
+            let ob = Obstacle::from_spec(spec, Some(base))
+                .map_err(|e| self.err(format!("obstacles[{i}]"), e.to_string()))?;
+            names.push((spec.name.as_str(), format!("obstacles[{i}]")));
+            obstacles.push(ob);
+        }
+        self.check_unique_names(&names)?;
+        let patterns = self.check_channels(&file)?;
+        if file.control.controller == ControllerKindSpec::FtCbfClf && patterns.is_empty() {
+            return Err(self.err(
+                "fault_patterns",
+                "control.controller = \"ft-cbf-clf\" needs at least one [[fault_patterns]] entry (the sets of \
+                 channels that may fail together); use controller = \"baseline\" for a world without them",
+            ));
+        }
+        Ok(World {
+            name,
+            path: self.path.to_path_buf(),
+            robot,
+            obstacles,
+            patterns,
+            ticks_per_control: ticks as u32,
+            file,
+        })
+    }
 
-        // Plant.
-        let plant_dt = match file.dynamics {
+    /// The plant: the rapier robot's `[robot]` and `[physics]`, or the linear plant's
+    /// `[linear]`, and not the other's table. Returns the plant step \[s\].
+    fn check_plant(&self, file: &WorldFile) -> Result<f64, WorldError> {
+        match file.dynamics {
             Dynamics::Rapier => {
                 if file.robot.is_none() {
                     return Err(self.err(
@@ -788,7 +857,7 @@ impl Validator<'_> {
                 }
                 let st = file.robot.as_ref().map(|r| r.start).unwrap_or_default();
                 self.finite("robot.start", &[st.x, st.y, st.theta])?;
-                file.physics.dt
+                Ok(file.physics.dt)
             }
             Dynamics::Linear => {
                 let lin = file.linear.as_ref().ok_or_else(|| {
@@ -809,11 +878,14 @@ impl Validator<'_> {
                 if let Some(v) = lin.v_max {
                     self.positive("linear.v_max", v)?;
                 }
-                lin.dt
+                Ok(lin.dt)
             }
-        };
+        }
+    }
 
-        // Control.
+    /// `[control]`: a rate that is a whole number of plant steps of `plant_dt`, and the signs
+    /// of its parameters. Returns the plant steps per control step.
+    fn check_control(&self, file: &WorldFile, plant_dt: f64) -> Result<f64, WorldError> {
         let c = &file.control;
         self.positive("control.rate_hz", c.rate_hz)?;
         let ratio = 1.0 / (c.rate_hz * plant_dt);
@@ -867,12 +939,15 @@ impl Validator<'_> {
         }
         self.non_negative("control.obstacle_margin", c.obstacle_margin)?;
         self.non_negative("control.obstacle_lift", c.obstacle_lift)?;
+        Ok(ticks)
+    }
 
-        // Goal.
-        self.finite("goal.center", &file.goal.center)?;
-        self.positive("goal.radius", file.goal.radius)?;
-
-        // Safe sets.
+    /// `[[safe_sets]]`: finite numbers, a non-zero half-plane normal, positive semi-axes.
+    /// Returns each set's name with its key, for the uniqueness check.
+    fn check_safe_sets<'f>(
+        &self,
+        file: &'f WorldFile,
+    ) -> Result<Vec<(&'f str, String)>, WorldError> {
         let mut names: Vec<(&str, String)> = Vec::new();
         for (i, s) in file.safe_sets.iter().enumerate() {
             let key = format!("safe_sets[{i}]");
@@ -909,26 +984,11 @@ impl Validator<'_> {
             }
             names.push((s.name(), key));
         }
+        Ok(names)
+    }
 
-        // Robot and obstacles.
-        let robot = match (&file.dynamics, &file.robot) {
-            (Dynamics::Rapier, Some(r)) => {
-                let robot = match loaded {
-                    Some(robot) => robot,
-                    None => self.load_robot(base, r)?,
-                };
-                self.check_robot(&robot)?;
-                Some(robot)
-            }
-            _ => None,
-        };
-        let mut obstacles = Vec::with_capacity(file.obstacles.len());
-        for (i, spec) in file.obstacles.iter().enumerate() {
-            let ob = Obstacle::from_spec(spec, Some(base))
-                .map_err(|e| self.err(format!("obstacles[{i}]"), e.to_string()))?;
-            names.push((spec.name.as_str(), format!("obstacles[{i}]")));
-            obstacles.push(ob);
-        }
+    /// No two safe sets or obstacles share a name (`names`: name and key, in file order).
+    fn check_unique_names(&self, names: &[(&str, String)]) -> Result<(), WorldError> {
         for (i, (n, key)) in names.iter().enumerate() {
             if let Some((_, first)) = names[..i].iter().find(|(m, _)| m == n) {
                 return Err(self.err(
@@ -937,8 +997,13 @@ impl Validator<'_> {
                 ));
             }
         }
+        Ok(())
+    }
 
-        // Sensors, fault patterns, attacks: their own modules validate and name the entry.
+    /// Sensors, fault patterns and attacks (their own modules validate and name the entry),
+    /// then what the plant needs of the channels: no wheel channels on the linear plant, a
+    /// heading on the rapier one, x and y on both. Returns the resolved fault patterns.
+    fn check_channels(&self, file: &WorldFile) -> Result<Vec<Vec<usize>>, WorldError> {
         if file.sensors.is_empty() {
             return Err(self.err("sensors", "expected at least one [[sensors]] channel"));
         }
@@ -979,23 +1044,7 @@ impl Validator<'_> {
                 ));
             }
         }
-
-        if file.control.controller == ControllerKindSpec::FtCbfClf && patterns.is_empty() {
-            return Err(self.err(
-                "fault_patterns",
-                "control.controller = \"ft-cbf-clf\" needs at least one [[fault_patterns]] entry (the sets of \
-                 channels that may fail together); use controller = \"baseline\" for a world without them",
-            ));
-        }
-        Ok(World {
-            name,
-            path: self.path.to_path_buf(),
-            robot,
-            obstacles,
-            patterns,
-            ticks_per_control: ticks as u32,
-            file,
-        })
+        Ok(patterns)
     }
 
     fn load_robot(&self, base: &Path, r: &RobotSection) -> Result<RobotDescription, WorldError> {
@@ -1020,4 +1069,69 @@ impl Validator<'_> {
         };
         RobotDescription::from_file(&urdf, &opts).map_err(|e| self.err("robot.urdf", e.to_string()))
     }
+}
+
+/// A robot collider within the ranges of a ground robot: its size within
+/// [`ranges::ROBOT_SHAPE`] (a mesh's vertices within [`ranges::ROBOT_EXTENT`] instead), its
+/// place within [`ranges::ROBOT_EXTENT`] of its body; `bad` makes the error.
+fn check_robot_collider(
+    c: &crate::robot::RobotCollider,
+    bad: &dyn Fn(String) -> WorldError,
+) -> Result<(), WorldError> {
+    use crate::robot::CollisionShape;
+    use ranges as r;
+    let within = |v: &nalgebra::Vector3<f64>| {
+        v.iter()
+            .all(|c| c.is_finite() && c.abs() <= r::ROBOT_EXTENT)
+    };
+    let extent = match &c.shape {
+        CollisionShape::Box { half_extents } => {
+            let min = half_extents.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = half_extents.iter().copied().fold(0.0, f64::max);
+            Some((min, max))
+        }
+        CollisionShape::Cylinder {
+            radius,
+            half_length,
+        }
+        | CollisionShape::Capsule {
+            radius,
+            half_length,
+        } => Some((radius.min(*half_length), radius.max(*half_length))),
+        CollisionShape::Sphere { radius } => Some((*radius, *radius)),
+        CollisionShape::Mesh { vertices, .. } => {
+            if vertices.iter().any(|v| {
+                !v.iter()
+                    .all(|c| c.is_finite() && c.abs() <= r::ROBOT_EXTENT)
+            }) {
+                return Err(bad(format!(
+                    "a collision mesh of link `{}` has a vertex beyond {} m",
+                    c.link,
+                    r::ROBOT_EXTENT
+                )));
+            }
+            None
+        }
+    };
+    if let Some((min, max)) = extent {
+        if !(min.is_finite() && max.is_finite())
+            || min < r::ROBOT_SHAPE.min
+            || max > r::ROBOT_SHAPE.max
+        {
+            return Err(bad(format!(
+                "a collision shape of link `{}` has a size outside {} (smallest {min} m, largest {max} m)",
+                c.link,
+                r::ROBOT_SHAPE.describe()
+            )));
+        }
+    }
+    if !within(&c.pose_in_body.translation.vector) {
+        return Err(bad(format!(
+            "a collision shape of link `{}` lies at {:?} m, beyond {} m of its body",
+            c.link,
+            c.pose_in_body.translation.vector.as_slice(),
+            r::ROBOT_EXTENT
+        )));
+    }
+    Ok(())
 }

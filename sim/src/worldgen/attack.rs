@@ -44,7 +44,8 @@ fn signed<R: Rng>(rng: &mut R, lo: f64, hi: f64, step: f64) -> f64 {
     }
 }
 
-/// Draws an attack of `kind` on channels of the pattern `pattern` (its channel names).
+/// Draws an attack of `kind` on channels of the pattern `pattern` (its channel names): the
+/// channels, the start, the kind's keys, the end, in that order from `rng`.
 pub(crate) fn draw<R: Rng>(
     rng: &mut R,
     kind: &'static str,
@@ -58,19 +59,52 @@ pub(crate) fn draw<R: Rng>(
             .find(|s| s.name == name)
             .map_or("x", |s| s.measures)
     };
-    // which channels: one of them, or all of them, or (a receiver with velocity) its positions
+    let channels = draw_channels(rng, pattern, &measures);
+    let mut start = pick(rng, 1.0, (0.4 * duration).max(2.0), 0.5);
+    let keys = draw_keys(rng, kind, &channels, &mut start, &measures);
+    let end = if rng.random_bool(0.3) {
+        Some(dec(start + pick(rng, 3.0, 15.0, 0.5), 3))
+    } else {
+        None
+    };
+    Attack {
+        kind,
+        channels,
+        start,
+        end,
+        keys,
+    }
+}
+
+/// Which channels of `pattern` the attack hits: one of them, or all of them, or (a receiver
+/// with velocity) its positions.
+fn draw_channels<R: Rng>(
+    rng: &mut R,
+    pattern: &[String],
+    measures: &dyn Fn(&str) -> &'static str,
+) -> Vec<String> {
     let positions: Vec<String> = pattern
         .iter()
         .filter(|c| matches!(measures(c), "x" | "y"))
         .cloned()
         .collect();
-    let channels: Vec<String> = match rng.random_range(0..4) {
+    match rng.random_range(0..4) {
         0 | 1 if pattern.len() > 1 => vec![pattern[rng.random_range(0..pattern.len())].clone()],
         2 if positions.len() > 1 && positions.len() < pattern.len() => positions,
         _ => pattern.to_vec(),
-    };
+    }
+}
+
+/// The keys of an attack of `kind` on `channels`, sized in the first channel's unit; a replay
+/// moves `start` to after its recording.
+fn draw_keys<R: Rng>(
+    rng: &mut R,
+    kind: &'static str,
+    channels: &[String],
+    start: &mut f64,
+    measures: &dyn Fn(&str) -> &'static str,
+) -> Vec<(&'static str, Value)> {
     let s = scale(measures(&channels[0]));
-    let mut start = pick(rng, 1.0, (0.4 * duration).max(2.0), 0.5);
     let mut keys: Vec<(&'static str, Value)> = Vec::new();
     match kind {
         "bias" => keys.push(("value", Value::Num(dec(signed(rng, 0.1, 1.0, 0.05) * s, 3)))),
@@ -98,8 +132,8 @@ pub(crate) fn draw<R: Rng>(
         }
         "replay" => {
             let length = pick(rng, 2.0, 6.0, 0.5);
-            start = start.max(length + 1.0);
-            let record_start = pick(rng, 0.0, start - length, 0.5);
+            *start = start.max(length + 1.0);
+            let record_start = pick(rng, 0.0, *start - length, 0.5);
             keys.push(("record_start", Value::Num(record_start)));
             keys.push(("length", Value::Num(length)));
         }
@@ -154,16 +188,5 @@ pub(crate) fn draw<R: Rng>(
             }
         }
     }
-    let end = if rng.random_bool(0.3) {
-        Some(dec(start + pick(rng, 3.0, 15.0, 0.5), 3))
-    } else {
-        None
-    };
-    Attack {
-        kind,
-        channels,
-        start,
-        end,
-        keys,
-    }
+    keys
 }

@@ -540,19 +540,22 @@ impl Generator {
         (kind, robot, suite, order[i % ATTACK_KINDS.len()])
     }
 
-    /// World `i` of the seed's sequence.
-    pub fn world(&self, i: usize) -> Result<GeneratedWorld, GenError> {
-        let (kind, model, suite, attack_kind) = self.plan_of(i);
-        // `robots` holds RobotModel::ALL in order
+    /// Draws layouts of `kind` until the goal (of `goal_radius`) is reachable for robot
+    /// `model`, at most [`MAX_DRAWS`] times: the layout, its reach and the draws it took.
+    fn draw_reachable<R: Rng>(
+        &self,
+        i: usize,
+        rng: &mut R,
+        kind: Kind,
+        model: RobotModel,
+        goal_radius: f64,
+    ) -> Result<(layout::Layout, Reach, usize), GenError> {
         let robot = &self.robots[model as usize];
-        let rng = &mut stream_rng(self.cfg.seed, "gen", &i.to_string());
         let fp = robot.description.footprint_radius;
-        let goal_radius = pick(rng, 0.1, 0.2, 0.05);
         let keep = KeepOut {
             start: fp + SPARE,
             goal: fp + SPARE + goal_radius,
         };
-        let mut found = None;
         for draw in 1..=MAX_DRAWS {
             let l = layout::draw(rng, kind, keep);
             let obstacles: Vec<Obstacle> = l
@@ -572,18 +575,25 @@ impl Generator {
                 goal_radius,
                 SPARE,
             ) {
-                found = Some((l, r, draw));
-                break;
+                return Ok((l, r, draw));
             }
         }
-        let Some((l, reach, draws)) = found else {
-            return Err(GenError::Unreachable {
-                index: i,
-                kind,
-                robot: model,
-                draws: MAX_DRAWS,
-            });
-        };
+        Err(GenError::Unreachable {
+            index: i,
+            kind,
+            robot: model,
+            draws: MAX_DRAWS,
+        })
+    }
+
+    /// World `i` of the seed's sequence.
+    pub fn world(&self, i: usize) -> Result<GeneratedWorld, GenError> {
+        let (kind, model, suite, attack_kind) = self.plan_of(i);
+        // `robots` holds RobotModel::ALL in order
+        let robot = &self.robots[model as usize];
+        let rng = &mut stream_rng(self.cfg.seed, "gen", &i.to_string());
+        let goal_radius = pick(rng, 0.1, 0.2, 0.05);
+        let (l, reach, draws) = self.draw_reachable(i, rng, kind, model, goal_radius)?;
 
         // what a user adds around the scene
         let first = reach.path.first().copied().unwrap_or(l.goal);

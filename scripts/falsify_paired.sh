@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Issue #31's first done-when: the CEM (with its CMA-ES refinement) against random search on the
+# catalogue worlds where attacks move ρ, base seeds 1–3, the same budget for both methods, judged by
+# the paired held-out verdict (both methods' best attacks replayed on the same held-out seeds,
+# counted seed by seed, exact sign test).
+#
+# usage: scripts/falsify_paired.sh [BUDGET] [OUT_DIR] [SEEDS]
+#   defaults: budget 400, runs/falsify_paired/, seeds "1 2 3". WORLDS overrides the world list
+#   (names under worlds/); FTCBF=path/to/ftcbf the binary (default target/release/ftcbf); JOBS
+#   (default 2) the worker threads. Run from the repository root. Writes OUT_DIR/NAME-sS.json per
+#   pair and prints one row per pair, then the tally.
+set -euo pipefail
+
+budget=${1:-400}
+out=${2:-runs/falsify_paired}
+seeds=${3:-1 2 3}
+worlds=${WORLDS:-corridor_spoof field_replay elliptic_arena_drift stealthy_gnss waffle_pillars doorway_clutter turtlebot_odometry_bias three_gnss}
+ftcbf=${FTCBF:-target/release/ftcbf}
+jobs=${JOBS:-2}
+command -v jq >/dev/null || { echo "falsify_paired.sh needs jq" >&2; exit 1; }
+mkdir -p "$out"
+
+for w in $worlds; do
+  for s in $seeds; do
+    j="$out/$w-s$s.json"
+    [ -s "$j" ] && continue # resume: a pair already measured is kept
+    t0=$(date +%s)
+    "$ftcbf" falsify "worlds/$w.toml" --controller ft-cbf-clf --budget "$budget" --seed "$s" \
+      --jobs "$jobs" --no-record --out "$out/$w-s$s-worst.toml" --json "$out/partial.json" >/dev/null
+    jq --argjson wall $(($(date +%s) - t0)) '. + {wall_s: $wall}' "$out/partial.json" >"$j" && rm "$out/partial.json"
+  done
+done
+
+printf 'world\tseed\tcem_worse\trandom_worse\tp\tverdict\tcem_worst_rho\trandom_worst_rho\twall_s\n'
+for w in $worlds; do
+  for s in $seeds; do
+    jq -r --arg s "$s" '
+      (.methods | map({(.method): .witness.robustness.value}) | add) as $w
+      | [.world, $s, .paired.cem_worse, .paired.random_worse, (.paired.p * 1000 | round / 1000),
+         (if .paired.p < 0.05 then (if .paired.cem_worse > .paired.random_worse then "CEM" else "random" end)
+          else "tie" end), $w.cem, $w.random, .wall_s] | @tsv' "$out/$w-s$s.json"
+  done
+done
