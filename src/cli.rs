@@ -63,7 +63,7 @@ pub enum Command {
     Merge(crate::batch::MergeArgs),
     /// Search for the worst attack inside the world's threat model (one fault pattern at a time)
     /// and write it as a world file that `ftcbf run` replays.
-    Falsify(crate::falsify::FalsifyArgs),
+    Falsify(crate::falsify_cmd::FalsifyArgs),
     /// Generate seeded world files the way users write them: rooms, corridors, doorways,
     /// clutter fields and L turns; the burger or the waffle; the book's sensor suites; one
     /// attack inside one fault pattern; defaults only (no tuning keys).

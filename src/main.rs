@@ -1,8 +1,9 @@
 //! `ftcbf` — the command-line front end: a thin binary over `ftcbf-sim` (ripgrep style).
 
 use ftcbf::runner::prepare_batch;
-use ftcbf::{batch, falsify, regress, report};
+use ftcbf::{batch, regress, report};
 mod cli;
+mod falsify_cmd;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -13,7 +14,6 @@ use clap::Parser;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use ftcbf_sim::check;
-use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
 use ftcbf_sim::record::Recorder;
 use ftcbf_sim::runner::{preflight, run, run_observed, CompiledWorld, RunError, RunOptions};
@@ -127,8 +127,8 @@ fn dispatch(command: Command) -> Result<(), Failure> {
             })
         }
         Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
-        Command::Falsify(a) => falsify::falsify_command(&a).map_err(|e| Failure {
-            code: if e.is::<falsify::UsageError>() {
+        Command::Falsify(a) => falsify_cmd::falsify_command(&a).map_err(|e| Failure {
+            code: if e.is::<falsify_cmd::UsageError>() {
                 EXIT_USAGE
             } else {
                 code_of(&e)
@@ -306,7 +306,7 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         let text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
         println!("{text}");
     } else {
-        print_summary(&summary);
+        print!("{summary}");
         let setup = compiled.setup_for(kind);
         if let Some(why) = ftcbf_sim::liveness::explain_run(world, &setup, &summary) {
             println!("  {why}");
@@ -408,121 +408,6 @@ fn print_expectations(s: &RunSummary, seed: u64, seeds: &[u64], judgement: Judge
     }
 }
 
-fn print_summary(s: &RunSummary) {
-    println!(
-        "{} · {} · seed {} · {:.1} s simulated, {} control steps",
-        s.world, s.controller, s.seed, s.duration, s.control_steps
-    );
-    let verdict = if s.safe { "SAFE" } else { "UNSAFE" };
-    println!("  safety:    {verdict}");
-    if let Some(n) = &s.non_finite {
-        println!("    invalid: non-finite {n} — a verdict on it would be no verdict, so UNSAFE");
-    }
-    if let Some(c) = &s.first_collision {
-        println!("    first collision: {} at t = {:.3} s", c.obstacle, c.t);
-    }
-    if let Some(v) = &s.first_violation {
-        println!(
-            "    first violation: left {} at t = {:.3} s (h = {:.4})",
-            v.set, v.t, v.value
-        );
-    }
-    for b in &s.min_barrier {
-        println!("    min h({}) over the run = {:.4}", b.name, b.value);
-    }
-    if let Some(c) = s.min_clearance {
-        println!("    min clearance to obstacles = {c:.4} m");
-    }
-    match s.time_to_goal {
-        Some(t) => println!("  goal:      entered at t = {t:.2} s"),
-        None => println!("  goal:      not entered"),
-    }
-    println!(
-        "  settled:   {} (inside the goal over the last {} s); final distance {:.4} m, V(x) = {}",
-        if s.goal_settled { "yes" } else { "no" },
-        ftcbf_sim::summary::SETTLE_WINDOW,
-        s.final_goal_distance,
-        s.final_clf_value
-            .map_or("n/a".to_string(), |v| format!("{v:.5}"))
-    );
-    let st = &s.steps;
-    println!(
-        "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
-        st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
-    );
-    let sm = &s.smoothness;
-    println!(
-        "  command:   ω changes sign in {:.1} % of steps · mean |Δω| {:.4} rad/s · mean |Δv| {:.4} m/s per step · path {:.2} m · stalls {}",
-        100.0 * sm.omega_sign_change_fraction,
-        sm.mean_abs_domega,
-        sm.mean_abs_dv,
-        sm.path_length,
-        sm.stalls
-    );
-    if !s.estimation_errors.is_empty() {
-        println!("  estimation error against the truth, max over the run (‖x − x̂‖ vs the γ its rows assume):");
-        for e in &s.estimation_errors {
-            let bound = match (e.gamma, e.max_ratio) {
-                (Some(g), Some(r)) => format!(
-                    "{:.3}·γ (γ = {g:.4}){}",
-                    r,
-                    if e.exceeded() {
-                        format!(", over γ at {} step(s)", e.steps_over)
-                    } else {
-                        String::new()
-                    }
-                ),
-                _ => "no γ".to_string(),
-            };
-            println!(
-                "    {:<22} {:<9} {bound} · position {:.4} m · velocity {:.4} m/s · worst at t = {:.2} s",
-                e.filter,
-                if e.honest { "honest" } else { "attacked" },
-                e.max_position_error,
-                e.max_velocity_error,
-                e.t_worst
-            );
-        }
-    }
-    if s.rejected_readings > 0 {
-        println!(
-            "  rejected readings (non-finite or absurd): {}",
-            s.rejected_readings
-        );
-    }
-    let fc = &s.fail_closed;
-    if fc.any() {
-        println!(
-            "  fail-closed: {} step(s) with non-finite constraint rows · {} unusable reading(s) · {} step(s) where Step 2 kept the last barrier · {} step(s) where Step 3 kept a saturated estimator · {} braking step(s) · {} refused heading reading(s)",
-            fc.non_finite_row_steps,
-            fc.skipped_updates,
-            fc.step2_retained_steps,
-            fc.step3_saturated_steps,
-            fc.brake_steps,
-            fc.refused_headings
-        );
-    }
-    for w in &s.attack_windows {
-        println!(
-            "  attack:    {} in [{}, {}){}",
-            w.label,
-            w.start,
-            w.end.map_or("∞".to_string(), |e| e.to_string()),
-            if w.outside_fault_patterns {
-                "  — OUTSIDE the declared fault patterns: no guarantee applies"
-            } else {
-                ""
-            }
-        );
-    }
-    if s.attacks_together_outside_fault_patterns {
-        println!(
-            "  attacks together: their channels lie in no single declared fault pattern — OUTSIDE \
-             the single-fault model: no guarantee applies"
-        );
-    }
-}
-
 fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
     let compiled =
         CompiledWorld::new(load(&a.world, &[])?).map_err(|e| run_failure(e, "controller setup"))?;
@@ -535,21 +420,7 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
     if let Some(r) = &world.robot {
         println!("drive: {}", r.wheels.describe());
     }
-    // Condition (4.4) decided exactly on every barrier that runs, at the start estimate.
-    let setup = compiled.setup();
-    let start = [setup.config.x0];
-    let lines = setup
-        .config
-        .barriers
-        .iter()
-        .zip(&setup.barrier_names)
-        .map(|(b, name)| {
-            format!(
-                "(4.4) for {name} at the start estimate: {}",
-                condition_4_4(b.as_ref(), &setup.config.model.g, &start)
-            )
-        });
-    for line in check::group_by_barrier(lines, &setup.barrier_names) {
+    for line in check::condition_4_4_lines(compiled.setup()) {
         println!("{line}");
     }
     if a.suggest {

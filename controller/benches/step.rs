@@ -26,11 +26,11 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::constraints::HalfSpace;
 use ftcbf_controller::feasibility::check_half_spaces;
+use ftcbf_controller::params::FtParams;
 use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, ProblemForm,
-    QpOutcome, QuadraticClf, State, StateMatrix, TrackerConfig,
+    ClfConfig, Controller, ControllerConfig, Input, LinearModel, ProblemForm, QpOutcome,
+    QuadraticClf, State, StateMatrix, TrackerConfig,
 };
-use nalgebra::Matrix2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -66,33 +66,28 @@ fn controller_in(patterns: Vec<Vec<usize>>, form: ProblemForm) -> Controller {
         &ClfConfig::paper(0.0),
     )
     .expect("clf");
-    Controller::new(ControllerConfig {
-        kind: ControllerKind::FtCbfClf,
-        model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
-        fault_patterns: patterns,
-        barriers: vec![Arc::new(HalfPlane::new(
+    Controller::new(
+        ControllerConfig::builder(
+            LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
+            patterns,
+            FtParams::uniform(m, 0.001, 0.045),
+        )
+        .barriers(vec![Arc::new(HalfPlane::new(
             "h",
             State::new(0.0, 1.0, 0.0, 0.2),
             -0.05,
-        ))],
-        goal: State::zeros(),
-        goal_radius: 0.05,
-        gamma: vec![0.001; m],
-        gamma_baseline: 0.001,
-        theta: vec![0.045],
-        theta_increment: Vec::new(),
-        increment_metric: Vec::new(),
-        theta_schedule: None,
-        delta: 1.0,
-        cbf_gain: 1.0,
-        clf: ClfConfig::paper(probe.v_bar_inside_ball(0.025)),
-        input_cost: Matrix2::identity(),
-        input_limit: Some(Input::new(2.0, 2.0)),
-        x0: State::new(1.0, 0.0, 0.0, 0.0),
-        p0: StateMatrix::identity() * 1e-3,
-        max_abs_reading: 1e6,
-        form,
-    })
+        ))])
+        .goal(State::zeros(), 0.05)
+        .delta(1.0)
+        .clf(ClfConfig::paper(probe.v_bar_inside_ball(0.025)))
+        .input_limit(Input::new(2.0, 2.0))
+        .start(
+            State::new(1.0, 0.0, 0.0, 0.0),
+            StateMatrix::identity() * 1e-3,
+        )
+        .form(form)
+        .build(),
+    )
     .expect("config")
 }
 

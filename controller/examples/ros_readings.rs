@@ -23,12 +23,12 @@ use ftcbf_controller::odometry::{
     body_speed_to_world_velocity, fused_yaw_variance, world_velocity_variance, wrap_angle,
     yaw_from_quaternion, HeadingFilter, HeadingFilterParams,
 };
-use ftcbf_controller::params::{BoundMethod, FtParameters};
+use ftcbf_controller::params::{BoundMethod, FtParameters, UpdateSchedule};
 use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, ProblemForm,
-    State, StateMatrix, TrackerConfig,
+    Controller, ControllerConfig, Input, LinearModel, ProblemForm, State, StateMatrix,
+    TrackerConfig,
 };
-use nalgebra::{Matrix2, RowVector4};
+use nalgebra::RowVector4;
 
 const DT: f64 = 0.02; // 50 Hz
 const V_MAX: f64 = 0.22; // burger [m/s]
@@ -61,41 +61,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let patterns = vec![vec![0, 1], vec![2, 3]];
     let p0 = StateMatrix::from_diagonal(&State::new(1e-4, 1e-4, 1e-4, 1e-4));
-    let params =
-        FtParameters::compute_with(&model, &patterns, DT, 0.05, 500, &p0, BoundMethod::Horizon);
+    let params = FtParameters::compute_scheduled(
+        &model,
+        &patterns,
+        DT,
+        0.05,
+        500,
+        &p0,
+        BoundMethod::Horizon,
+        &UpdateSchedule::every_step(),
+    );
     let limit = Input::new(1.0, 1.0);
     let mut tracker = TrackerConfig::turtlebot([0.0, 0.03], 0.05, Some(limit));
     tracker.cruise_speed = 0.9 * V_MAX;
-    let mut ctl = Controller::new(ControllerConfig {
-        kind: ControllerKind::FtCbfClf,
-        model,
-        fault_patterns: patterns,
-        barriers: vec![Arc::new(HalfPlane::new(
-            "floor",
-            State::new(0.0, 1.0, 0.0, 0.2),
-            -0.05,
-        ))],
-        goal: State::zeros(),
-        goal_radius: 0.05,
-        gamma: params.gamma.clone(),
-        gamma_baseline: params.gamma_baseline,
-        theta: params.theta.clone(),
-        theta_increment: params.theta_increment.clone(),
-        increment_metric: params.increment_metric.clone(),
-        theta_schedule: params.theta_schedule.clone(),
-        delta: f64::INFINITY,
-        cbf_gain: 10.0,
-        clf: ClfConfig::paper(0.0),
-        input_cost: Matrix2::identity(),
-        input_limit: Some(limit),
-        x0: State::new(1.0, 0.0, 0.0, 0.0),
-        p0,
-        max_abs_reading: 1e6,
-        form: ProblemForm::SafetyFilter {
-            tracker,
-            clf: false,
-        },
-    })?;
+    let mut ctl = Controller::new(
+        ControllerConfig::builder(model, patterns, params.ft.clone())
+            .barriers(vec![Arc::new(HalfPlane::new(
+                "floor",
+                State::new(0.0, 1.0, 0.0, 0.2),
+                -0.05,
+            ))])
+            .goal(State::zeros(), 0.05)
+            .cbf_gain(10.0)
+            .input_limit(limit)
+            .start(State::new(1.0, 0.0, 0.0, 0.0), p0)
+            .form(ProblemForm::SafetyFilter {
+                tracker,
+                clf: false,
+            })
+            .build(),
+    )?;
     let mut drive = Compensator::new(CompensatorConfig {
         v_max: V_MAX,
         omega_max: 2.84,
@@ -108,8 +103,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     println!(
         "γ_i = {:?}, θ_12 = {:?}; fused yaw σ bound {:.4} rad (compass alone 0.05)",
-        params.gamma,
-        params.theta,
+        params.ft.gamma,
+        params.ft.theta,
         yaw_var.sqrt()
     );
     println!(

@@ -7,7 +7,7 @@
 //! κ is the class-K gain of the CBF condition (the paper uses κ = 1).
 //!
 //! Υ_i: `∂V(F x̂ + G u) + γ_i‖∂V M_i‖ + ½tr(∇²V N_i) ≤ −ρ V(x̂)`, i.e. `Γ u ≤ τ̄` with
-//! `Γ = ∂V G`, `τ̄ = −ρV − ∂V F x̂ − γ‖∂V M‖ − ½tr(∇²V N)` (the strict inequality of 5.2 is
+//! `Γ = ∂V G` ([`ClfRow::lg_v`], L_G V), `τ̄ = −ρV − ∂V F x̂ − γ‖∂V M‖ − ½tr(∇²V N)` (the strict inequality of 5.2 is
 //! imposed as ≤).
 //!
 //! Both are returned as a [`HalfSpace`] `nᵀu ≤ o` for the QP.
@@ -86,8 +86,9 @@ pub fn cbf_row(
 /// Υ of one filter: `Γ u ≤ τ̄`, with V.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClfRow {
-    /// Γ = ∂V/∂x G.
-    pub gamma_row: Input,
+    /// L_G V = ∂V/∂x G, the row of u in the CLF condition (the thesis writes Γ; named apart
+    /// from the error bound γ and the discretised input map Γ).
+    pub lg_v: Input,
     /// τ̄.
     pub tau_bar: f64,
     /// V(x̂).
@@ -98,7 +99,7 @@ impl ClfRow {
     /// As `Γ u ≤ τ̄`.
     pub fn half_space(&self) -> HalfSpace {
         HalfSpace {
-            normal: self.gamma_row,
+            normal: self.lg_v,
             offset: self.tau_bar,
         }
     }
@@ -115,12 +116,12 @@ pub fn clf_row(
 ) -> ClfRow {
     let dv = clf.gradient(x_hat);
     let v = clf.value(x_hat);
-    let gamma_row: Input = model.g.transpose() * dv;
+    let lg_v: Input = model.g.transpose() * dv;
     let drift = dv.dot(&(model.f * x_hat));
     let robust = gamma * (m_drift.transpose() * dv).norm();
     let ito = 0.5 * (clf.hessian() * n_diff).trace();
     ClfRow {
-        gamma_row,
+        lg_v,
         tau_bar: -clf.rho * v - drift - robust - ito,
         v,
     }

@@ -13,7 +13,7 @@ use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
 use crate::nominal::{PathTracker, TrackerConfig, TrackerError};
-use crate::params::{ThetaSchedule, STEP2_WINDOW};
+use crate::params::{FtParams, PairTable, STEP2_WINDOW};
 use crate::policy::{decide, prepare, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
 use crate::qp::QpSolver;
 use crate::types::{Input, State, StateMatrix};
@@ -66,22 +66,11 @@ pub struct ControllerConfig {
     pub goal: State,
     /// Goal radius d (state norm) (also the d of eq. 6.6).
     pub goal_radius: f64,
-    /// γ_i per pattern.
-    pub gamma: Vec<f64>,
-    /// γ of the all-channel filter (baseline and nominal).
-    pub gamma_baseline: f64,
-    /// θ_ij: one value for all pairs, or C(m,2) values in the order (0,1), (0,2), …, (1,2), …
-    pub theta: Vec<f64>,
-    /// η_ij of Step 2's increment test (same layout as `theta`; empty: no increment test, the
-    /// paper's Step 2). See [`crate::policy`].
-    pub theta_increment: Vec<f64>,
-    /// W_ij of the increment test, the norm ‖z‖_W = √(zᵀ W z) in which η_ij is measured (same
-    /// layout as `theta_increment`; empty: the Euclidean norm, W = I). Each must be symmetric
-    /// positive semidefinite. See [`crate::params::increment_metric`].
-    pub increment_metric: Vec<StateMatrix>,
-    /// θ_ij(t), tighter than `theta` early in the run (see [`ThetaSchedule`]); None: θ_ij
-    /// throughout. Each entry must be finite, > 0 and at most the pair's θ_ij.
-    pub theta_schedule: Option<ThetaSchedule>,
+    /// γ_i, γ of the all-channel filter (baseline and nominal), θ_ij (one value for all pairs,
+    /// or C(m,2) values in the order (0,1), (0,2), …, (1,2), …), η_ij and W_ij of Step 2's
+    /// increment test (empty: none, the paper's Step 2; see [`crate::policy`]) and θ_ij(t)
+    /// (each entry finite, > 0 and at most the pair's θ_ij).
+    pub ft: FtParams,
     /// δ of X_t(δ): Ω is imposed when ĥ(x̂) < δ (may be +∞: always).
     pub delta: f64,
     /// Class-K gain κ of the CBF condition (`… ≥ −κ ĥ`); the paper uses 1.
@@ -100,6 +89,131 @@ pub struct ControllerConfig {
     pub max_abs_reading: f64,
     /// Which problem the QP solves.
     pub form: ProblemForm,
+}
+
+/// Readings with |y| above this are rejected by default \[m or m/s\] ([`ControllerConfig::max_abs_reading`]).
+pub const DEFAULT_MAX_ABS_READING: f64 = 1e6;
+
+impl ControllerConfig {
+    /// A configuration of the FT-CBF-CLF controller for `model` with `fault_patterns` and the
+    /// parameters `ft`, every other field at its documented default (see the setters of
+    /// [`ControllerConfigBuilder`]); [`Controller::new`] validates the result.
+    pub fn builder(
+        model: LinearModel,
+        fault_patterns: Vec<Vec<usize>>,
+        ft: FtParams,
+    ) -> ControllerConfigBuilder {
+        ControllerConfigBuilder(ControllerConfig {
+            kind: ControllerKind::FtCbfClf,
+            model,
+            fault_patterns,
+            barriers: Vec::new(),
+            goal: State::zeros(),
+            goal_radius: DEFAULT_GOAL_RADIUS,
+            ft,
+            delta: f64::INFINITY,
+            cbf_gain: 1.0,
+            clf: ClfConfig::paper(0.0),
+            input_cost: Matrix2::identity(),
+            input_limit: None,
+            x0: State::zeros(),
+            p0: StateMatrix::zeros(),
+            max_abs_reading: DEFAULT_MAX_ABS_READING,
+            form: ProblemForm::Paper,
+        })
+    }
+}
+
+/// The goal radius d of the paper's example (§6) \[m\], the builder's default.
+pub const DEFAULT_GOAL_RADIUS: f64 = 0.05;
+
+/// Builds a [`ControllerConfig`] from [`ControllerConfig::builder`]: each setter replaces one
+/// default, [`ControllerConfigBuilder::build`] returns the configuration.
+#[derive(Debug, Clone)]
+pub struct ControllerConfigBuilder(ControllerConfig);
+
+impl ControllerConfigBuilder {
+    /// Which controller. Default: [`ControllerKind::FtCbfClf`], the controller this crate is
+    /// about (the baseline and nominal ones are its comparisons).
+    pub fn kind(mut self, kind: ControllerKind) -> Self {
+        self.0.kind = kind;
+        self
+    }
+
+    /// The safe sets. Default: none, so only the CLF shapes the input (a controller without
+    /// a barrier guarantees nothing; add the sets it must keep).
+    pub fn barriers(mut self, barriers: Vec<Arc<dyn Barrier>>) -> Self {
+        self.0.barriers = barriers;
+        self
+    }
+
+    /// Goal state x_g and radius d (state norm). Default: the origin with d =
+    /// [`DEFAULT_GOAL_RADIUS`], the paper's example (§6).
+    pub fn goal(mut self, goal: State, radius: f64) -> Self {
+        self.0.goal = goal;
+        self.0.goal_radius = radius;
+        self
+    }
+
+    /// δ of X_t(δ): Ω is imposed when ĥ(x̂) < δ. Default: +∞, every barrier row every step
+    /// (the safe choice; a finite δ leaves out rows far from their boundary to save work).
+    pub fn delta(mut self, delta: f64) -> Self {
+        self.0.delta = delta;
+        self
+    }
+
+    /// Class-K gain κ of the CBF condition (`… ≥ −κ ĥ`). Default: 1, the paper's.
+    pub fn cbf_gain(mut self, kappa: f64) -> Self {
+        self.0.cbf_gain = kappa;
+        self
+    }
+
+    /// The CLF. Default: [`ClfConfig::paper`] with V̄ = 0 (the paper's P_d, gain and rate ρ;
+    /// with V̄ = 0 the CLF rows are imposed wherever V(x̂) > 0, i.e. until the goal is reached).
+    pub fn clf(mut self, clf: ClfConfig) -> Self {
+        self.0.clf = clf;
+        self
+    }
+
+    /// Input cost R of (5.3), symmetric positive definite. Default: I, the paper's.
+    pub fn input_cost(mut self, cost: Matrix2<f64>) -> Self {
+        self.0.input_cost = cost;
+        self
+    }
+
+    /// The symmetric box |a_k| ≤ limit_k \[m/s²\] (`None`: no box). Default: none, problem (5.3)
+    /// as the paper states it (a real drive has one: set it).
+    pub fn input_limit(mut self, limit: impl Into<Option<Input>>) -> Self {
+        self.0.input_limit = limit.into();
+        self
+    }
+
+    /// Initial estimate x̂(0) and its covariance P0. Default: the origin with P0 = 0, a start
+    /// known exactly (the setting of [`crate::params::FtParameters::compute`]).
+    pub fn start(mut self, x0: State, p0: StateMatrix) -> Self {
+        self.0.x0 = x0;
+        self.0.p0 = p0;
+        self
+    }
+
+    /// Readings with |y| above this, or non-finite, are rejected. Default:
+    /// [`DEFAULT_MAX_ABS_READING`], far beyond any honest position or speed of a ground
+    /// robot, so only absurd values (an overflowed driver, a 10¹² spoof) are thrown out.
+    pub fn max_abs_reading(mut self, limit: f64) -> Self {
+        self.0.max_abs_reading = limit;
+        self
+    }
+
+    /// Which problem the QP solves. Default: [`ProblemForm::Paper`], problem (5.3).
+    pub fn form(mut self, form: ProblemForm) -> Self {
+        self.0.form = form;
+        self
+    }
+
+    /// The configuration (validated by [`Controller::new`]).
+    pub fn build(self) -> ControllerConfig {
+        self.0
+    }
 }
 
 /// Configuration errors.
@@ -181,8 +295,8 @@ pub struct ControlOutput {
 pub struct Controller {
     kind: ControllerKind,
     barriers: Vec<Arc<dyn Barrier>>,
-    gamma: Vec<f64>,
-    gamma_baseline: f64,
+    /// γ, θ, η and θ(t) as configured (θ(t) read each step).
+    ft: FtParams,
     h_bar: Vec<f64>,
     h_bar_baseline: Vec<f64>,
     delta: f64,
@@ -202,8 +316,7 @@ pub struct Controller {
     /// Step 2.
     separations: SeparationHistory,
     last_dt: f64,
-    /// θ_ij(t) and the time since the first step (sum of the valid dt).
-    theta_schedule: Option<ThetaSchedule>,
+    /// The time since the first step (sum of the valid dt), for θ_ij(t).
     elapsed: f64,
     /// The safety-filter form's tracker (None: problem 5.3).
     tracker: Option<PathTracker>,
@@ -255,57 +368,52 @@ fn validate(cfg: &ControllerConfig) -> Result<(), ConfigError> {
 
 /// γ_i (one per pattern), γ_baseline, θ_ij and η_ij (one or one per pair; η_ij also none).
 fn validate_gamma_theta(cfg: &ControllerConfig, m: usize, pairs: usize) -> Result<(), ConfigError> {
-    if cfg.gamma.len() != m {
+    let ft = &cfg.ft;
+    if ft.gamma.len() != m {
         return Err(ConfigError::Length {
             key: "gamma",
             expected: format!("{m} (one per fault pattern)"),
-            got: cfg.gamma.len(),
+            got: ft.gamma.len(),
         });
     }
-    for &g in &cfg.gamma {
+    for &g in &ft.gamma {
         nonneg("gamma", g)?;
     }
-    nonneg("gamma_baseline", cfg.gamma_baseline)?;
-    if !(cfg.theta.len() == 1 || cfg.theta.len() == pairs) {
+    nonneg("gamma_baseline", ft.gamma_baseline)?;
+    if !(ft.theta.len() == 1 || ft.theta.len() == pairs) {
         return Err(ConfigError::Length {
             key: "theta",
             expected: format!("1 or C(m,2) = {pairs}"),
-            got: cfg.theta.len(),
+            got: ft.theta.len(),
         });
     }
-    for &t in &cfg.theta {
+    for &t in &ft.theta {
         positive("theta", t)?;
     }
-    if !(cfg.theta_increment.is_empty()
-        || cfg.theta_increment.len() == 1
-        || cfg.theta_increment.len() == pairs)
-    {
+    if !(ft.eta.is_empty() || ft.eta.len() == 1 || ft.eta.len() == pairs) {
         return Err(ConfigError::Length {
-            key: "theta_increment",
+            key: "eta",
             expected: format!("0, 1 or C(m,2) = {pairs}"),
-            got: cfg.theta_increment.len(),
+            got: ft.eta.len(),
         });
     }
-    for &t in &cfg.theta_increment {
-        positive("theta_increment", t)?;
+    for &t in &ft.eta {
+        positive("eta", t)?;
     }
     Ok(())
 }
 
 /// The increment metrics: none or one per η_ij, each finite, symmetric and PSD.
 fn validate_increment_metric(cfg: &ControllerConfig) -> Result<(), ConfigError> {
-    if !(cfg.increment_metric.is_empty() || cfg.increment_metric.len() == cfg.theta_increment.len())
-    {
+    let ft = &cfg.ft;
+    if !(ft.increment_metric.is_empty() || ft.increment_metric.len() == ft.eta.len()) {
         return Err(ConfigError::Length {
             key: "increment_metric",
-            expected: format!(
-                "0 or as many as theta_increment ({})",
-                cfg.theta_increment.len()
-            ),
-            got: cfg.increment_metric.len(),
+            expected: format!("0 or as many as eta ({})", ft.eta.len()),
+            got: ft.increment_metric.len(),
         });
     }
-    for w in &cfg.increment_metric {
+    for w in &ft.increment_metric {
         let symmetric = (w - w.transpose()).norm() <= 1e-9 * w.norm();
         let least = if w.iter().all(|x| x.is_finite()) {
             w.symmetric_eigenvalues().min()
@@ -325,7 +433,7 @@ fn validate_increment_metric(cfg: &ControllerConfig) -> Result<(), ConfigError> 
 
 /// θ_ij(t): one non-empty row per pair, each value positive and at most the pair's θ_ij.
 fn validate_theta_schedule(cfg: &ControllerConfig, pairs: usize) -> Result<(), ConfigError> {
-    let Some(sched) = &cfg.theta_schedule else {
+    let Some(sched) = &cfg.ft.theta_schedule else {
         return Ok(());
     };
     positive("theta_schedule.dt", sched.dt)?;
@@ -337,10 +445,10 @@ fn validate_theta_schedule(cfg: &ControllerConfig, pairs: usize) -> Result<(), C
         });
     }
     for (idx, row) in sched.theta.iter().enumerate() {
-        let cap = if cfg.theta.len() == 1 {
-            cfg.theta[0]
+        let cap = if cfg.ft.theta.len() == 1 {
+            cfg.ft.theta[0]
         } else {
-            cfg.theta.get(idx).copied().unwrap_or(f64::NAN)
+            cfg.ft.theta.get(idx).copied().unwrap_or(f64::NAN)
         };
         for &t in row {
             positive("theta_schedule", t)?;
@@ -411,30 +519,16 @@ fn initial_problem(
     problem.use_clf = true;
     problem.delta = cfg.delta;
     problem.v_bar = cfg.clf.v_bar;
-    for i in 0..units {
-        for j in 0..units {
-            if i == j {
-                continue;
-            }
-            let (a, b) = (i.min(j), i.max(j));
-            let idx = a * (2 * m - a - 1) / 2 + (b - a - 1);
-            problem.theta[i * units + j] = if cfg.theta.len() == 1 {
-                cfg.theta[0]
-            } else {
-                cfg.theta[idx]
-            };
-            problem.theta_increment[i * units + j] = match cfg.theta_increment.len() {
-                0 => f64::INFINITY,
-                1 => cfg.theta_increment[0],
-                _ => cfg.theta_increment[idx],
-            };
-            problem.increment_metric[i * units + j] = match cfg.increment_metric.len() {
-                0 => StateMatrix::identity(),
-                1 => cfg.increment_metric[0],
-                _ => cfg.increment_metric[idx],
-            };
-        }
-    }
+    let ft = &cfg.ft;
+    problem.theta = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.theta, m, i, j).unwrap_or(f64::NAN)
+    });
+    problem.eta = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.eta, m, i, j).unwrap_or(f64::INFINITY)
+    });
+    problem.increment_metric = PairTable::from_fn(units, |i, j| {
+        FtParams::per_pair(&ft.increment_metric, m, i, j).unwrap_or_else(StateMatrix::identity)
+    });
     problem
 }
 
@@ -514,6 +608,7 @@ impl Controller {
             nb
         };
         let h_bar: Vec<f64> = cfg
+            .ft
             .gamma
             .iter()
             .flat_map(|&g| cfg.barriers.iter().map(move |b| b.h_bar(g)))
@@ -521,7 +616,7 @@ impl Controller {
         let h_bar_baseline: Vec<f64> = cfg
             .barriers
             .iter()
-            .map(|b| b.h_bar(cfg.gamma_baseline))
+            .map(|b| b.h_bar(cfg.ft.gamma_baseline))
             .collect();
 
         let mut problem = initial_problem(&cfg, units, barriers_used, m);
@@ -550,8 +645,7 @@ impl Controller {
             kind: cfg.kind,
             scratch: PolicyScratch::new(units, barriers_used),
             barriers: cfg.barriers,
-            gamma: cfg.gamma,
-            gamma_baseline: cfg.gamma_baseline,
+            ft: cfg.ft,
             h_bar,
             h_bar_baseline,
             delta: cfg.delta,
@@ -568,7 +662,6 @@ impl Controller {
             output,
             separations: SeparationHistory::new(units * units),
             last_dt: 0.0,
-            theta_schedule: cfg.theta_schedule,
             elapsed: 0.0,
             tracker,
             applied: None,
@@ -725,8 +818,8 @@ impl Controller {
         // position spread √tr P_pos exceeds the error bound γ its rows assume.
         let starved = |i: usize| {
             let (fi, gamma) = match self.kind {
-                ControllerKind::FtCbfClf => (i, self.gamma.get(i).copied()),
-                _ => (self.bank.baseline_index(), Some(self.gamma_baseline)),
+                ControllerKind::FtCbfClf => (i, self.ft.gamma.get(i).copied()),
+                _ => (self.bank.baseline_index(), Some(self.ft.gamma_baseline)),
             };
             match (filters.get(fi), gamma) {
                 // `spread` maps a non-finite variance to +∞, so this is never a NaN comparison.
@@ -771,12 +864,12 @@ impl Controller {
             let (fi, gamma, hbars): (usize, f64, &[f64]) = match self.kind {
                 ControllerKind::FtCbfClf => (
                     i,
-                    self.gamma[i],
+                    self.ft.gamma[i],
                     &self.h_bar[i * self.barriers.len()..(i + 1) * self.barriers.len()],
                 ),
                 _ => (
                     self.bank.baseline_index(),
-                    self.gamma_baseline,
+                    self.ft.gamma_baseline,
                     &self.h_bar_baseline,
                 ),
             };
@@ -817,24 +910,20 @@ impl Controller {
         }
         if self.kind == ControllerKind::FtCbfClf {
             for i in 0..m {
-                for j in 0..m {
+                for j in (i + 1)..m {
                     if let Some(p) = self.bank.pair(i, j) {
-                        self.problem.pair_estimates[i * m + j] = *p.estimate();
+                        self.problem.pair_estimates[(i, j)] = *p.estimate();
                     }
                 }
             }
             if self.last_dt > 0.0 {
                 self.update_increments(m);
             }
-            if let Some(sched) = &self.theta_schedule {
-                let mut pair = 0;
-                for i in 0..m {
-                    for j in (i + 1)..m {
-                        if let Some(t) = sched.at(pair, self.elapsed) {
-                            self.problem.theta[i * m + j] = t;
-                            self.problem.theta[j * m + i] = t;
-                        }
-                        pair += 1;
+            if let Some(sched) = &self.ft.theta_schedule {
+                // θ_ij(t) rows are in the packed pair order the table stores.
+                for (k, theta) in self.problem.theta.values_mut().iter_mut().enumerate() {
+                    if let Some(t) = sched.at(k, self.elapsed) {
+                        *theta = t;
                     }
                 }
             }
@@ -852,7 +941,7 @@ impl Controller {
                     continue;
                 }
                 let k = a * m + j;
-                let s = self.problem.estimates[a] - self.problem.pair_estimates[a * m + j];
+                let s = self.problem.estimates[a] - self.problem.pair_estimates[(a, j)];
                 self.problem.separation_increment[k] = s - h.get(reference, k);
                 h.store(k, s);
             }
@@ -944,6 +1033,55 @@ mod tests {
     #[test]
     fn controller_is_send() {
         assert_send::<Controller>();
+    }
+
+    /// The builder's defaults are the ones its setters document, and a setter replaces only
+    /// its own field.
+    #[test]
+    fn the_builder_fills_the_documented_defaults() {
+        let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
+        let ft = FtParams::uniform(2, 0.01, 0.2);
+        let c =
+            ControllerConfig::builder(model.clone(), vec![vec![1], vec![3]], ft.clone()).build();
+        assert_eq!(c.kind, ControllerKind::FtCbfClf);
+        assert_eq!(c.model, model);
+        assert_eq!(c.fault_patterns, vec![vec![1], vec![3]]);
+        assert_eq!(c.ft, ft);
+        assert!(c.barriers.is_empty());
+        assert_eq!(
+            (c.goal, c.goal_radius),
+            (State::zeros(), DEFAULT_GOAL_RADIUS)
+        );
+        assert_eq!(c.delta, f64::INFINITY);
+        assert_eq!(c.cbf_gain, 1.0);
+        assert_eq!(c.clf.v_bar, 0.0);
+        assert_eq!(c.clf.scale, ClfConfig::paper(0.0).scale);
+        assert_eq!(c.input_cost, Matrix2::identity());
+        assert_eq!(c.input_limit, None);
+        assert_eq!((c.x0, c.p0), (State::zeros(), StateMatrix::zeros()));
+        assert_eq!(c.max_abs_reading, DEFAULT_MAX_ABS_READING);
+        assert_eq!(c.form, ProblemForm::Paper);
+        assert!(Controller::new(c).is_ok());
+
+        let limit = Input::new(1.0, 2.0);
+        let c = ControllerConfig::builder(model, vec![vec![1], vec![3]], ft)
+            .kind(ControllerKind::Baseline)
+            .goal(State::new(1.0, 2.0, 0.0, 0.0), 0.1)
+            .delta(0.5)
+            .cbf_gain(3.0)
+            .input_limit(limit)
+            .start(State::new(0.5, 0.0, 0.0, 0.0), StateMatrix::identity())
+            .max_abs_reading(10.0)
+            .build();
+        assert_eq!(c.kind, ControllerKind::Baseline);
+        assert_eq!(c.goal, State::new(1.0, 2.0, 0.0, 0.0));
+        assert_eq!((c.goal_radius, c.delta, c.cbf_gain), (0.1, 0.5, 3.0));
+        assert_eq!(c.input_limit, Some(limit));
+        assert_eq!(
+            (c.x0[0], c.p0, c.max_abs_reading),
+            (0.5, StateMatrix::identity(), 10.0)
+        );
+        assert_eq!(c.input_cost, Matrix2::identity());
     }
 
     /// Push separation `value(t)` at each of `times` and return the increment at each step.

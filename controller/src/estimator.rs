@@ -39,7 +39,7 @@
 use nalgebra::RowVector4;
 
 use crate::model::{Discretization, LinearModel};
-use crate::params::chi_square_cdf;
+use crate::params::{chi_square_cdf, pair_slot};
 use crate::types::{Input, State, StateMatrix};
 
 /// Length of the window of the χ² innovation test \[s\].
@@ -273,7 +273,7 @@ impl KalmanFilter {
 
     /// Time update over one period with input `u` held.
     pub fn predict(&mut self, d: &Discretization, u: &Input) {
-        self.x = d.phi * self.x + d.gamma * u;
+        self.x = d.phi * self.x + d.input_map * u;
         let p = d.phi * self.p * d.phi.transpose() + d.qd;
         self.p = (p + p.transpose()) * 0.5;
         self.x_prior = self.x;
@@ -356,7 +356,6 @@ pub struct EstimatorBank {
     model: LinearModel,
     m: usize,
     filters: Vec<KalmanFilter>,
-    pair_index: Vec<usize>,
     disc: Option<Discretization>,
     last_u: Input,
 }
@@ -388,11 +387,9 @@ impl EstimatorBank {
                 p0,
             ));
         }
-        let mut pair_index = vec![usize::MAX; m * m];
+        // The pair filters follow the singles in the packed order of a PairTable.
         for i in 0..m {
             for j in (i + 1)..m {
-                pair_index[i * m + j] = filters.len();
-                pair_index[j * m + i] = filters.len();
                 filters.push(KalmanFilter::new(
                     format!("drop(r{},r{})", i + 1, j + 1),
                     FilterRole::DropPair(i, j),
@@ -413,7 +410,6 @@ impl EstimatorBank {
             model,
             m,
             filters,
-            pair_index,
             disc: None,
             last_u: Input::zeros(),
         }
@@ -435,13 +431,10 @@ impl EstimatorBank {
     pub fn single(&self, i: usize) -> &KalmanFilter {
         &self.filters[i]
     }
-    /// Index in [`Self::filters`] of x̂_ij, if i ≠ j are valid pattern indices.
+    /// Index in [`Self::filters`] of x̂_ij, if i ≠ j are valid pattern indices: the pair filters
+    /// follow the m singles in the packed order of [`crate::PairTable`].
     pub fn pair_index(&self, i: usize, j: usize) -> Option<usize> {
-        if i < self.m && j < self.m && i != j {
-            Some(self.pair_index[i * self.m + j])
-        } else {
-            None
-        }
+        pair_slot(self.m, i, j).map(|k| self.m + k)
     }
     /// Filter x̂_ij.
     pub fn pair(&self, i: usize, j: usize) -> Option<&KalmanFilter> {
@@ -506,7 +499,7 @@ impl EstimatorBank {
         let r = self.model.r[channel];
         let (x, p) = match &self.disc {
             Some(d) => (
-                d.phi * f.x + d.gamma * self.last_u,
+                d.phi * f.x + d.input_map * self.last_u,
                 d.phi * f.p * d.phi.transpose() + d.qd,
             ),
             None => (f.x, f.p),
@@ -587,7 +580,7 @@ mod tests {
         bank.set_last_input(u);
         let d = model.discretize(0.02);
         let f = bank.single(1);
-        let x = d.phi * f.estimate() + d.gamma * u;
+        let x = d.phi * f.estimate() + d.input_map * u;
         let p = d.phi * f.covariance() * d.phi.transpose() + d.qd;
         let (mean, std) = bank.predicted_measurement(1, 3).unwrap();
         assert!((mean - x[1]).abs() < 1e-15);

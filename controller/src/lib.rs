@@ -33,12 +33,12 @@
 //! ```
 //! use std::sync::Arc;
 //! use ftcbf_controller::drive::{Compensator, CompensatorConfig, LowSpeedLaw};
-//! use ftcbf_controller::params::{BoundMethod, FtParameters};
+//! use ftcbf_controller::params::{BoundMethod, FtParameters, UpdateSchedule};
 //! use ftcbf_controller::{
-//!     ClfConfig, Controller, ControllerConfig, ControllerKind, HalfPlane, Input, LinearModel,
-//!     ProblemForm, State, StateMatrix, TrackerConfig,
+//!     Controller, ControllerConfig, HalfPlane, Input, LinearModel, ProblemForm, State,
+//!     StateMatrix, TrackerConfig,
 //! };
-//! use nalgebra::{Matrix2, RowVector4};
+//! use nalgebra::RowVector4;
 //!
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let dt = 0.02; // 50 Hz
@@ -53,35 +53,24 @@
 //! )?;
 //! let patterns = vec![vec![0, 1], vec![2, 3]]; // each receiver may fail
 //! let p0 = StateMatrix::from_diagonal(&State::new(1e-4, 1e-4, 1e-4, 1e-4));
-//! let params = FtParameters::compute_with(&model, &patterns, dt, 0.05, 500, &p0, BoundMethod::Horizon);
+//! let params = FtParameters::compute_scheduled(
+//!     &model, &patterns, dt, 0.05, 500, &p0, BoundMethod::Horizon, &UpdateSchedule::every_step(),
+//! );
 //! let limit = Input::new(1.0, 1.0);
-//! let mut ctl = Controller::new(ControllerConfig {
-//!     kind: ControllerKind::FtCbfClf,
-//!     model,
-//!     fault_patterns: patterns,
-//!     // h = p_y + 0.2·v_y + 0.05 ≥ 0: the floor, lifted with the velocity.
-//!     barriers: vec![Arc::new(HalfPlane::new("floor", State::new(0.0, 1.0, 0.0, 0.2), -0.05))],
-//!     goal: State::zeros(),
-//!     goal_radius: 0.05,
-//!     gamma: params.gamma.clone(),
-//!     gamma_baseline: params.gamma_baseline,
-//!     theta: params.theta.clone(),
-//!     theta_increment: params.theta_increment.clone(),
-//!     increment_metric: params.increment_metric.clone(),
-//!     theta_schedule: params.theta_schedule.clone(),
-//!     delta: f64::INFINITY,
-//!     cbf_gain: 10.0,
-//!     clf: ClfConfig::paper(0.0),
-//!     input_cost: Matrix2::identity(),
-//!     input_limit: Some(limit),
-//!     x0: State::new(1.0, 0.0, 0.0, 0.0),
-//!     p0,
-//!     max_abs_reading: 1e6,
-//!     form: ProblemForm::SafetyFilter {
-//!         tracker: TrackerConfig::turtlebot([0.0, 0.03], 0.05, Some(limit)),
-//!         clf: false,
-//!     },
-//! })?;
+//! let mut ctl = Controller::new(
+//!     ControllerConfig::builder(model, patterns, params.ft)
+//!         // h = p_y + 0.2·v_y + 0.05 ≥ 0: the floor, lifted with the velocity.
+//!         .barriers(vec![Arc::new(HalfPlane::new("floor", State::new(0.0, 1.0, 0.0, 0.2), -0.05))])
+//!         .goal(State::zeros(), 0.05)
+//!         .cbf_gain(10.0)
+//!         .input_limit(limit)
+//!         .start(State::new(1.0, 0.0, 0.0, 0.0), p0)
+//!         .form(ProblemForm::SafetyFilter {
+//!             tracker: TrackerConfig::turtlebot([0.0, 0.03], 0.05, Some(limit)),
+//!             clf: false,
+//!         })
+//!         .build(),
+//! )?;
 //! let mut drive = Compensator::new(CompensatorConfig {
 //!     v_max: 0.22,
 //!     omega_max: 2.84,
@@ -145,13 +134,14 @@ pub use barrier::{
     Barrier, BarrierEval, EllipsoidInside, EllipsoidOutside, HalfPlane, HigherOrderHalfPlane,
 };
 pub use controller::{
-    ConfigError, ControlOutput, Controller, ControllerConfig, ControllerKind, ProblemForm,
-    RejectedReadings,
+    ConfigError, ControlOutput, Controller, ControllerConfig, ControllerConfigBuilder,
+    ControllerKind, ProblemForm, RejectedReadings,
 };
 pub use estimator::{EstimatorBank, FilterRole, KalmanFilter};
 pub use interface::{ControlLaw, Decision, Readings};
 pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
 pub use nominal::{PathTracker, TrackerConfig, TrackerError};
+pub use params::{FtParams, PairTable};
 pub use policy::{DecisionRecord, QpOutcome, SafeAction, Stage};
 pub use types::{Input, InputMatrix, State, StateMatrix};

@@ -245,7 +245,7 @@ impl LinearModel {
         m6.fixed_view_mut::<4, 2>(0, 4).copy_from(&(self.g * dt));
         let e6 = m6.exp();
         let phi: StateMatrix = e6.fixed_view::<4, 4>(0, 0).into_owned();
-        let gamma: InputMatrix = e6.fixed_view::<4, 2>(0, 4).into_owned();
+        let input_map: InputMatrix = e6.fixed_view::<4, 2>(0, 4).into_owned();
         // Van Loan: exp([[-F, Q], [0, Fᵀ]] dt) = [[·, E12], [0, E22]], Φ = E22ᵀ, Q_d = Φ E12.
         let mut m8 = SMatrix::<f64, 8, 8>::zeros();
         m8.fixed_view_mut::<4, 4>(0, 0).copy_from(&(-self.f * dt));
@@ -256,7 +256,12 @@ impl LinearModel {
         let e12: StateMatrix = e8.fixed_view::<4, 4>(0, 4).into_owned();
         let qd = phi * e12;
         let qd = (qd + qd.transpose()) * 0.5;
-        Discretization { dt, phi, gamma, qd }
+        Discretization {
+            dt,
+            phi,
+            input_map,
+            qd,
+        }
     }
 }
 
@@ -271,8 +276,8 @@ pub struct Discretization {
     pub dt: f64,
     /// Φ = exp(F dt).
     pub phi: StateMatrix,
-    /// Γ = ∫ exp(Fs) ds G.
-    pub gamma: InputMatrix,
+    /// Γ = ∫ exp(Fs) ds G, the input map of one period (named apart from the error bound γ).
+    pub input_map: InputMatrix,
     /// Q_d.
     pub qd: StateMatrix,
 }
@@ -414,8 +419,8 @@ mod tests {
             );
         }
         assert!((d.phi[(0, 2)] - dt).abs() < 1e-15);
-        assert!((d.gamma[(0, 0)] - dt * dt / 2.0).abs() < 1e-15);
-        assert!((d.gamma[(2, 0)] - dt).abs() < 1e-15);
+        assert!((d.input_map[(0, 0)] - dt * dt / 2.0).abs() < 1e-15);
+        assert!((d.input_map[(2, 0)] - dt).abs() < 1e-15);
     }
 
     #[test]

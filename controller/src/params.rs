@@ -568,33 +568,164 @@ pub enum BoundMethod {
     Horizon,
 }
 
+/// The parameters the controller's conditions are stated with (§4.3): γ_i, γ of the
+/// all-channel filter, θ_ij, and Step 2's increment test (η_ij with its norm W_ij) and θ_ij(t).
+/// One type for the three places that hold them: computed ([`FtParameters::ft`]), in force for
+/// a world (the simulator's parameter report) and handed to the controller
+/// ([`crate::ControllerConfig::ft`]).
+///
+/// Per-pair lists are in the packed order of [`PairTable`] ((0,1), (0,2), …, (1,2), …); `theta`,
+/// `eta` and `increment_metric` may instead hold one value for every pair.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FtParams {
+    /// γ_i per fault pattern: the bound on ‖x̂_i − x‖ of the filter that drops pattern i \[m, m/s\].
+    pub gamma: Vec<f64>,
+    /// γ of the all-channel filter (baseline and nominal controllers).
+    pub gamma_baseline: f64,
+    /// θ_ij: one value for all pairs, or C(m,2) values (empty when m < 2).
+    pub theta: Vec<f64>,
+    /// η_ij of Step 2's increment test, same layout as `theta`: η_ij/2 bounds how far x̂_a and
+    /// x̂_ij of a fault-free a move apart over [`STEP2_WINDOW`] (empty: no increment test, the
+    /// paper's Step 2).
+    pub eta: Vec<f64>,
+    /// W_ij of the increment test, same layout as `eta`: the increment is measured in the norm
+    /// ‖z‖_W = √(zᵀ W z), W = C̄⁻¹ for a fixed C̄ that covers every increment covariance of the
+    /// horizon up to the factor folded into η_ij (see [`increment_metric`]); empty: the
+    /// Euclidean norm, W = I. Each must be symmetric positive semidefinite.
+    pub increment_metric: Vec<StateMatrix>,
+    /// θ_ij(t) over the horizon (the horizon bound method only): the same quantile of the
+    /// solution separation's covariance at each step, not only at its worst. The pair filter's
+    /// dead-reckoned error grows over the run, so θ_ij(t) is much tighter early on; it never
+    /// exceeds `theta` (its last value), so condition 1 still holds with θ_ij. None: θ_ij
+    /// throughout.
+    pub theta_schedule: Option<ThetaSchedule>,
+}
+
+impl FtParams {
+    /// Given values: γ for all `patterns` filters and the all-channel one, one θ for every pair,
+    /// no increment test and no θ_ij(t) (a world file's `gamma = g`, `theta = t`).
+    pub fn uniform(patterns: usize, gamma: f64, theta: f64) -> Self {
+        Self {
+            gamma: vec![gamma; patterns],
+            gamma_baseline: gamma,
+            theta: vec![theta],
+            ..Self::default()
+        }
+    }
+
+    /// The value of a per-pair list (one value for all, or one per pair in packed order) for
+    /// the pair (i, j), i ≠ j, of `m` patterns; None when the list is empty or too short.
+    pub fn per_pair<T: Copy>(values: &[T], m: usize, i: usize, j: usize) -> Option<T> {
+        match values {
+            [] => None,
+            [one] => Some(*one),
+            many => many.get(pair_slot(m, i, j)?).copied(),
+        }
+    }
+}
+
+/// Values per unordered pair {i, j}, i ≠ j, of `m` items (fault patterns, units of the policy),
+/// stored packed in the order (0,1), (0,2), …, (0,m−1), (1,2), …: the one layout of pair data in
+/// the crate (θ_ij, γ_ij, η_ij, the pair filters). (i, j) and (j, i) are the same entry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairTable<T> {
+    m: usize,
+    values: Vec<T>,
+}
+
+/// C(m, 2): the number of pairs of `m` items (the length of a [`PairTable`]).
+pub fn pair_count(m: usize) -> usize {
+    m * m.saturating_sub(1) / 2
+}
+
+/// The packed index of the pair (i, j) of `m` items (either order) in a [`PairTable`]; None
+/// when i = j or either is out of range.
+pub fn pair_slot(m: usize, i: usize, j: usize) -> Option<usize> {
+    let (a, b) = (i.min(j), i.max(j));
+    (a != b && b < m).then(|| a * (2 * m - a - 1) / 2 + (b - a - 1))
+}
+
+impl<T> PairTable<T> {
+    /// The table of `m` items with `f(i, j)` (i < j) for each pair, in packed order.
+    pub fn from_fn(m: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let mut values = Vec::with_capacity(pair_count(m));
+        for i in 0..m {
+            for j in (i + 1)..m {
+                values.push(f(i, j));
+            }
+        }
+        Self { m, values }
+    }
+
+    /// Number of items the pairs are drawn from.
+    pub fn items(&self) -> usize {
+        self.m
+    }
+
+    /// The value of the pair (i, j) (either order); None when i = j or out of range.
+    pub fn get(&self, i: usize, j: usize) -> Option<&T> {
+        self.values.get(pair_slot(self.m, i, j)?)
+    }
+
+    /// The value of the pair (i, j) (either order), mutably.
+    pub fn get_mut(&mut self, i: usize, j: usize) -> Option<&mut T> {
+        let k = pair_slot(self.m, i, j)?;
+        self.values.get_mut(k)
+    }
+
+    /// ((i, j), value) for every pair, i < j, in packed order.
+    pub fn iter(&self) -> impl Iterator<Item = ((usize, usize), &T)> + '_ {
+        let m = self.m;
+        (0..m)
+            .flat_map(move |i| ((i + 1)..m).map(move |j| (i, j)))
+            .zip(&self.values)
+    }
+
+    /// The values in packed order.
+    pub fn as_slice(&self) -> &[T] {
+        &self.values
+    }
+
+    /// The values in packed order, mutably.
+    pub fn values_mut(&mut self) -> &mut [T] {
+        &mut self.values
+    }
+}
+
+impl<T> std::ops::Index<(usize, usize)> for PairTable<T> {
+    type Output = T;
+    /// The value of the pair (i, j); panics when i = j or either is out of range.
+    fn index(&self, (i, j): (usize, usize)) -> &T {
+        match self.get(i, j) {
+            Some(v) => v,
+            None => panic!("pair ({i}, {j}) of {} items", self.m),
+        }
+    }
+}
+
+impl<T> std::ops::IndexMut<(usize, usize)> for PairTable<T> {
+    fn index_mut(&mut self, (i, j): (usize, usize)) -> &mut T {
+        let m = self.m;
+        match self.get_mut(i, j) {
+            Some(v) => v,
+            None => panic!("pair ({i}, {j}) of {m} items"),
+        }
+    }
+}
+
 /// γ_i, γ_ij and θ_ij computed for a model, patterns, sampling period, ε and horizon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FtParameters {
-    /// γ_i per pattern.
-    pub gamma: Vec<f64>,
-    /// γ of the baseline (all channels) at the same per-sample ε'.
-    pub gamma_baseline: f64,
-    /// γ_ij for i < j in order (0,1), (0,2), …, (1,2), …
+    /// The parameters the controller takes: γ_i per pattern, γ of the baseline (all channels)
+    /// at the same per-sample ε', θ_ij per pair, and for [`BoundMethod::Horizon`] η_ij, W_ij
+    /// and θ_ij(t) (empty/None for [`BoundMethod::Paper`]: the paper's Step 2 has no increment
+    /// test).
+    pub ft: FtParams,
+    /// γ_ij per pair in packed order ([`PairTable`]).
     pub gamma_pair: Vec<f64>,
-    /// θ_ij in the same order.
-    pub theta: Vec<f64>,
-    /// The §4.3 triangle bound 2(max(γ_i, γ_j) + γ_ij) in the same order (equal to `theta`
+    /// The §4.3 triangle bound 2(max(γ_i, γ_j) + γ_ij) in the same order (equal to `ft.theta`
     /// for [`BoundMethod::Paper`]).
     pub theta_triangle: Vec<f64>,
-    /// η_ij of Step 2's increment test, same order: η_ij/2 bounds how far x̂_a and x̂_ij of a
-    /// fault-free a move apart over [`STEP2_WINDOW`] (empty for [`BoundMethod::Paper`]: the
-    /// paper's Step 2 has no increment test).
-    pub theta_increment: Vec<f64>,
-    /// W_ij of Step 2's increment test, same order: the increment is measured in the norm
-    /// ‖z‖_W = √(zᵀ W z), W = C̄⁻¹ for a fixed C̄ that covers every increment covariance of the
-    /// horizon up to the factor folded into η_ij (see [`increment_metric`]). Empty with `theta_increment`.
-    pub increment_metric: Vec<StateMatrix>,
-    /// θ_ij(t) over the horizon (the bound method only): the same quantile of the solution
-    /// separation's covariance at each step, not only at its worst. The pair filter's
-    /// dead-reckoned error grows over the run, so θ_ij(t) is much tighter early on; it never
-    /// exceeds `theta` (its last value), so condition 1 still holds with θ_ij.
-    pub theta_schedule: Option<ThetaSchedule>,
     /// Per-sample, per-event ε' = ε/(N m).
     pub eps_per_sample: f64,
     /// Riccati iterations per filter (singles, pairs, baseline).
@@ -607,7 +738,7 @@ pub struct FtParameters {
 }
 
 /// θ_ij(t) of Step 2 as a table: `theta[pair][k]` holds after k + 1 steps of `dt` (pairs in
-/// the order of [`FtParameters::theta`]); non-decreasing in k, and held at its last value past
+/// the order of [`FtParams::theta`]); non-decreasing in k, and held at its last value past
 /// the horizon.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThetaSchedule {
@@ -826,8 +957,8 @@ pub fn increment_metric(a: &[StateMatrix], b: &[StateMatrix]) -> (StateMatrix, f
 
 impl FtParameters {
     /// Compute for total failure probability `eps` over `horizon_samples` samples, for filters
-    /// started from a known state (P0 = 0), by the paper's method. See
-    /// [`FtParameters::compute_with`].
+    /// started from a known state (P0 = 0) whose channels all update every step, by the paper's
+    /// method. See [`FtParameters::compute_scheduled`].
     pub fn compute(
         model: &LinearModel,
         patterns: &[Vec<usize>],
@@ -835,7 +966,7 @@ impl FtParameters {
         eps: f64,
         horizon_samples: usize,
     ) -> Self {
-        Self::compute_with(
+        Self::compute_scheduled(
             model,
             patterns,
             dt,
@@ -843,59 +974,19 @@ impl FtParameters {
             horizon_samples,
             &StateMatrix::zeros(),
             BoundMethod::Paper,
-        )
-    }
-
-    /// [`FtParameters::compute_with`] by the paper's method ([`BoundMethod::Paper`]).
-    pub fn compute_from(
-        model: &LinearModel,
-        patterns: &[Vec<usize>],
-        dt: f64,
-        eps: f64,
-        horizon_samples: usize,
-        p0: &StateMatrix,
-    ) -> Self {
-        Self::compute_with(
-            model,
-            patterns,
-            dt,
-            eps,
-            horizon_samples,
-            p0,
-            BoundMethod::Paper,
-        )
-    }
-
-    /// Compute for total failure probability `eps` over `horizon_samples` samples from the
-    /// initial covariance `p0`, by `method` (see [`BoundMethod`]). A filter without a steady
-    /// state (its channels leave a direction undetectable, e.g. two GNSS patterns dropped leave
-    /// only odometry) uses the largest covariance it reaches within the horizon from `p0`
-    /// ([`horizon_riccati`]), so γ and θ stay finite over the run.
-    pub fn compute_with(
-        model: &LinearModel,
-        patterns: &[Vec<usize>],
-        dt: f64,
-        eps: f64,
-        horizon_samples: usize,
-        p0: &StateMatrix,
-        method: BoundMethod,
-    ) -> Self {
-        Self::compute_scheduled(
-            model,
-            patterns,
-            dt,
-            eps,
-            horizon_samples,
-            p0,
-            method,
             &UpdateSchedule::every_step(),
         )
     }
 
-    /// [`FtParameters::compute_with`] for channels that update on `schedule` (a sensor slower
-    /// than the control rate, or its longest gap under dropouts): every Riccati recursion behind
-    /// γ, θ and η is the periodic one ([`periodic_riccati`], [`horizon_riccati_from`],
-    /// [`separation_moments_scheduled`]) and each bound takes its worst phase.
+    /// Compute for total failure probability `eps` over `horizon_samples` samples from the
+    /// initial covariance `p0`, by `method` (see [`BoundMethod`]), for channels that update on
+    /// `updates` ([`UpdateSchedule::every_step`]: the paper's setting; else a sensor slower than
+    /// the control rate, or its longest gap under dropouts). Every Riccati recursion behind γ, θ
+    /// and η is the periodic one ([`periodic_riccati`], [`horizon_riccati_from`],
+    /// [`separation_moments_scheduled`]) and each bound takes its worst phase. A filter without
+    /// a steady state (its channels leave a direction undetectable, e.g. two GNSS patterns
+    /// dropped leave only odometry) uses the largest covariance it reaches within the horizon
+    /// from `p0` ([`horizon_riccati`]), so γ and θ stay finite over the run.
     #[allow(clippy::too_many_arguments)]
     pub fn compute_scheduled(
         model: &LinearModel,
@@ -959,7 +1050,7 @@ impl FtParameters {
         let mut gamma_pair = Vec::new();
         let mut theta = Vec::new();
         let mut theta_triangle = Vec::new();
-        let mut theta_increment = Vec::new();
+        let mut eta = Vec::new();
         let mut metrics = Vec::new();
         let mut schedule = Vec::new();
         let w = ((STEP2_WINDOW / dt).round() as usize).max(1);
@@ -1001,7 +1092,7 @@ impl FtParameters {
                                 .collect::<Vec<f64>>(),
                         );
                         let (metric, scale) = increment_metric(&si.increments, &sj.increments);
-                        theta_increment.push(2.0 * (scale * chi).sqrt());
+                        eta.push(2.0 * (scale * chi).sqrt());
                         metrics.push(metric);
                     }
                 }
@@ -1009,20 +1100,22 @@ impl FtParameters {
         }
         let gamma_baseline = gamma_of(&vec![true; q], &mut iterations);
         Self {
-            gamma,
-            gamma_baseline,
-            gamma_pair,
-            theta,
-            theta_triangle,
-            theta_increment,
-            increment_metric: metrics,
-            theta_schedule: match method {
-                BoundMethod::Paper => None,
-                BoundMethod::Horizon => Some(ThetaSchedule {
-                    dt,
-                    theta: schedule,
-                }),
+            ft: FtParams {
+                gamma,
+                gamma_baseline,
+                theta,
+                eta,
+                increment_metric: metrics,
+                theta_schedule: match method {
+                    BoundMethod::Paper => None,
+                    BoundMethod::Horizon => Some(ThetaSchedule {
+                        dt,
+                        theta: schedule,
+                    }),
+                },
             },
+            gamma_pair,
+            theta_triangle,
             eps_per_sample: eps1,
             riccati_iterations: iterations,
             all_converged,
@@ -1034,14 +1127,14 @@ impl FtParameters {
 impl fmt::Display for FtParameters {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "per-sample epsilon' = {:.3e}", self.eps_per_sample)?;
-        for (i, g) in self.gamma.iter().enumerate() {
+        for (i, g) in self.ft.gamma.iter().enumerate() {
             writeln!(f, "gamma_{} = {:.6}", i + 1, g)?;
         }
-        writeln!(f, "gamma_baseline = {:.6}", self.gamma_baseline)?;
+        writeln!(f, "gamma_baseline = {:.6}", self.ft.gamma_baseline)?;
         for (k, ((g, t), tri)) in self
             .gamma_pair
             .iter()
-            .zip(&self.theta)
+            .zip(&self.ft.theta)
             .zip(&self.theta_triangle)
             .enumerate()
         {
@@ -1052,7 +1145,7 @@ impl fmt::Display for FtParameters {
                 BoundMethod::Horizon => writeln!(
                     f,
                     "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6} (solution separation; the triangle bound of §4.3 would be {tri:.6}), eta_ij = {:.6} (separation increment over {STEP2_WINDOW} s, in the covariance-weighted norm ‖z‖_W)",
-                    self.theta_increment.get(k).copied().unwrap_or(f64::NAN)
+                    self.ft.eta.get(k).copied().unwrap_or(f64::NAN)
                 )?,
             }
         }
@@ -1274,6 +1367,58 @@ mod tests {
         assert!((vel - later).amax() < 1e-9, "not settled: {vel} vs {later}");
         assert!(vel[0] > 0.0 && vel[0] < 1.0, "{vel}");
         assert!(vel[2] > 0.0 && vel[2] < 0.1, "{vel}");
+    }
+
+    /// The packed layout is the order (0,1), (0,2), …, (1,2), … in which [`FtParameters`]
+    /// computes its pair values, whichever way round a pair is asked for.
+    #[test]
+    fn pair_table_packs_pairs_in_the_computation_order() {
+        for m in 0..7 {
+            let mut order = Vec::new();
+            for i in 0..m {
+                for j in (i + 1)..m {
+                    order.push((i, j));
+                }
+            }
+            assert_eq!(pair_count(m), order.len());
+            for (k, &(i, j)) in order.iter().enumerate() {
+                assert_eq!(pair_slot(m, i, j), Some(k));
+                assert_eq!(pair_slot(m, j, i), Some(k));
+            }
+            for i in 0..m {
+                assert_eq!(pair_slot(m, i, i), None);
+                assert_eq!(pair_slot(m, i, m), None);
+            }
+            let mut t = PairTable::from_fn(m, |i, j| 10 * i + j);
+            assert_eq!(t.items(), m);
+            let listed: Vec<(usize, usize)> = t.iter().map(|(p, _)| p).collect();
+            assert_eq!(listed, order);
+            for &(i, j) in &order {
+                assert_eq!((t[(i, j)], t[(j, i)]), (10 * i + j, 10 * i + j));
+            }
+            if m >= 3 {
+                t[(2, 0)] = 99;
+                assert_eq!(t.get(0, 2), Some(&99));
+                assert_eq!(t.as_slice()[1], 99);
+            }
+            assert_eq!(t.get(0, 0), None);
+        }
+    }
+
+    /// A per-pair list holds one value for all pairs or one per pair in packed order.
+    #[test]
+    fn per_pair_values_are_one_for_all_or_packed() {
+        assert_eq!(FtParams::per_pair(&[0.5], 3, 2, 1), Some(0.5));
+        assert_eq!(FtParams::per_pair(&[0.1, 0.2, 0.3], 3, 2, 1), Some(0.3));
+        assert_eq!(FtParams::per_pair(&[0.1, 0.2, 0.3], 3, 0, 2), Some(0.2));
+        assert_eq!(FtParams::per_pair::<f64>(&[], 3, 0, 1), None);
+        assert_eq!(FtParams::per_pair(&[0.1, 0.2], 3, 1, 2), None);
+        let p = FtParams::uniform(3, 0.01, 0.2);
+        assert_eq!(
+            (p.gamma, p.gamma_baseline, p.theta),
+            (vec![0.01; 3], 0.01, vec![0.2])
+        );
+        assert!(p.eta.is_empty() && p.increment_metric.is_empty() && p.theta_schedule.is_none());
     }
 
     #[test]

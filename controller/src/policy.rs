@@ -10,7 +10,7 @@
 //! 2. **Step 2** — for each pair with ‖x̂_i − x̂_j‖ > θ_ij, drop unit i (resp. j), i.e. both
 //!    its Ω and Υ, if ‖x̂_i − x̂_ij‖ > θ_ij/2 (resp. for j). Resolve, hard. (Skipped for a
 //!    single unit; not re-solved when nothing was dropped.) With increment thresholds η_ij
-//!    (finite [`PolicyProblem::theta_increment`]) the test uses the seminorm
+//!    (finite [`PolicyProblem::eta`]) the test uses the seminorm
 //!    S(z) = max(‖z(t)‖/(θ_ij/2), ‖z(t) − z(t − 1 s)‖_W/(η_ij/2)) of the estimate trajectories
 //!    (‖·‖_W the covariance-weighted norm of [`PolicyProblem::increment_metric`]):
 //!    the pair conflicts when S(x̂_i − x̂_j) > 2 and unit a goes when S(x̂_a − x̂_ij) > 1.
@@ -71,6 +71,7 @@ use clarabel::solver::SolverStatus;
 
 use crate::constraints::{CbfRow, ClfRow, HalfSpace};
 use crate::feasibility::{admits, box_edges, check_half_spaces, nearest, Feasibility, Line};
+use crate::params::PairTable;
 use crate::qp::{QpResult, QpSolver, RowMode};
 use crate::types::{Input, State, StateMatrix};
 
@@ -357,17 +358,18 @@ pub struct PolicyProblem {
     pub step3_keeps_saturated: bool,
     /// Estimates x̂_i per unit.
     pub estimates: Vec<State>,
-    /// Pair estimates x̂_ij, index `i * units + j` (symmetric).
-    pub pair_estimates: Vec<State>,
-    /// θ_ij, index `i * units + j` (symmetric).
-    pub theta: Vec<f64>,
-    /// η_ij of the increment test, index `i * units + j` (symmetric; +∞: no increment test).
-    pub theta_increment: Vec<f64>,
-    /// Δ(x̂_a − x̂_aj) over the Step-2 window, index `a * units + j`.
+    /// Pair estimates x̂_ij per pair of units.
+    pub pair_estimates: PairTable<State>,
+    /// θ_ij per pair of units.
+    pub theta: PairTable<f64>,
+    /// η_ij of the increment test per pair of units (+∞: no increment test).
+    pub eta: PairTable<f64>,
+    /// Δ(x̂_a − x̂_aj) over the Step-2 window per *ordered* pair (a, j), index `a * units + j`
+    /// (x̂_a − x̂_aj and x̂_j − x̂_aj differ, so this is not a [`PairTable`]).
     pub separation_increment: Vec<State>,
-    /// W of the increment test per ordered pair `i * units + j` (the norm ‖z‖_W = √(zᵀ W z) in
-    /// which `theta_increment` is measured; identity: Euclidean).
-    pub increment_metric: Vec<StateMatrix>,
+    /// W of the increment test per pair of units (the norm ‖z‖_W = √(zᵀ W z) in which `eta` is
+    /// measured; identity: Euclidean).
+    pub increment_metric: PairTable<StateMatrix>,
     /// Step-3 ranking keys (+∞ when flagged).
     pub residue_key: Vec<f64>,
     /// The windowed χ² statistic and its degrees of freedom behind each key (for the record).
@@ -390,7 +392,7 @@ impl PolicyProblem {
             h_hat: 0.0,
         };
         let zero_clf = ClfRow {
-            gamma_row: Input::zeros(),
+            lg_v: Input::zeros(),
             tau_bar: 0.0,
             v: 0.0,
         };
@@ -405,11 +407,11 @@ impl PolicyProblem {
             step2_every_step: false,
             step3_keeps_saturated: false,
             estimates: vec![State::zeros(); units],
-            pair_estimates: vec![State::zeros(); units * units],
-            theta: vec![f64::INFINITY; units * units],
-            theta_increment: vec![f64::INFINITY; units * units],
+            pair_estimates: PairTable::from_fn(units, |_, _| State::zeros()),
+            theta: PairTable::from_fn(units, |_, _| f64::INFINITY),
+            eta: PairTable::from_fn(units, |_, _| f64::INFINITY),
             separation_increment: vec![State::zeros(); units * units],
-            increment_metric: vec![StateMatrix::identity(); units * units],
+            increment_metric: PairTable::from_fn(units, |_, _| StateMatrix::identity()),
             residue_key: vec![0.0; units],
             residue_stat: vec![(0.0, 0); units],
             flagged: vec![false; units],
@@ -774,12 +776,12 @@ fn w_norm(metric: &StateMatrix, z: State) -> f64 {
 /// Step 2's test of the pair (i, j), i < j: when the pair conflicts, drop each unit still
 /// alive that has moved too far from x̂_ij. Returns whether it dropped one.
 fn step2_pair(p: &PolicyProblem, s: &mut PolicyScratch, i: usize, j: usize) -> bool {
-    let theta = p.theta[i * p.units + j];
-    let eta = p.theta_increment[i * p.units + j];
+    let theta = p.theta[(i, j)];
+    let eta = p.eta[(i, j)];
     let distance = (p.estimates[i] - p.estimates[j]).norm();
     let inc_i = p.separation_increment[i * p.units + j];
     let inc_j = p.separation_increment[j * p.units + i];
-    let metric = &p.increment_metric[i * p.units + j];
+    let metric = &p.increment_metric[(i, j)];
     let inc_distance = w_norm(metric, inc_i - inc_j);
     // S(z) = max(‖z‖/(θ/2), ‖Δz‖/(η/2)) is a seminorm: the pair conflicts when
     // S(x̂_i − x̂_j) > 2, and unit a goes when S(x̂_a − x̂_ij) > 1.
@@ -787,7 +789,7 @@ fn step2_pair(p: &PolicyProblem, s: &mut PolicyScratch, i: usize, j: usize) -> b
     if !conflict {
         return false;
     }
-    let pair = p.pair_estimates[i * p.units + j];
+    let pair = p.pair_estimates[(i, j)];
     let mut dropped = false;
     for (a, other, inc) in [(i, j, inc_i), (j, i, inc_j)] {
         if !s.alive[a] {

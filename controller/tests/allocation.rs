@@ -4,15 +4,13 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
 
-use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::constraints::HalfSpace;
 use ftcbf_controller::qp::{QpSolver, RowMode};
-use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
-};
+use ftcbf_controller::{Controller, Input};
 use nalgebra::Matrix2;
+
+mod common;
 
 struct Counting;
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
@@ -53,34 +51,7 @@ fn a_step_allocates_only_inside_clarabel() {
     let per_solve = (count() - before) / 100;
 
     for attack in [0.0, 1.0] {
-        let mut c = Controller::new(ControllerConfig {
-            kind: ControllerKind::FtCbfClf,
-            model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
-            fault_patterns: vec![vec![1], vec![3]],
-            barriers: vec![Arc::new(HalfPlane::new(
-                "h",
-                State::new(0.0, 1.0, 0.0, 0.2),
-                -0.05,
-            ))],
-            goal: State::zeros(),
-            goal_radius: 0.05,
-            gamma: vec![0.001; 2],
-            gamma_baseline: 0.001,
-            theta: vec![0.045],
-            theta_increment: Vec::new(),
-            increment_metric: Vec::new(),
-            theta_schedule: None,
-            delta: 1.0,
-            cbf_gain: 1.0,
-            clf: ClfConfig::paper(1.0),
-            input_cost: Matrix2::identity(),
-            input_limit: Some(Input::new(2.0, 2.0)),
-            x0: State::new(1.0, 0.0, 0.0, 0.0),
-            p0: StateMatrix::identity() * 1e-3,
-            max_abs_reading: 1e6,
-            form: ftcbf_controller::ProblemForm::Paper,
-        })
-        .expect("config");
+        let mut c = Controller::new(common::small_config()).expect("config");
         // a few rejected readings too: the rejection path must not allocate either
         let y = [0.5, 0.5, 0.0, attack, 0.0, f64::NAN];
         for _ in 0..300 {

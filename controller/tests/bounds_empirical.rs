@@ -48,18 +48,35 @@ fn normal4(rng: &mut ChaCha8Rng) -> State {
     State::from_fn(|_, _| StandardNormal.sample(rng))
 }
 
+/// The horizon bounds for ε = [`EPS`] over [`STEPS`] with every channel fresh every step.
+fn every_step_bounds(
+    model: &LinearModel,
+    patterns: &[Vec<usize>],
+    p0: &StateMatrix,
+) -> FtParameters {
+    FtParameters::compute_scheduled(
+        model,
+        patterns,
+        DT,
+        EPS,
+        STEPS,
+        p0,
+        BoundMethod::Horizon,
+        &UpdateSchedule::every_step(),
+    )
+}
+
 #[test]
 fn gamma_and_theta_bound_the_fault_free_errors_as_epsilon_promises() {
     let model = corridor_model();
     let patterns = vec![vec![0, 1], vec![2, 3]];
     let p0 = StateMatrix::from_diagonal(&State::new(1e-4, 1e-4, 1e-4, 1e-4));
-    let params =
-        FtParameters::compute_with(&model, &patterns, DT, EPS, STEPS, &p0, BoundMethod::Horizon);
+    let params = every_step_bounds(&model, &patterns, &p0);
     // The separation bound is tighter than the §4.3 triangle bound.
     assert!(
-        params.theta[0] < params.theta_triangle[0],
+        params.ft.theta[0] < params.theta_triangle[0],
         "{} vs {}",
-        params.theta[0],
+        params.ft.theta[0],
         params.theta_triangle[0]
     );
     let seen = monte_carlo(&model, &patterns, &params, &p0, &Timing::EVERY_STEP, RUNS);
@@ -110,7 +127,7 @@ fn monte_carlo(
     timing: &Timing,
     runs: u64,
 ) -> Seen {
-    let theta_half = params.theta[0] / 2.0;
+    let theta_half = params.ft.theta[0] / 2.0;
     let d = model.discretize(DT);
     let qd_sqrt = sqrt_psd(&d.qd);
     let p0_sqrt = sqrt_psd(p0);
@@ -129,7 +146,7 @@ fn monte_carlo(
         let mut y = [0.0; 6];
         let mut fresh = [true; 6];
         for step in 0..STEPS {
-            x = d.phi * x + d.gamma * u + qd_sqrt * normal4(&mut rng);
+            x = d.phi * x + d.input_map * u + qd_sqrt * normal4(&mut rng);
             for (k, yk) in y.iter_mut().enumerate() {
                 let v: f64 = StandardNormal.sample(&mut rng);
                 *yk = model.measure(k, &x) + model.r[k].sqrt() * v;
@@ -144,7 +161,7 @@ fn monte_carlo(
             let pair = *bank.pair(0, 1).expect("pair filter").estimate();
             for i in 0..2 {
                 let xi = *bank.single(i).estimate();
-                let g = (xi - x).norm() / params.gamma[i];
+                let g = (xi - x).norm() / params.ft.gamma[i];
                 let t = (xi - pair).norm() / theta_half;
                 seen.worst_gamma_ratio = seen.worst_gamma_ratio.max(g);
                 seen.worst_theta_ratio = seen.worst_theta_ratio.max(t);
@@ -180,8 +197,7 @@ fn slow_lossy_receivers_get_gamma_and_theta_from_their_schedule() {
         dropout: 0.2,
     };
     let runs = 100;
-    let every_step =
-        FtParameters::compute_with(&model, &patterns, DT, EPS, STEPS, &p0, BoundMethod::Horizon);
+    let every_step = every_step_bounds(&model, &patterns, &p0);
     let slots = STEPS / timing.every;
     let n = (0..)
         .find(|&n| slots as f64 * timing.dropout.powi(n + 1) <= EPS / 2.0 / 4.0)
@@ -205,8 +221,8 @@ fn slow_lossy_receivers_get_gamma_and_theta_from_their_schedule() {
         (seen.runs_exceeding as f64) <= EPS * runs as f64,
         "scheduled bounds left in {} of {runs} runs (γ {:?}, θ {:?})",
         seen.runs_exceeding,
-        scheduled.gamma,
-        scheduled.theta
+        scheduled.ft.gamma,
+        scheduled.ft.theta
     );
     assert!(
         seen.worst_gamma_ratio > 0.3,
@@ -214,9 +230,9 @@ fn slow_lossy_receivers_get_gamma_and_theta_from_their_schedule() {
         seen.worst_gamma_ratio
     );
     assert!(
-        scheduled.gamma[0] > every_step.gamma[0],
+        scheduled.ft.gamma[0] > every_step.ft.gamma[0],
         "γ {:?} vs every step {:?}",
-        scheduled.gamma,
-        every_step.gamma
+        scheduled.ft.gamma,
+        every_step.ft.gamma
     );
 }

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use ftcbf_controller::barrier::{Barrier, BarrierEval, HalfPlane};
 use ftcbf_controller::constraints::HalfSpace;
 use ftcbf_controller::feasibility::Line;
+use ftcbf_controller::params::FtParams;
 use ftcbf_controller::policy::{
     resolve, settle, BrakeReason, BrakeVelocity, ConstraintKind, DecisionRecord, DropReason,
     PolicyScratch, QpOutcome, SafeAction, Settled, Stage, Step2Retained, Verdict,
@@ -14,7 +15,7 @@ use ftcbf_controller::policy::{
 };
 use ftcbf_controller::qp::{QpResult, QpSolver};
 use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
+    Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
 };
 use nalgebra::Matrix2;
 
@@ -36,8 +37,8 @@ fn step2_never_drops_the_last_unit_with_cbf_rows() {
         State::new(0.0, 1.0, 0.0, 0.0),
         State::new(0.0, -1.0, 0.0, 0.0),
     ];
-    p.pair_estimates = vec![State::new(5.0, 0.0, 0.0, 0.0); 4]; // drifted far from both
-    p.theta = vec![f64::INFINITY, 0.1, 0.1, f64::INFINITY];
+    p.pair_estimates[(0, 1)] = State::new(5.0, 0.0, 0.0, 0.0); // drifted far from both
+    p.theta[(0, 1)] = 0.1;
     p.residue_key = vec![2.0, 0.5]; // Step 3 would keep unit 1
     let (u, o, rec) = run(&p, None);
     assert!(
@@ -82,7 +83,7 @@ fn step2_never_drops_the_last_unit_with_cbf_rows() {
     assert_eq!(rec.step2_retained.map(|r| r.unit), Some(0));
     assert!((u - Input::new(0.0, 1.0)).norm() < 1e-6, "{u}");
     // when the pair test leaves one unit, nothing is retained
-    p.pair_estimates = vec![State::new(0.0, -0.99, 0.0, 0.0); 4];
+    p.pair_estimates[(0, 1)] = State::new(0.0, -0.99, 0.0, 0.0);
     let (_, _, rec) = run(&p, None);
     assert_eq!(rec.step2_retained, None);
 }
@@ -239,36 +240,28 @@ impl Barrier for NanBarrier {
 fn a_nan_barrier_is_imposed_and_fails_closed_in_the_controller() {
     for kind in [ControllerKind::FtCbfClf, ControllerKind::Baseline] {
         let model = LinearModel::paper_double_integrator(1e-3, 1e-3).unwrap();
-        let cfg = ControllerConfig {
-            kind,
+        let cfg = ControllerConfig::builder(
             model,
-            fault_patterns: vec![vec![1], vec![3]],
-            barriers: vec![
-                Arc::new(HalfPlane::new(
-                    "y ≥ −1",
-                    State::new(0.0, 1.0, 0.0, 0.5),
-                    -1.0,
-                )),
-                Arc::new(NanBarrier),
-            ],
-            goal: State::zeros(),
-            goal_radius: 0.05,
-            gamma: vec![0.01, 0.01],
-            gamma_baseline: 0.01,
-            theta: vec![0.5],
-            theta_increment: Vec::new(),
-            increment_metric: Vec::new(),
-            theta_schedule: None,
-            delta: 0.5,
-            cbf_gain: 1.0,
-            clf: ClfConfig::paper(0.0),
-            input_cost: Matrix2::identity(),
-            input_limit: Some(Input::new(2.0, 2.0)),
-            x0: State::new(1.0, 0.0, 0.2, 0.0),
-            p0: StateMatrix::identity() * 1e-3,
-            max_abs_reading: 1e6,
-            form: ftcbf_controller::ProblemForm::Paper,
-        };
+            vec![vec![1], vec![3]],
+            FtParams::uniform(2, 0.01, 0.5),
+        )
+        .kind(kind)
+        .barriers(vec![
+            Arc::new(HalfPlane::new(
+                "y ≥ −1",
+                State::new(0.0, 1.0, 0.0, 0.5),
+                -1.0,
+            )),
+            Arc::new(NanBarrier),
+        ])
+        .goal(State::zeros(), 0.05)
+        .delta(0.5)
+        .input_limit(Input::new(2.0, 2.0))
+        .start(
+            State::new(1.0, 0.0, 0.2, 0.0),
+            StateMatrix::identity() * 1e-3,
+        )
+        .build();
         let mut c = Controller::new(cfg).unwrap();
         let out = c.step(&[1.0, 1.0, 0.0, 0.0, 0.2, 0.0], &[true; 6], 0.01);
         let units = if kind == ControllerKind::FtCbfClf {

@@ -248,12 +248,12 @@ fn reference(
         let mut any = false;
         for i in 0..units {
             for j in (i + 1)..units {
-                let theta = p.theta[i * units + j];
+                let theta = p.theta[(i, j)];
                 let d = (p.estimates[i] - p.estimates[j]).norm();
                 if d.is_nan() || d <= theta {
                     continue;
                 }
-                let pair = p.pair_estimates[i * units + j];
+                let pair = p.pair_estimates[(i, j)];
                 for a in [i, j] {
                     if (p.estimates[a] - pair).norm() > theta / 2.0 && alive[a] {
                         alive[a] = false;
@@ -347,7 +347,7 @@ fn random_policy_problem(rng: &mut ChaCha8Rng) -> (PolicyProblem, Option<Input>)
         let t: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         let mag = rng.random_range(0.1..1e3);
         p.clf[i] = ClfRow {
-            gamma_row: Input::new(t.cos(), t.sin()) * mag,
+            lg_v: Input::new(t.cos(), t.sin()) * mag,
             tau_bar: rng.random_range(-2.0..1.0) * mag,
             v: 1.0,
         };
@@ -365,10 +365,13 @@ fn random_policy_problem(rng: &mut ChaCha8Rng) -> (PolicyProblem, Option<Input>)
         };
         p.flagged[i] = p.residue_key[i].is_infinite();
     }
+    // Every ordered (i, j) draws an estimate and a θ, as when these were dense i·units + j
+    // arrays (the same problems for the same seed): a pair keeps the estimate drawn at i < j
+    // and the θ drawn at i > j, the last written there.
     for i in 0..units {
         for j in 0..units {
             let mid = (p.estimates[i] + p.estimates[j]) / 2.0;
-            p.pair_estimates[i * units + j] = mid
+            let pair = mid
                 + State::new(
                     rng.random_range(-0.02..0.02),
                     rng.random_range(-0.02..0.02),
@@ -376,14 +379,11 @@ fn random_policy_problem(rng: &mut ChaCha8Rng) -> (PolicyProblem, Option<Input>)
                     0.0,
                 );
             let t = rng.random_range(0.02..0.2);
-            p.theta[i * units + j] = t;
-            p.theta[j * units + i] = t;
-        }
-    }
-    // make the pair estimates symmetric like the controller's
-    for i in 0..units {
-        for j in (i + 1)..units {
-            p.pair_estimates[j * units + i] = p.pair_estimates[i * units + j];
+            if i < j {
+                p.pair_estimates[(i, j)] = pair;
+            } else if i > j {
+                p.theta[(i, j)] = t;
+            }
         }
     }
     let limit = if rng.random_bool(0.6) {

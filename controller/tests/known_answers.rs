@@ -1,17 +1,13 @@
 //! Unit tests with known answers: the policy's stages on constructed cases, KKT of the QP,
 //! Proposition 3 against a numerical minimisation of (A.1), and sensor-reading hygiene.
 
-use std::sync::Arc;
-
-use ftcbf_controller::barrier::{Barrier, EllipsoidInside, EllipsoidOutside, HalfPlane};
+use ftcbf_controller::barrier::{Barrier, EllipsoidInside, EllipsoidOutside};
 use ftcbf_controller::constraints::{CbfRow, ClfRow, HalfSpace};
 use ftcbf_controller::policy::{
     ConstraintKind, DropReason, PolicyProblem, QpOutcome, SafeAction, Stage, Verdict,
 };
 use ftcbf_controller::qp::{QpResult, QpSolver, RowMode};
-use ftcbf_controller::{
-    ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, State, StateMatrix,
-};
+use ftcbf_controller::{Controller, ControllerKind, Input, State, StateMatrix};
 use nalgebra::Matrix2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -26,7 +22,7 @@ use common::{cbf, run, verdict};
 /// Two units, one barrier, no CLF unless set; θ finite on the pair (10), ∞ on the diagonal.
 fn two_units(rows: [CbfRow; 2]) -> PolicyProblem {
     let mut p = common::two_units(rows);
-    p.theta = vec![f64::INFINITY, 10.0, 10.0, f64::INFINITY];
+    p.theta[(0, 1)] = 10.0;
     p
 }
 
@@ -62,8 +58,8 @@ fn step2_drops_the_filter_far_from_the_pair_estimate() {
     let mut p = two_units([cbf(0.0, 1.0, 1.0), cbf(0.0, -1.0, 1.0)]);
     p.estimates = vec![State::new(0.0, 1.0, 0.0, 0.0), State::zeros()];
     let pair = State::new(0.0, 0.01, 0.0, 0.0);
-    p.pair_estimates = vec![pair; 4];
-    p.theta = vec![f64::INFINITY, 0.1, 0.1, f64::INFINITY];
+    p.pair_estimates[(0, 1)] = pair;
+    p.theta[(0, 1)] = 0.1;
     p.residue_key = vec![0.0, 100.0]; // Step 3 would drop unit 1: Step 2 must decide first
     let (u, o, rec) = run(&p, None);
     assert!(
@@ -146,7 +142,7 @@ fn clf_is_relaxed_before_any_barrier_is_dropped() {
     p.use_clf = true;
     // unit 1's CLF wants u_y ≤ −1: conflicts with both CBF rows
     p.clf[1] = ClfRow {
-        gamma_row: Input::new(0.0, 1.0),
+        lg_v: Input::new(0.0, 1.0),
         tau_bar: -1.0,
         v: 10.0,
     };
@@ -348,42 +344,12 @@ fn proposition3_matches_numerical_minimisation() {
 // Reading hygiene
 // ------------------------------------------------------------------------------------------
 
-fn small_config() -> ControllerConfig {
-    ControllerConfig {
-        kind: ControllerKind::FtCbfClf,
-        model: LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
-        fault_patterns: vec![vec![1], vec![3]],
-        barriers: vec![Arc::new(HalfPlane::new(
-            "h",
-            State::new(0.0, 1.0, 0.0, 0.2),
-            -0.05,
-        ))],
-        goal: State::zeros(),
-        goal_radius: 0.05,
-        gamma: vec![0.001, 0.001],
-        gamma_baseline: 0.001,
-        theta: vec![0.045],
-        theta_increment: Vec::new(),
-        increment_metric: Vec::new(),
-        theta_schedule: None,
-        delta: 1.0,
-        cbf_gain: 1.0,
-        clf: ClfConfig::paper(1.0),
-        input_cost: Matrix2::identity(),
-        input_limit: Some(Input::new(2.0, 2.0)),
-        x0: State::new(1.0, 0.0, 0.0, 0.0),
-        p0: StateMatrix::identity() * 1e-3,
-        max_abs_reading: 1e6,
-        form: ftcbf_controller::ProblemForm::Paper,
-    }
-}
-
 #[test]
 fn nan_inf_and_absurd_readings_never_reach_an_update() {
     let y_ok = [1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e12] {
-        let mut attacked = Controller::new(small_config()).expect("config");
-        let mut reference = Controller::new(small_config()).expect("config");
+        let mut attacked = Controller::new(common::small_config()).expect("config");
+        let mut reference = Controller::new(common::small_config()).expect("config");
         for _ in 0..20 {
             let mut y = y_ok;
             y[3] = bad;
@@ -418,7 +384,7 @@ fn nan_inf_and_absurd_readings_never_reach_an_update() {
 
 #[test]
 fn bad_configs_are_typed_errors() {
-    let mut c = small_config();
+    let mut c = common::small_config();
     c.fault_patterns = vec![vec![1, 3], vec![3]];
     assert!(matches!(
         Controller::new(c),
@@ -426,26 +392,26 @@ fn bad_configs_are_typed_errors() {
             ftcbf_controller::ModelError::OverlappingPatterns { channel: 3, .. }
         ))
     ));
-    let mut c = small_config();
-    c.gamma = vec![0.001];
+    let mut c = common::small_config();
+    c.ft.gamma = vec![0.001];
     assert!(matches!(
         Controller::new(c),
         Err(ftcbf_controller::ConfigError::Length { key: "gamma", .. })
     ));
-    let mut c = small_config();
-    c.theta = vec![f64::NAN];
+    let mut c = common::small_config();
+    c.ft.theta = vec![f64::NAN];
     assert!(matches!(
         Controller::new(c),
         Err(ftcbf_controller::ConfigError::BadValue { key: "theta", .. })
     ));
-    let mut c = small_config();
+    let mut c = common::small_config();
     c.delta = f64::INFINITY;
     assert!(Controller::new(c).is_ok());
 }
 
 #[test]
 fn short_inputs_and_bad_dt_do_not_panic() {
-    let mut c = Controller::new(small_config()).expect("config");
+    let mut c = Controller::new(common::small_config()).expect("config");
     let before = *c.bank().single(0).estimate();
     let out = c.step(&[1.0, 1.0], &[true, true, true], f64::NAN);
     assert!(out.rejected.length_mismatch && out.rejected.invalid_dt);
@@ -457,8 +423,8 @@ fn short_inputs_and_bad_dt_do_not_panic() {
 
 #[test]
 fn same_inputs_give_bit_identical_outputs() {
-    let mut a = Controller::new(small_config()).expect("config");
-    let mut b = Controller::new(small_config()).expect("config");
+    let mut a = Controller::new(common::small_config()).expect("config");
+    let mut b = Controller::new(common::small_config()).expect("config");
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     for _ in 0..300 {
         let y: Vec<f64> = (0..6).map(|_| rng.random_range(-0.1..1.1)).collect();
@@ -470,7 +436,7 @@ fn same_inputs_give_bit_identical_outputs() {
 
 #[test]
 fn baseline_and_nominal_use_the_all_channel_filter() {
-    let mut cfg = small_config();
+    let mut cfg = common::small_config();
     cfg.kind = ControllerKind::Nominal;
     let mut nominal = Controller::new(cfg).expect("config");
     let y = [1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
@@ -482,7 +448,7 @@ fn baseline_and_nominal_use_the_all_channel_filter() {
     }
     // at x = (1, 0, 0, 0) the CLF pushes towards the goal at the origin
     assert!(nominal.output().u[0] < 0.0, "{}", nominal.output().u);
-    let mut cfg = small_config();
+    let mut cfg = common::small_config();
     cfg.kind = ControllerKind::Baseline;
     let mut baseline = Controller::new(cfg).expect("config");
     let mut y4 = y;

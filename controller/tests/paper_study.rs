@@ -12,13 +12,12 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::{Barrier, HalfPlane};
-use ftcbf_controller::params::{ln_gamma, FtParameters};
+use ftcbf_controller::params::{ln_gamma, FtParameters, FtParams};
 use ftcbf_controller::policy::{Stage, Verdict};
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
     QuadraticClf, State, StateMatrix,
 };
-use nalgebra::Matrix2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -38,51 +37,29 @@ fn safe_set() -> HalfPlane {
     HalfPlane::new("x2 + 0.2 v2 + 0.05", State::new(0.0, 1.0, 0.0, 0.2), -0.05)
 }
 
-/// Parameters that differ between the paper's values and the computed ones.
-#[derive(Clone, Debug)]
-struct StudyParams {
-    gamma: Vec<f64>,
-    gamma_baseline: f64,
-    theta: Vec<f64>,
+/// The paper's parameters: γ = 0.001 for every filter, θ = 0.045.
+fn paper_params() -> FtParams {
+    FtParams::uniform(2, 0.001, 0.045)
 }
 
-fn paper_params() -> StudyParams {
-    StudyParams {
-        gamma: vec![0.001, 0.001],
-        gamma_baseline: 0.001,
-        theta: vec![0.045],
-    }
-}
-
-fn config(kind: ControllerKind, p: &StudyParams) -> ControllerConfig {
+fn config(kind: ControllerKind, p: &FtParams) -> ControllerConfig {
     let m = model();
     // V̄: the largest level set of V inside the ball of radius d/2 around the goal.
     let probe =
         QuadraticClf::new(&m.f, &m.g, State::zeros(), D_GOAL, &ClfConfig::paper(0.0)).expect("clf");
     let v_bar = probe.v_bar_inside_ball(D_GOAL / 2.0);
-    ControllerConfig {
-        kind,
-        model: m,
-        fault_patterns: vec![vec![1], vec![3]],
-        barriers: vec![Arc::new(safe_set())],
-        goal: State::zeros(),
-        goal_radius: D_GOAL,
-        gamma: p.gamma.clone(),
-        gamma_baseline: p.gamma_baseline,
-        theta: p.theta.clone(),
-        theta_increment: Vec::new(),
-        increment_metric: Vec::new(),
-        theta_schedule: None,
-        delta: 1.0,
-        cbf_gain: 1.0,
-        clf: ClfConfig::paper(v_bar),
-        input_cost: Matrix2::identity(),
-        input_limit: Some(Input::new(INPUT_LIMIT, INPUT_LIMIT)),
-        x0: State::new(1.0, 0.0, 0.0, 0.0),
-        p0: StateMatrix::identity() * 1e-3,
-        max_abs_reading: 1e6,
-        form: ftcbf_controller::ProblemForm::Paper,
-    }
+    ControllerConfig::builder(m, vec![vec![1], vec![3]], p.clone())
+        .kind(kind)
+        .barriers(vec![Arc::new(safe_set())])
+        .goal(State::zeros(), D_GOAL)
+        .delta(1.0)
+        .clf(ClfConfig::paper(v_bar))
+        .input_limit(Input::new(INPUT_LIMIT, INPUT_LIMIT))
+        .start(
+            State::new(1.0, 0.0, 0.0, 0.0),
+            StateMatrix::identity() * 1e-3,
+        )
+        .build()
 }
 
 #[derive(Debug, Clone)]
@@ -104,7 +81,7 @@ fn stage_index(s: Stage) -> usize {
     }
 }
 
-fn simulate(kind: ControllerKind, p: &StudyParams, seed: u64) -> Trial {
+fn simulate(kind: ControllerKind, p: &FtParams, seed: u64) -> Trial {
     let m = model();
     let h = safe_set();
     let mut ctrl = Controller::new(config(kind, p)).expect("valid config");
@@ -184,7 +161,7 @@ struct Rates {
     stages: [usize; 5],
 }
 
-fn rates(kind: ControllerKind, p: &StudyParams, seeds: u64) -> Rates {
+fn rates(kind: ControllerKind, p: &FtParams, seeds: u64) -> Rates {
     let mut safe = 0;
     let mut goal = 0;
     let mut worst = f64::INFINITY;
@@ -365,13 +342,9 @@ fn computed_parameters_for_eps_005() {
         let fp = FtParameters::compute(&m, &[vec![1], vec![3]], DT, 0.05, horizon);
         println!("{label}: {fp}");
         assert!(fp.all_converged);
-        assert_eq!((fp.gamma.len(), fp.theta.len()), (2, 1));
-        assert!(fp.theta[0] > 2.0 * fp.gamma[0]);
-        let p = StudyParams {
-            gamma: fp.gamma.clone(),
-            gamma_baseline: fp.gamma_baseline,
-            theta: fp.theta.clone(),
-        };
+        assert_eq!((fp.ft.gamma.len(), fp.ft.theta.len()), (2, 1));
+        assert!(fp.ft.theta[0] > 2.0 * fp.ft.gamma[0]);
+        let p = fp.ft.clone();
         let ft = rates(ControllerKind::FtCbfClf, &p, 100);
         let base = rates(ControllerKind::Baseline, &p, 100);
         println!("computed parameters ({label}, eps = 0.05), 100 seeds:\n  FT-CBF-CLF {ft:?}\n  baseline   {base:?}");

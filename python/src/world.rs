@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use ftcbf_sim::check::{self, CheckReport, CovarianceBound, Status};
-use ftcbf_sim::ftcbf_controller::conditions::condition_4_4;
 use ftcbf_sim::liveness::{Blocked, LivenessReport};
 use ftcbf_sim::runner::preflight;
 use ftcbf_sim::runner::setup::ControlSetup;
@@ -117,10 +116,8 @@ impl World {
             })
             .map_err(run_error)?;
         let d = report_dict(py, &report)?;
-        let start = [setup.config.x0];
         let mut c44 = Vec::new();
-        for (b, name) in setup.config.barriers.iter().zip(&setup.barrier_names) {
-            let v = condition_4_4(b.as_ref(), &setup.config.model.g, &start);
+        for (name, v) in check::condition_4_4_at_start(&setup) {
             c44.push(pydict!(py, {
                 "barrier": name,
                 "holds": v.holds,

@@ -43,8 +43,10 @@
 
 use std::fmt;
 
+use ftcbf_controller::conditions::{condition_4_4, Condition44Verdict};
 use ftcbf_controller::params::{
-    check_lemma1, check_theorem5, detectability, steady_state_gain_product, Detectability,
+    check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
+    Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
@@ -329,6 +331,31 @@ pub fn check_world(world: &World) -> Result<CheckReport, RunError> {
 /// Check a compiled world (see the module docs), reusing its controller setup.
 pub fn check_compiled(compiled: &CompiledWorld) -> CheckReport {
     check_setup(compiled.world(), compiled.setup())
+}
+
+/// Condition (4.4) decided exactly on every barrier that runs, at the start estimate x̂(0):
+/// (barrier name, verdict) in the setup's barrier order.
+pub fn condition_4_4_at_start(setup: &ControlSetup) -> Vec<(&str, Condition44Verdict)> {
+    let start = [setup.config.x0];
+    setup
+        .config
+        .barriers
+        .iter()
+        .zip(&setup.barrier_names)
+        .map(|(b, name)| {
+            let verdict = condition_4_4(b.as_ref(), &setup.config.model.g, &start);
+            (name.as_str(), verdict)
+        })
+        .collect()
+}
+
+/// The lines `ftcbf check` prints for [`condition_4_4_at_start`], grouped by barrier
+/// ([`group_by_barrier`]).
+pub fn condition_4_4_lines(setup: &ControlSetup) -> Vec<String> {
+    let lines = condition_4_4_at_start(setup)
+        .into_iter()
+        .map(|(name, v)| format!("(4.4) for {name} at the start estimate: {v}"));
+    group_by_barrier(lines, &setup.barrier_names)
 }
 
 fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
@@ -639,9 +666,9 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     }
     context.push(format!(
         "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}{}",
-        fmt_list(&p.gamma),
-        p.gamma_baseline,
-        fmt_list(&p.theta),
+        fmt_list(&p.ft.gamma),
+        p.ft.gamma_baseline,
+        fmt_list(&p.ft.theta),
         p.delta,
         if p.delta_auto {
             " (auto: half the largest δ Prop. 1 allows for the arena)"
@@ -651,12 +678,12 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     ));
     context.push(format!("CBF gain: {}", setup.gain));
     for b in &setup.config.barriers {
-        let hb: Vec<f64> = p.gamma.iter().map(|g| b.h_bar(*g)).collect();
+        let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
             "h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
             b.name(),
             fmt_list(&hb),
-            b.h_bar(p.gamma_baseline)
+            b.h_bar(p.ft.gamma_baseline)
         ));
     }
 }
@@ -832,18 +859,11 @@ fn check_filters(
         }
     }
     let mut filters = Vec::new();
-    let mut pair_index = 0;
     for d in &drops {
-        let gamma = setup.params.computed.as_ref().map(|c| {
-            if d.len() == 1 {
-                c.gamma[d[0]]
-            } else {
-                c.gamma_pair[pair_index]
-            }
+        let gamma = setup.params.computed.as_ref().map(|c| match d[..] {
+            [i, j] => pair_slot(m, i, j).map_or(f64::NAN, |k| c.gamma_pair[k]),
+            _ => c.ft.gamma[d[0]],
         });
-        if d.len() == 2 {
-            pair_index += 1;
-        }
         filters.push(check_filter(world, setup, names, d, gamma, found));
     }
     filters
@@ -1134,15 +1154,15 @@ fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, foun
 fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
     let horizon = world.file.duration;
-    let finite =
-        p.gamma.iter().chain(&p.theta).all(|v| v.is_finite()) && p.gamma_baseline.is_finite();
+    let finite = p.ft.gamma.iter().chain(&p.ft.theta).all(|v| v.is_finite())
+        && p.ft.gamma_baseline.is_finite();
     found.hypotheses.push(Hypothesis {
         name: "finite γ_i and θ_ij".into(),
         status: if finite { Status::Holds } else { Status::Fails },
         detail: format!(
             "γ_i = [{}], θ_ij = [{}]{}",
-            fmt_list(&p.gamma),
-            fmt_list(&p.theta),
+            fmt_list(&p.ft.gamma),
+            fmt_list(&p.ft.theta),
             match &p.computed {
                 Some(c) => format!(
                     ", per-sample ε' = {:.3e} (union bound over the {} samples of the run and each sample's events)",
@@ -1209,7 +1229,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p0 = initial_covariance(world);
     let mut worst: Option<(String, f64, f64)> = None;
     // The filters Theorem 3's (4.5) is about: x̂_i, each without one fault pattern.
-    let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.gamma[i]));
+    let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.ft.gamma[i]));
     for (label, drop, gamma) in singles {
         let uses = channel_mask(q, patterns, &drop);
         let phases = setup.params.timing.schedule.phases(&uses);
@@ -1247,7 +1267,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
 /// 5. Condition 1 of Theorem 3 for every safe set (decided) and obstacle (assumed).
 fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
-    let theta_bar = p.theta.iter().copied().fold(0.0, f64::max);
+    let theta_bar = p.ft.theta.iter().copied().fold(0.0, f64::max);
     for s in &world.file.safe_sets {
         match s {
             SafeSetSpec::HalfPlane { name, a, .. } => {
@@ -1425,7 +1445,7 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                     world,
                     &setup.config.model,
                     &setup.config.fault_patterns,
-                    setup.params.gamma[i],
+                    setup.params.ft.gamma[i],
                     i,
                     &*setup.config.barriers[bi],
                     &av,
@@ -1694,7 +1714,7 @@ fn single_filter_gains(
             let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
             (
                 fc.label.clone(),
-                setup.params.gamma[i],
+                setup.params.ft.gamma[i],
                 steady_state_gain_product(model, &mask, dt),
             )
         })

@@ -282,6 +282,172 @@ impl RunSummary {
     }
 }
 
+/// The human summary `ftcbf run` prints: one line per outcome (safety, goal, policy, command,
+/// estimation errors, fail-closed counts, attacks), each ending in a newline.
+impl std::fmt::Display for RunSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Each line as `ftcbf run` prints it, newline included.
+        self.write_outcome(f)?;
+        self.write_policy(f)?;
+        self.write_estimation(f)?;
+        self.write_faults(f)
+    }
+}
+
+impl RunSummary {
+    /// The run line, safety (with its first events and minima), goal and settling.
+    fn write_outcome(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        writeln!(
+            f,
+            "{} · {} · seed {} · {:.1} s simulated, {} control steps",
+            s.world, s.controller, s.seed, s.duration, s.control_steps
+        )?;
+        let verdict = if s.safe { "SAFE" } else { "UNSAFE" };
+        writeln!(f, "  safety:    {verdict}")?;
+        if let Some(n) = &s.non_finite {
+            writeln!(
+                f,
+                "    invalid: non-finite {n} — a verdict on it would be no verdict, so UNSAFE"
+            )?;
+        }
+        if let Some(c) = &s.first_collision {
+            writeln!(f, "    first collision: {} at t = {:.3} s", c.obstacle, c.t)?;
+        }
+        if let Some(v) = &s.first_violation {
+            writeln!(
+                f,
+                "    first violation: left {} at t = {:.3} s (h = {:.4})",
+                v.set, v.t, v.value
+            )?;
+        }
+        for b in &s.min_barrier {
+            writeln!(f, "    min h({}) over the run = {:.4}", b.name, b.value)?;
+        }
+        if let Some(c) = s.min_clearance {
+            writeln!(f, "    min clearance to obstacles = {c:.4} m")?;
+        }
+        match s.time_to_goal {
+            Some(t) => writeln!(f, "  goal:      entered at t = {t:.2} s")?,
+            None => writeln!(f, "  goal:      not entered")?,
+        }
+        writeln!(
+            f,
+            "  settled:   {} (inside the goal over the last {} s); final distance {:.4} m, V(x) = {}",
+            if s.goal_settled { "yes" } else { "no" },
+            SETTLE_WINDOW,
+            s.final_goal_distance,
+            s.final_clf_value
+                .map_or("n/a".to_string(), |v| format!("{v:.5}"))
+        )?;
+        Ok(())
+    }
+
+    /// The policy stages and the smoothness of the command.
+    fn write_policy(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        let st = &s.steps;
+        writeln!(
+            f,
+            "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
+            st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
+        )?;
+        let sm = &s.smoothness;
+        writeln!(
+            f,
+            "  command:   ω changes sign in {:.1} % of steps · mean |Δω| {:.4} rad/s · mean |Δv| {:.4} m/s per step · path {:.2} m · stalls {}",
+            100.0 * sm.omega_sign_change_fraction,
+            sm.mean_abs_domega,
+            sm.mean_abs_dv,
+            sm.path_length,
+            sm.stalls
+        )?;
+        Ok(())
+    }
+
+    /// Each filter's estimation error against the truth and its γ.
+    fn write_estimation(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        if !s.estimation_errors.is_empty() {
+            writeln!(
+                f,
+                "  estimation error against the truth, max over the run (‖x − x̂‖ vs the γ its rows assume):"
+            )?;
+            for e in &s.estimation_errors {
+                let bound = match (e.gamma, e.max_ratio) {
+                    (Some(g), Some(r)) => format!(
+                        "{:.3}·γ (γ = {g:.4}){}",
+                        r,
+                        if e.exceeded() {
+                            format!(", over γ at {} step(s)", e.steps_over)
+                        } else {
+                            String::new()
+                        }
+                    ),
+                    _ => "no γ".to_string(),
+                };
+                writeln!(
+                    f,
+                    "    {:<22} {:<9} {bound} · position {:.4} m · velocity {:.4} m/s · worst at t = {:.2} s",
+                    e.filter,
+                    if e.honest { "honest" } else { "attacked" },
+                    e.max_position_error,
+                    e.max_velocity_error,
+                    e.t_worst
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Rejected readings, fail-closed counts and the attack windows.
+    fn write_faults(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        if s.rejected_readings > 0 {
+            writeln!(
+                f,
+                "  rejected readings (non-finite or absurd): {}",
+                s.rejected_readings
+            )?;
+        }
+        let fc = &s.fail_closed;
+        if fc.any() {
+            writeln!(
+                f,
+                "  fail-closed: {} step(s) with non-finite constraint rows · {} unusable reading(s) · {} step(s) where Step 2 kept the last barrier · {} step(s) where Step 3 kept a saturated estimator · {} braking step(s) · {} refused heading reading(s)",
+                fc.non_finite_row_steps,
+                fc.skipped_updates,
+                fc.step2_retained_steps,
+                fc.step3_saturated_steps,
+                fc.brake_steps,
+                fc.refused_headings
+            )?;
+        }
+        for w in &s.attack_windows {
+            writeln!(
+                f,
+                "  attack:    {} in [{}, {}){}",
+                w.label,
+                w.start,
+                w.end.map_or("∞".to_string(), |e| e.to_string()),
+                if w.outside_fault_patterns {
+                    "  — OUTSIDE the declared fault patterns: no guarantee applies"
+                } else {
+                    ""
+                }
+            )?;
+        }
+        if s.attacks_together_outside_fault_patterns {
+            writeln!(
+                f,
+                "  attacks together: their channels lie in no single declared fault pattern — \
+                 OUTSIDE the single-fault model: no guarantee applies"
+            )?;
+        }
+        Ok(())
+    }
+}
+
 /// A yes/no outcome of a run that `[expect]` can count over seeds (`safe = true`,
 /// `collided = { at_most = 1 }`, …).
 #[derive(Debug, Clone, Copy)]

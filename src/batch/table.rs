@@ -11,45 +11,34 @@ pub(crate) enum Align {
     Right,
 }
 
-/// Render a table: a header row, a rule, then the rows; columns padded to their widest cell
-/// (width counted in characters), separated by two spaces, no trailing blanks.
+/// Render a table: a header row, a rule, then the rows; columns padded to their widest cell,
+/// separated by two spaces, no trailing blanks (comfy-table without borders: the rule is its
+/// header line, the gap its right padding).
 pub(crate) fn render(headers: &[&str], align: &[Align], rows: &[Vec<String>]) -> String {
+    use comfy_table::{presets::NOTHING, CellAlignment, Table, TableComponent};
     let ncol = headers.len();
-    let mut width: Vec<usize> = headers.iter().map(|h| h.chars().count()).collect();
+    let mut table = Table::new();
+    table
+        .load_preset(NOTHING)
+        .set_style(TableComponent::HeaderLines, '-')
+        .set_header(headers.to_vec());
     for row in rows {
-        for (w, cell) in width.iter_mut().zip(row) {
-            *w = (*w).max(cell.chars().count());
-        }
+        table.add_row(
+            row.iter()
+                .take(ncol)
+                .map(String::as_str)
+                .collect::<Vec<_>>(),
+        );
     }
-    let line = |cells: &mut dyn Iterator<Item = &str>| {
-        let mut s = String::new();
-        for (i, cell) in cells.enumerate().take(ncol) {
-            if i > 0 {
-                s.push_str("  ");
-            }
-            let pad = width[i].saturating_sub(cell.chars().count());
-            match align.get(i).copied().unwrap_or(Align::Left) {
-                Align::Left => {
-                    s.push_str(cell);
-                    s.push_str(&" ".repeat(pad));
-                }
-                Align::Right => {
-                    s.push_str(&" ".repeat(pad));
-                    s.push_str(cell);
-                }
-            }
-        }
-        s.truncate(s.trim_end().len());
-        s.push('\n');
-        s
-    };
-    let mut out = line(&mut headers.iter().copied());
-    let total: usize = width.iter().sum::<usize>() + 2 * ncol.saturating_sub(1);
-    out.push_str(&"-".repeat(total));
+    for (i, column) in table.column_iter_mut().enumerate() {
+        column.set_padding((0, if i + 1 < ncol { 2 } else { 0 }));
+        column.set_cell_alignment(match align.get(i) {
+            Some(Align::Right) => CellAlignment::Right,
+            _ => CellAlignment::Left,
+        });
+    }
+    let mut out = table.trim_fmt();
     out.push('\n');
-    for row in rows {
-        out.push_str(&line(&mut row.iter().map(String::as_str)));
-    }
     out
 }
 
@@ -462,6 +451,20 @@ mod tests {
                 "b       1234"
             ]
         );
+    }
+
+    /// Widths are terminal columns: x̂ (x and a combining circumflex) takes one, as γ does, so
+    /// the estimation-error table's last column lines up under its header (counted in chars, the
+    /// header was one wider than it looks and its numbers stood one column right of it).
+    #[test]
+    fn render_measures_cells_in_terminal_columns() {
+        let t = render(
+            &["f", "‖x − x̂‖/γ"],
+            &[Align::Left, Align::Right],
+            &[vec!["a".into(), "0.384".into()]],
+        );
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines, vec!["f  ‖x − x̂‖/γ", "------------", "a      0.384"]);
     }
 
     #[test]

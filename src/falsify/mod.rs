@@ -49,7 +49,6 @@
 //! - **Result**: the worst single run (the witness) as a world file that `ftcbf run` replays to
 //!   the same robustness, bit for bit.
 
-mod cli;
 pub mod cmaes;
 mod robustness;
 pub mod scenario;
@@ -64,7 +63,6 @@ use ftcbf_sim::attacks::validate_attacks;
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
 
-pub use cli::{falsify_command, FalsifyArgs, UsageError};
 pub use robustness::{Robustness, CLEARANCE};
 pub use search::{Method, MethodResult, Plan};
 pub use space::{Candidate, Kind, SearchSpace};

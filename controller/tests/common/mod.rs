@@ -6,8 +6,13 @@ use ftcbf_controller::constraints::CbfRow;
 use ftcbf_controller::policy::{
     resolve, ConstraintKind, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome, Verdict,
 };
+use std::sync::Arc;
+
+use ftcbf_controller::barrier::HalfPlane;
 use ftcbf_controller::qp::QpSolver;
-use ftcbf_controller::Input;
+use ftcbf_controller::{
+    ClfConfig, ControllerConfig, FtParams, Input, LinearModel, State, StateMatrix,
+};
 use nalgebra::Matrix2;
 
 /// Ω as `Λu ≥ ω̄`.
@@ -46,4 +51,28 @@ pub fn verdict(rec: &DecisionRecord, unit: usize, kind: ConstraintKind) -> Verdi
         .find(|d| d.unit == unit && d.kind == kind)
         .map(|d| d.verdict)
         .expect("decision recorded")
+}
+
+/// The paper's double integrator with its two single-channel patterns, γ = 0.001 and θ = 0.045,
+/// one lifted half-plane, δ = 1, V̄ = 1 and a ±2 m/s² box, started at (1, 0).
+pub fn small_config() -> ControllerConfig {
+    ControllerConfig::builder(
+        LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model"),
+        vec![vec![1], vec![3]],
+        FtParams::uniform(2, 0.001, 0.045),
+    )
+    .barriers(vec![Arc::new(HalfPlane::new(
+        "h",
+        State::new(0.0, 1.0, 0.0, 0.2),
+        -0.05,
+    ))])
+    .goal(State::zeros(), 0.05)
+    .delta(1.0)
+    .clf(ClfConfig::paper(1.0))
+    .input_limit(Input::new(2.0, 2.0))
+    .start(
+        State::new(1.0, 0.0, 0.0, 0.0),
+        StateMatrix::identity() * 1e-3,
+    )
+    .build()
 }

@@ -3,6 +3,7 @@
 //! measured where it can be, in a simulator that knows x_t.
 
 use ftcbf_controller::estimator::{EstimatorBank, FilterRole};
+use ftcbf_controller::params::pair_slot;
 
 use crate::attacks::AttackStack;
 use crate::summary::EstimationError;
@@ -17,16 +18,14 @@ pub fn filter_gammas(bank: &EstimatorBank, params: &ParamReport) -> Vec<Option<f
     bank.filters()
         .iter()
         .map(|f| match f.role() {
-            FilterRole::DropPattern(i) => params.gamma.get(i).copied(),
-            FilterRole::DropPair(i, j) => {
-                // Pairs in the order (0,1), (0,2), …, (1,2), … of FtParameters::gamma_pair.
-                let packed = (0..i).map(|a| m - 1 - a).sum::<usize>() + (j - i - 1);
-                params
-                    .computed
-                    .as_ref()
-                    .and_then(|c| c.gamma_pair.get(packed).copied())
-            }
-            FilterRole::Baseline => Some(params.gamma_baseline),
+            FilterRole::DropPattern(i) => params.ft.gamma.get(i).copied(),
+            // γ_ij in the packed pair order of FtParameters::gamma_pair.
+            FilterRole::DropPair(i, j) => params
+                .computed
+                .as_ref()
+                .zip(pair_slot(m, i, j))
+                .and_then(|(c, k)| c.gamma_pair.get(k).copied()),
+            FilterRole::Baseline => Some(params.ft.gamma_baseline),
         })
         .map(|g| g.filter(|g| g.is_finite() && *g > 0.0))
         .collect()

@@ -9,7 +9,7 @@ use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::odometry;
 use ftcbf_controller::params::{
-    gain_product, steady_state_riccati, BoundMethod, FtParameters, ThetaSchedule, UpdateSchedule,
+    gain_product, steady_state_riccati, BoundMethod, FtParameters, FtParams, UpdateSchedule,
 };
 use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
@@ -27,7 +27,7 @@ use super::RunError;
 /// Variance floor for a channel declared noise-free, so R stays invertible \[unit²\].
 pub const MIN_VARIANCE: f64 = 1e-8;
 /// Readings larger than this are rejected by the controller as absurd [m or m/s].
-pub const MAX_ABS_READING: f64 = 1e6;
+pub const MAX_ABS_READING: f64 = ftcbf_controller::controller::DEFAULT_MAX_ABS_READING;
 
 /// Everything a run derives from its world for the controller (computed once per world by
 /// [`CompiledWorld`](super::CompiledWorld)).
@@ -169,8 +169,8 @@ pub fn choose_gain(
             world,
             model,
             patterns,
-            &params.gamma,
-            params.gamma_baseline,
+            &params.ft.gamma,
+            params.ft.gamma_baseline,
             obstacles,
         )
     };
@@ -211,19 +211,10 @@ pub fn choose_gain(
 /// The parameters in force, for reports.
 #[derive(Debug, Clone)]
 pub struct ParamReport {
-    /// γ_i per fault pattern.
-    pub gamma: Vec<f64>,
-    /// γ of the all-channel filter.
-    pub gamma_baseline: f64,
-    /// θ_ij per pair (or one value for all).
-    pub theta: Vec<f64>,
-    /// η_ij of Step 2's increment test per pair (empty: none — given θ or `bounds = "paper"`).
-    pub theta_increment: Vec<f64>,
-    /// W_ij of the increment test per pair (the covariance-weighted norm η_ij is measured in;
-    /// empty with `theta_increment`).
-    pub increment_metric: Vec<StateMatrix>,
-    /// θ_ij(t) (computed, `theta = "auto"` with the horizon bounds only).
-    pub theta_schedule: Option<ThetaSchedule>,
+    /// γ_i, γ of the all-channel filter, θ_ij (per pair or one value for all), and η_ij, W_ij and
+    /// θ_ij(t) of Step 2's increment test (computed, `theta = "auto"` with the horizon bounds
+    /// only; empty/None with a given θ or `bounds = "paper"`).
+    pub ft: FtParams,
     /// δ (∞ = constraints always active).
     pub delta: f64,
     /// δ was not given and was chosen for Prop. 1 ([`auto_delta`]).
@@ -234,6 +225,14 @@ pub struct ParamReport {
     pub epsilon: f64,
     /// How the filter channels' readings arrive in the worst case γ, θ and η are computed for.
     pub timing: SensorTiming,
+}
+
+/// The report reads as its parameters (`report.gamma` is `report.ft.gamma`).
+impl std::ops::Deref for ParamReport {
+    type Target = FtParams;
+    fn deref(&self) -> &FtParams {
+        &self.ft
+    }
 }
 
 /// One filter channel's worst-case update schedule ([`sensor_timing`]).
@@ -650,36 +649,26 @@ impl ControlSetup {
             &bcfg,
             &model,
             &patterns,
-            &params.gamma,
+            &params.ft.gamma,
             &barriers[..safe_sets],
             &gain,
         )?;
 
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
         let clf = clf_config(world, &model, goal)?;
-        let config = ControllerConfig {
-            kind: kind.into(),
-            model,
-            fault_patterns: patterns,
-            barriers,
-            goal,
-            goal_radius: file.goal.radius,
-            gamma: params.gamma.clone(),
-            gamma_baseline: params.gamma_baseline,
-            theta: params.theta.clone(),
-            theta_increment: params.theta_increment.clone(),
-            increment_metric: params.increment_metric.clone(),
-            theta_schedule: params.theta_schedule.clone(),
-            delta: params.delta,
-            cbf_gain: gain.kappa,
-            clf,
-            input_cost: Matrix2::identity(),
-            input_limit: file.control.input_limit.map(|l| Input::new(l, l)),
-            x0: initial_estimate(world),
-            p0: initial_covariance(world),
-            max_abs_reading: MAX_ABS_READING,
-            form,
-        };
+        let config = ControllerConfig::builder(model, patterns, params.ft.clone())
+            .kind(kind.into())
+            .barriers(barriers)
+            .goal(goal, file.goal.radius)
+            .delta(params.delta)
+            .cbf_gain(gain.kappa)
+            .clf(clf)
+            .input_cost(Matrix2::identity())
+            .input_limit(file.control.input_limit.map(|l| Input::new(l, l)))
+            .start(initial_estimate(world), initial_covariance(world))
+            .max_abs_reading(MAX_ABS_READING)
+            .form(form)
+            .build();
         Ok(Self {
             config,
             sensor_of_channel: ch.sensor_of_channel,
@@ -1419,43 +1408,28 @@ fn parameters(
             &timing.schedule,
         )
     });
-    let m = patterns.len();
-    let gamma = match (file.control.gamma, &computed) {
-        (Param::Value(g), _) => vec![g; m],
-        (Param::Auto, Some(p)) => p.gamma.clone(),
-        (Param::Auto, None) => unreachable!("computed when auto"),
-    };
-    let gamma_baseline = match (file.control.gamma, &computed) {
-        (Param::Value(g), _) => g,
-        (Param::Auto, Some(p)) => p.gamma_baseline,
-        (Param::Auto, None) => unreachable!("computed when auto"),
-    };
-    let theta = match (file.control.theta, &computed) {
-        (Param::Value(t), _) => vec![t],
-        (Param::Auto, Some(p)) if !p.theta.is_empty() => p.theta.clone(),
-        // m < 2: no pairs, so no θ_ij (C(m,2) = 0 values).
-        (Param::Auto, _) => Vec::new(),
-    };
-    let (theta_increment, increment_metric, theta_schedule) = match (file.control.theta, &computed)
-    {
-        (Param::Auto, Some(p)) => (
-            p.theta_increment.clone(),
-            p.increment_metric.clone(),
-            p.theta_schedule.clone(),
-        ),
-        _ => (Vec::new(), Vec::new(), None),
-    };
+    // Computed where `auto` (all of it, or nothing when both are given), then the given values.
+    let mut ft = computed.as_ref().map(|p| p.ft.clone()).unwrap_or_default();
+    if let Param::Value(g) = file.control.gamma {
+        ft.gamma = vec![g; patterns.len()];
+        ft.gamma_baseline = g;
+    }
+    if let Param::Value(t) = file.control.theta {
+        // A given θ has no increment test and no θ_ij(t).
+        ft = FtParams {
+            theta: vec![t],
+            eta: Vec::new(),
+            increment_metric: Vec::new(),
+            theta_schedule: None,
+            ..ft
+        };
+    }
     let auto = match file.control.delta {
         Some(_) => None,
-        None => auto_delta(world, &theta, &gamma),
+        None => auto_delta(world, &ft.theta, &ft.gamma),
     };
     ParamReport {
-        gamma,
-        gamma_baseline,
-        theta,
-        theta_increment,
-        increment_metric,
-        theta_schedule,
+        ft,
         delta: file.control.delta.or(auto).unwrap_or(f64::INFINITY),
         delta_auto: auto.is_some(),
         computed,

@@ -1,4 +1,5 @@
-//! `ftcbf falsify`: clap arguments and the command.
+//! `ftcbf falsify`: clap arguments, the command and its printing (the search is
+//! `ftcbf::falsify`).
 
 use std::path::{Path, PathBuf};
 
@@ -8,8 +9,8 @@ use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
 
-use super::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
-use crate::falsify::search::MIN_BUDGET;
+use ftcbf::falsify::search::MIN_BUDGET;
+use ftcbf::falsify::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
 
 /// Search for the worst attack inside the world's threat model.
 ///
@@ -71,7 +72,7 @@ pub struct FalsifyArgs {
     pub scenario: bool,
     /// A scenario range, overriding the [falsify] table: obstacle_shift, obstacle_scale,
     /// start_shift, start_heading, goal_shift, noise, onset_shift (repeatable).
-    #[arg(long, value_name = "KEY=VALUE", value_parser = super::scenario::parse_range,
+    #[arg(long, value_name = "KEY=VALUE", value_parser = ftcbf::falsify::scenario::parse_range,
           requires = "scenario")]
     pub range: Vec<(String, f64)>,
     /// Where --scenario writes a regression world per defect [default: runs/WORLD-scenario/]
@@ -217,7 +218,7 @@ fn scenario_command(
     template: &WorldTemplate,
     settings: &Settings,
 ) -> anyhow::Result<()> {
-    use super::scenario::{scenario, write_defects, write_run, Ranges};
+    use ftcbf::falsify::scenario::{scenario, write_defects, write_run, Ranges};
     if args.no_record || args.no_random {
         eprintln!(
             "note: --no-record and --no-random apply to the attack search, not to --scenario"
@@ -279,7 +280,7 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         }
     }
     let least = if args.scenario {
-        super::scenario::MIN_BUDGET
+        ftcbf::falsify::scenario::MIN_BUDGET
     } else {
         MIN_BUDGET
     };
@@ -312,7 +313,7 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         progress: true,
         compare_random: !args.no_random,
     };
-    for w in super::model_warnings(&template.world) {
+    for w in ftcbf::falsify::model_warnings(&template.world) {
         eprintln!("warning: {w}");
     }
     if args.scenario {
