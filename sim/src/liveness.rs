@@ -40,7 +40,7 @@ use ftcbf_controller::constraints::{cbf_row, HalfSpace};
 use ftcbf_controller::controller::{ControllerKind, ProblemForm};
 use ftcbf_controller::estimator::{chi_square_z, RESIDUE_WINDOW};
 use ftcbf_controller::params::{
-    gain_product, horizon_posterior_max, steady_state_riccati, update_gains,
+    gain_product, horizon_posterior_max, pair_slot, steady_state_riccati, update_gains, FtParams,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
@@ -429,29 +429,19 @@ fn unit(world: &World, setup: &ControlSetup, mask: Vec<bool>, gamma: f64) -> Uni
     }
 }
 
-/// The packed index of pair (i, j), i ≠ j, among m patterns (the order of `ParamReport::theta`).
-fn pair_slot(m: usize, i: usize, j: usize) -> usize {
-    let (a, b) = (i.min(j), i.max(j));
-    a * (2 * m - a - 1) / 2 + (b - a - 1)
-}
-
 /// θ between units i and j after `t` seconds: the schedule θ_ij(t) where there is one, else
 /// the constant θ_ij (or one value for all).
 fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
-    let slot = pair_slot(m, i, j);
-    if let Some(v) = setup
-        .params
-        .theta_schedule
-        .as_ref()
-        .and_then(|s| s.at(slot, t))
-    {
-        return v;
-    }
-    let th = &setup.params.theta;
-    if th.len() == 1 {
-        return th[0];
-    }
-    th.get(slot).copied().unwrap_or(f64::INFINITY)
+    let scheduled = pair_slot(m, i, j).and_then(|slot| {
+        setup
+            .params
+            .theta_schedule
+            .as_ref()
+            .and_then(|s| s.at(slot, t))
+    });
+    scheduled
+        .or_else(|| FtParams::per_pair(&setup.params.theta, m, i, j))
+        .unwrap_or(f64::INFINITY)
 }
 
 /// How far the declared attacks move a position fix at time `t` \[m\], and which axes: a bias its
