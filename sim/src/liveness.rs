@@ -435,12 +435,13 @@ fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
     let scheduled = pair_slot(m, i, j).and_then(|slot| {
         setup
             .params
+            .ft
             .theta_schedule
             .as_ref()
             .and_then(|s| s.at(slot, t))
     });
     scheduled
-        .or_else(|| FtParams::per_pair(&setup.params.theta, m, i, j))
+        .or_else(|| FtParams::per_pair(&setup.params.ft.theta, m, i, j))
         .unwrap_or(f64::INFINITY)
 }
 
@@ -564,14 +565,14 @@ impl<'a> Model<'a> {
             ControllerKind::FtCbfClf => (0..m)
                 .map(|i| {
                     let mask = channel_mask(q, &cfg.fault_patterns, &[i]);
-                    unit(world, setup, mask, setup.params.gamma[i])
+                    unit(world, setup, mask, setup.params.ft.gamma[i])
                 })
                 .collect(),
             ControllerKind::Baseline => vec![unit(
                 world,
                 setup,
                 vec![true; q],
-                setup.params.gamma_baseline,
+                setup.params.ft.gamma_baseline,
             )],
         };
         let x0 = cfg.x0;

@@ -227,14 +227,6 @@ pub struct ParamReport {
     pub timing: SensorTiming,
 }
 
-/// The report reads as its parameters (`report.gamma` is `report.ft.gamma`).
-impl std::ops::Deref for ParamReport {
-    type Target = FtParams;
-    fn deref(&self) -> &FtParams {
-        &self.ft
-    }
-}
-
 /// One filter channel's worst-case update schedule ([`sensor_timing`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChannelTiming {
@@ -286,9 +278,6 @@ impl SensorTiming {
 /// either wheel is, so it takes the shorter of their worst gaps.
 pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize) -> SensorTiming {
     let sensors = &world.file.sensors;
-    let sources = |si: usize| -> Vec<usize> {
-        crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec())
-    };
     let lossy = lossy_sensors(world, sensor_of_channel);
     let eps = world.file.control.epsilon;
     let eps_gaps = if lossy.is_empty() { 0.0 } else { eps / 2.0 };
@@ -307,7 +296,7 @@ pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize)
         .iter()
         .enumerate()
         .map(|(c, &si)| {
-            sources(si)
+            sampled_by(sensors, si)
                 .into_iter()
                 .map(|t| timing_of(c, t))
                 .min_by_key(|t| if t.every == 0 { usize::MAX } else { t.every })
@@ -329,6 +318,17 @@ pub fn sensor_timing(world: &World, sensor_of_channel: &[usize], horizon: usize)
     }
 }
 
+/// The sensors whose samples a channel of sensor `si` is fresh with: both wheels of odometry
+/// derived from wheels (`from_wheels`), else the sensor itself.
+fn sampled_by(sensors: &[crate::sensors::ChannelSpec], si: usize) -> Vec<usize> {
+    crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec())
+}
+
+/// The run's control ticks, ⌈T/dt⌉ (at least 1): the horizon γ, θ, η and the gap budget cover.
+fn horizon_ticks(world: &World) -> usize {
+    (world.file.duration / world.control_dt()).ceil().max(1.0) as usize
+}
+
 /// The sensors whose dropouts the gap budget of [`sensor_timing`] covers: every sensor a filter
 /// channel is read from (both wheels of one derived from wheels) and, when a channel turns a
 /// speed into world-frame velocity, the heading channel it is turned with (a lost heading sample
@@ -340,7 +340,7 @@ fn lossy_sensors(world: &World, sensor_of_channel: &[usize]) -> Vec<usize> {
         .any(|&si| sensors[si].world_velocity);
     let mut lossy: Vec<usize> = sensor_of_channel
         .iter()
-        .flat_map(|&si| crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec()))
+        .flat_map(|&si| sampled_by(sensors, si))
         .chain(heading_sensor(world).filter(|_| converts))
         .filter(|&t| sensors[t].dropout_prob > 0.0)
         .collect();
@@ -409,9 +409,8 @@ pub fn heading_hold(world: &World) -> Option<HeadingHold> {
     if !channel_sensors.iter().any(|&si| sensors[si].world_velocity) {
         return None;
     }
-    let horizon = (world.file.duration / world.control_dt()).ceil().max(1.0) as usize;
     let lossy = lossy_sensors(world, &channel_sensors).len();
-    let (_, _, every) = sample_gaps(world, h, horizon, lossy);
+    let (_, _, every) = sample_gaps(world, h, horizon_ticks(world), lossy);
     let fused = heading_fusion(world).is_some();
     let age = match (fused, every) {
         (true, _) => 0.0,
@@ -488,7 +487,7 @@ pub fn ellipse_prop1(
     spec: &SafeSetSpec,
 ) -> Option<LiftedProp1> {
     let e = lifted_ellipse(world, spec)?;
-    let p = &setup.params;
+    let p = &setup.params.ft;
     let theta_bar = p.theta.iter().copied().fold(0.0_f64, f64::max);
     let h_bar = p
         .gamma
@@ -496,7 +495,7 @@ pub fn ellipse_prop1(
         .map(|&g| e.h_bar(g))
         .fold(f64::NEG_INFINITY, f64::max)
         .max(0.0);
-    Some(e.prop1(theta_bar, h_bar, p.delta, 0.0))
+    Some(e.prop1(theta_bar, h_bar, setup.params.delta, 0.0))
 }
 
 /// The barrier that runs for an ellipse safe set (with the world's [`speed_bound`], 0 when
@@ -1389,7 +1388,7 @@ fn parameters(
 ) -> ParamReport {
     let file = &world.file;
     let control_dt = world.control_dt();
-    let horizon = (file.duration / control_dt).ceil().max(1.0) as usize;
+    let horizon = horizon_ticks(world);
     let timing = sensor_timing(world, sensor_of_channel, horizon);
     let needs_auto =
         matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
