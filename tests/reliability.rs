@@ -377,16 +377,18 @@ fn every_size_cap_is_a_clean_error_one_past_it() {
 fn a_closed_output_pipe_ends_the_command_like_any_unix_tool() {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ftcbf"))
+    // Close the read end before the command starts, so its first write meets a closed pipe
+    // whatever the scheduler does (closing it after `spawn` raced the child's output into the
+    // pipe's buffer on a loaded CI machine: exit 0, no signal).
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_ftcbf"))
         .args(["check", "worlds/paper_turtlebot.toml"])
         .current_dir(root())
-        .stdout(Stdio::piped())
+        .stdout(Stdio::from(writer))
         .stderr(Stdio::piped())
-        .spawn()
+        .output()
         .expect("the binary runs");
-    // Close the read end before the command prints its first line.
-    drop(child.stdout.take());
-    let o = child.wait_with_output().expect("waits");
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(
         o.status.signal(),
