@@ -28,8 +28,8 @@
 //!   a quarter of uniform exploration missed. Measured on 8 worlds × 3 base seeds (README,
 //!   "Worst attacks found"), half explores beat a quarter on the paired held-out comparison.
 //!   The elites are ranked by their worst run, then their mean, since the search looks for the
-//!   worst run. The CEM re-runs one finalist fewer than random search and spends those runs,
-//!   after the finalists' held-out runs, on a counterexample refinement: the worst run so far
+//!   worst run. The CEM pays, from its CMA-ES share, as many runs as one finalist's held-out
+//!   re-run for a counterexample refinement after the finalists: the worst run so far
 //!   (searched or held-out) fixes a seed, on which ρ is a deterministic function of the attack,
 //!   and a (1 + λ) evolution strategy descends from that run's attack on that seed (random
 //!   search cannot use a seed this way: its draws ignore what it has seen). Written here rather
@@ -39,8 +39,10 @@
 //! - **Noise**: every candidate runs on 2 seeds (common within a generation, fresh for every
 //!   generation, the same for both methods); the CEM's elites are ranked by their worst run (then
 //!   the mean, collisions first), the finalists by seed-averaged robustness; the best 4 distinct
-//!   candidates (3 for the CEM; a re-run candidate ranked by all its runs) are re-run on
-//!   held-out seeds, and both the seed-averaged and the worst robustness are reported.
+//!   candidates (a re-run candidate ranked by all its runs; the CEM's are the best of each of its
+//!   best 4 (pattern, kind) cells, since its top candidates are otherwise near-copies of one
+//!   attack) are re-run on held-out seeds, and both the seed-averaged and the worst robustness
+//!   are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
 //!   run count and the same seeds.
 //! - **Determinism**: candidates are drawn from seeded ChaCha streams; runs go to the batch
@@ -276,7 +278,7 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells); the CEM spends generations {}–{} ({} candidates, {} runs = {:.0} % of the budget) on CMA-ES over the continuous parameters of its best {} (pattern, kind) cell(s), seeded from the CEM's elites, on 2 fixed seeds; then the best {} on {} held-out seeds = {} runs; the CEM re-runs one finalist fewer and spends those runs, after the held-out ones, descending from its worst run so far on that run's seed ({} rounds × {} runs)",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring the least-tried (pattern, kind) cells); the CEM spends generations {}–{} ({} candidates, {} runs = {:.0} % of the budget) on CMA-ES over the continuous parameters of its best {} (pattern, kind) cell(s), seeded from the CEM's elites, on 2 fixed seeds; then the best {} (the CEM's: one per cell) on {} held-out seeds = {} runs; the CEM pays {} of its CMA-ES runs for a descent from its worst run so far on that run's seed, after the held-out runs ({} rounds × {} runs)",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,
@@ -294,6 +296,7 @@ impl Report {
             p.finalists,
             p.final_seeds,
             p.runs,
+            p.refine_runs(),
             p.refine_rounds,
             p.refine_per_round,
         );

@@ -115,11 +115,16 @@ impl Plan {
             .min(candidates.saturating_sub(population))
             .max(population.min(candidates - 1));
         let generations = 1 + (candidates - first).div_ceil(population);
-        // The CEM spends its last finalist's held-out runs on the refinement (finalists ≥ 2 at
-        // every budget ≥ MIN_BUDGET), in rounds of at least two runs where possible.
+        // The CEM's counterexample refinement gets as many runs as one finalist's held-out
+        // re-run, in rounds of at least two runs where possible, taken from its CMA-ES share: the
+        // CEM re-runs as many finalists as random search (the paired verdict compares the best
+        // finalist of each, so fewer finalists would be a handicap of its own making, issue #31).
         let cma_from = generations - (generations - 1).div_ceil(3);
-        let cma_candidates: usize = candidates - first - (cma_from - 1) * population;
         let refine_runs = final_seeds;
+        let cma_candidates: usize = candidates
+            - first
+            - (cma_from - 1) * population
+            - refine_runs.div_ceil(seeds_per_candidate);
         let refine_rounds = if refine_runs >= 8 && refine_runs.is_multiple_of(4) {
             4
         } else if refine_runs >= 4 && refine_runs.is_multiple_of(2) {
@@ -138,7 +143,7 @@ impl Plan {
             carry: (population / 8).max(1),
             cma_from,
             cma_candidates,
-            cma_cells: (cma_candidates / 20).clamp(1, 3),
+            cma_cells: (cma_candidates / 15).clamp(1, 3),
             explore: population / 2,
             refine_rounds,
             refine_per_round: refine_runs / refine_rounds,
@@ -668,6 +673,39 @@ fn pooled_ranking(search: &[Evaluation]) -> Vec<&Candidate> {
     pooled.into_iter().map(|p| p.0).collect()
 }
 
+/// The finalists of a search: random search's best `n` distinct candidates (pooled ranking); the
+/// CEM's best candidate of each of its best `n` (pattern, kind) cells, then, if fewer cells were
+/// tried, its next best candidates. The CEM piles its runs into the cells it exploits, so its top
+/// candidates are near-copies of one attack whose 2-seed means are the luckiest of many; one per
+/// cell re-runs the runner-up cells' best attacks as well (issue #31: on the 4 pairs random search
+/// won, all 3 CEM finalists were one cell and random search's winner another).
+fn pick_finalists(method: Method, search: &[Evaluation], n: usize) -> Vec<Candidate> {
+    let ranked = pooled_ranking(search);
+    let mut picked: Vec<&Candidate> = Vec::with_capacity(n);
+    if method == Method::Cem {
+        for c in &ranked {
+            if picked.len() == n {
+                break;
+            }
+            if !picked
+                .iter()
+                .any(|d| d.pattern == c.pattern && d.kind == c.kind)
+            {
+                picked.push(c);
+            }
+        }
+    }
+    for c in &ranked {
+        if picked.len() == n {
+            break;
+        }
+        if !picked.contains(c) {
+            picked.push(c);
+        }
+    }
+    picked.into_iter().cloned().collect()
+}
+
 /// The run with the lowest robustness among `evals` (collisions first), and its candidate.
 fn worst_run<'a>(
     evals: impl IntoIterator<Item = &'a Evaluation>,
@@ -947,12 +985,7 @@ impl Search<'_> {
         // Finalists: the best distinct searched candidates, on held-out seeds. A candidate the
         // CEM carried over several generations is ranked by all its runs together.
         let refine = method == Method::Cem;
-        let finalists = plan.finalists - usize::from(refine);
-        let picked: Vec<Candidate> = pooled_ranking(&search)
-            .into_iter()
-            .take(finalists)
-            .cloned()
-            .collect();
+        let picked = pick_finalists(method, &search, plan.finalists);
         self.bar
             .set_message(format!("{} final re-evaluation", method.name()));
         let mut finalists = self.evaluate(None, picked, &plan.final_seeds(self.seed))?;
@@ -1016,11 +1049,21 @@ mod tests {
             let late: usize = (p.cma_from..p.generations)
                 .map(|g| p.generation_size(g))
                 .sum();
-            assert_eq!(late, p.cma_candidates, "{p:?}");
+            assert_eq!(
+                late,
+                p.cma_candidates + p.refine_runs().div_ceil(p.seeds_per_candidate),
+                "{p:?}"
+            );
+            assert!(p.cma_candidates >= 1, "{p:?}");
             assert!(p.cma_cells >= 1, "{p:?}");
-            // The refinement spends exactly one finalist's held-out runs.
+            // The refinement spends one finalist's held-out runs, taken from CMA-ES.
             assert!(p.finalists >= 2, "{p:?}");
             assert_eq!(p.refine_runs(), p.final_seeds, "{p:?}");
+            let cem_runs = (p.candidates - p.refine_runs().div_ceil(p.seeds_per_candidate))
+                * p.seeds_per_candidate
+                + p.refine_runs()
+                + p.finalists * p.final_seeds;
+            assert!(cem_runs <= p.runs && cem_runs + 2 > p.runs, "{p:?}");
             assert!(p.refine_per_round >= 1, "{p:?}");
         }
         let p = Plan::new(200).expect("plan");
@@ -1047,7 +1090,7 @@ mod tests {
                 p.cma_candidates,
                 p.cma_cells
             ),
-            (40, 20, 7, 5, 2, 5, 40, 2)
+            (40, 20, 7, 5, 2, 5, 30, 2)
         );
         assert!(Plan::new(10).is_err_and(|e| e.to_string().contains("--budget 10")));
     }
@@ -1211,9 +1254,10 @@ mod tests {
         let cem = evaluations(Method::Cem, &plan, &sp, 3);
         let rnd = evaluations(Method::Random, &plan, &sp, 3);
         let runs = |e: &[Evaluation]| e.iter().map(|e| e.runs.len()).sum::<usize>();
-        // The CEM's refinement replaces one finalist (not simulated here).
+        // The CEM's refinement is paid from its CMA-ES candidates (finalists not simulated here).
         assert_eq!(runs(&rnd), plan.candidates * plan.seeds_per_candidate);
-        assert_eq!(runs(&cem), runs(&rnd) + plan.refine_runs());
+        let paid = plan.refine_runs().div_ceil(plan.seeds_per_candidate) * plan.seeds_per_candidate;
+        assert_eq!(runs(&cem), runs(&rnd) - paid + plan.refine_runs());
         assert_eq!(rnd.len(), plan.candidates);
         assert_eq!(cem[..plan.first], rnd[..plan.first]);
         assert_ne!(cem[plan.first..], rnd[plan.first..]);
@@ -1406,5 +1450,59 @@ mod tests {
         assert_eq!(r.len(), 2);
         assert_eq!(*r[0], cand(0.2));
         assert_eq!(*r[1], cand(0.9));
+    }
+
+    /// The CEM re-runs the best candidate of each of its best cells before a second candidate
+    /// of any cell; random search re-runs its best candidates whatever their cells.
+    #[test]
+    fn the_cems_finalists_come_one_per_cell_first() {
+        let sp = space(2);
+        let cand = |pattern: usize, kind: Kind, v: f64| Candidate {
+            pattern,
+            kind,
+            z: vec![v; 7],
+        };
+        let ev = |c: Candidate, value: f64| {
+            let run = SeedRun {
+                seed: 0,
+                robustness: Robustness {
+                    value,
+                    collided: false,
+                    binding: "x".into(),
+                },
+            };
+            Evaluation::new(Some(0), c, &sp, vec![run])
+        };
+        // Three near-copies in (1, freeze) rank first; (0, bias) and (1, bias) come after.
+        let search = vec![
+            ev(cand(1, Kind::Freeze, 0.50), 0.10),
+            ev(cand(1, Kind::Freeze, 0.51), 0.11),
+            ev(cand(1, Kind::Freeze, 0.52), 0.12),
+            ev(cand(0, Kind::Bias, 0.3), 0.20),
+            ev(cand(1, Kind::Bias, 0.3), 0.30),
+        ];
+        let cells = |cs: &[Candidate]| cs.iter().map(|c| (c.pattern, c.kind)).collect::<Vec<_>>();
+        assert_eq!(
+            cells(&pick_finalists(Method::Cem, &search, 4)),
+            [
+                (1, Kind::Freeze),
+                (0, Kind::Bias),
+                (1, Kind::Bias),
+                (1, Kind::Freeze)
+            ]
+        );
+        assert_eq!(
+            pick_finalists(Method::Cem, &search, 4)[3],
+            cand(1, Kind::Freeze, 0.51)
+        );
+        assert_eq!(
+            cells(&pick_finalists(Method::Random, &search, 4)),
+            [
+                (1, Kind::Freeze),
+                (1, Kind::Freeze),
+                (1, Kind::Freeze),
+                (0, Kind::Bias)
+            ]
+        );
     }
 }
