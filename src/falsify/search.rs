@@ -76,8 +76,8 @@ pub struct Plan {
     pub cma_candidates: usize,
     /// (pattern, kind) cells refined by CMA-ES, best first, `cma_candidates` split evenly.
     pub cma_cells: usize,
-    /// Candidates of each later generation that the CEM draws for exploration: uniform parameters
-    /// in the least-tried (pattern, kind) cell.
+    /// Candidates of each later generation that the CEM takes from random search's candidates
+    /// of that generation (its first ones; exploration with random search's own draws and runs).
     pub explore: usize,
     /// Rounds of the CEM's counterexample refinement, which comes after the finalists and
     /// spends the held-out runs of random search's last finalist (the CEM re-runs one finalist
@@ -544,15 +544,14 @@ struct Proposer<'a> {
     method: Method,
     plan: &'a Plan,
     space: &'a SearchSpace,
-    /// Random search's stream: all of its candidates, and the CEM's first generation.
+    /// Random search's stream: all of its candidates, the CEM's first generation and the CEM's
+    /// exploration candidates.
     shared: ChaCha8Rng,
     /// The CEM's own stream, from its second generation on.
     own: ChaCha8Rng,
     dist: Sampler,
     /// The previous generation's candidates, worst for the controller first.
     ranked: Vec<Candidate>,
-    /// Candidates proposed so far per (pattern, kind) cell, `pattern · KINDS.len() + kind`.
-    visits: Vec<usize>,
 }
 
 impl<'a> Proposer<'a> {
@@ -565,43 +564,23 @@ impl<'a> Proposer<'a> {
             own: stream(seed, Method::Cem),
             dist: Sampler::new(space.patterns.len(), space.dim),
             ranked: Vec::new(),
-            visits: vec![0; space.patterns.len() * KINDS.len()],
         }
     }
 
-    /// An exploration candidate: uniform z in the (pattern, kind) cell proposed least so far
-    /// (ties broken at random). A rare cell — one kind on one pattern is 1/36 of a three-pattern
-    /// world — is then tried within a few generations, where uniform draws may miss it for the
-    /// whole budget.
-    fn explore(&mut self) -> Candidate {
-        let least = self.visits.iter().copied().min().unwrap_or(0);
-        let cells: Vec<usize> = (0..self.visits.len())
-            .filter(|&i| self.visits[i] == least)
-            .collect();
-        let cell = cells[self.own.random_range(0..cells.len())];
-        let mut c = uniform(self.space, &mut self.own);
-        c.pattern = cell / KINDS.len();
-        c.kind = KINDS[cell % KINDS.len()];
-        c
-    }
-
-    fn count(&mut self, cs: &[Candidate]) {
-        for c in cs {
-            if let Some(v) = self.visits.get_mut(c.pattern * KINDS.len() + kind_index(c)) {
-                *v += 1;
-            }
-        }
+    /// Random search's candidates of a generation of `n`: the next `n` uniform draws of its
+    /// stream.
+    fn random_generation(&mut self, n: usize) -> Vec<Candidate> {
+        (0..n)
+            .map(|_| uniform(self.space, &mut self.shared))
+            .collect()
     }
 
     /// The candidates of generation `g` (call once per generation, in order).
     fn propose(&mut self, g: usize) -> Vec<Candidate> {
         let n = self.plan.generation_size(g);
+        let random = self.random_generation(n);
         if g == 0 || self.method == Method::Random {
-            let out: Vec<Candidate> = (0..n)
-                .map(|_| uniform(self.space, &mut self.shared))
-                .collect();
-            self.count(&out);
-            return out;
+            return random;
         }
         // Elitism: the previous generation's best, re-run on this generation's seeds.
         let mut out: Vec<Candidate> = Vec::with_capacity(n);
@@ -613,20 +592,17 @@ impl<'a> Proposer<'a> {
                 out.push(c.clone());
             }
         }
-        // Exploration: half of each later generation samples the whole space while the
-        // distribution narrows, the least-tried (pattern, kind) cells first.
-        self.count(&out);
+        // Exploration: half of each later generation is random search's own candidates of
+        // that generation (the first of them), run on the same seeds, so those runs are
+        // random search's runs, bit for bit. The CEM then sees half of what random search
+        // sees, and where random search's best attack lies in a cell the CEM's distribution
+        // left, the CEM has it among its candidates with a fair chance (issue #31: on the 4 of
+        // 24 pairs random search won, its best attack lay in a cell the CEM had tried 4 times).
         let explore = self.plan.explore.min(n - out.len());
-        for _ in 0..explore {
-            let c = self.explore();
-            self.count(std::slice::from_ref(&c));
-            out.push(c);
-        }
-        let sampled = out.len();
+        out.extend(random.into_iter().take(explore));
         while out.len() < n {
             out.push(self.dist.sample(&mut self.own));
         }
-        self.count(&out[sampled..]);
         out
     }
 
@@ -671,39 +647,6 @@ fn pooled_ranking(search: &[Evaluation]) -> Vec<&Candidate> {
             .then(mean(a).total_cmp(&mean(b)))
     });
     pooled.into_iter().map(|p| p.0).collect()
-}
-
-/// The finalists of a search: random search's best `n` distinct candidates (pooled ranking); the
-/// CEM's best candidate of each of its best `n` (pattern, kind) cells, then, if fewer cells were
-/// tried, its next best candidates. The CEM piles its runs into the cells it exploits, so its top
-/// candidates are near-copies of one attack whose 2-seed means are the luckiest of many; one per
-/// cell re-runs the runner-up cells' best attacks as well (issue #31: on the 4 pairs random search
-/// won, all 3 CEM finalists were one cell and random search's winner another).
-fn pick_finalists(method: Method, search: &[Evaluation], n: usize) -> Vec<Candidate> {
-    let ranked = pooled_ranking(search);
-    let mut picked: Vec<&Candidate> = Vec::with_capacity(n);
-    if method == Method::Cem {
-        for c in &ranked {
-            if picked.len() == n {
-                break;
-            }
-            if !picked
-                .iter()
-                .any(|d| d.pattern == c.pattern && d.kind == c.kind)
-            {
-                picked.push(c);
-            }
-        }
-    }
-    for c in &ranked {
-        if picked.len() == n {
-            break;
-        }
-        if !picked.contains(c) {
-            picked.push(c);
-        }
-    }
-    picked.into_iter().cloned().collect()
 }
 
 /// The run with the lowest robustness among `evals` (collisions first), and its candidate.
@@ -985,7 +928,11 @@ impl Search<'_> {
         // Finalists: the best distinct searched candidates, on held-out seeds. A candidate the
         // CEM carried over several generations is ranked by all its runs together.
         let refine = method == Method::Cem;
-        let picked = pick_finalists(method, &search, plan.finalists);
+        let picked: Vec<Candidate> = pooled_ranking(&search)
+            .into_iter()
+            .take(plan.finalists)
+            .cloned()
+            .collect();
         self.bar
             .set_message(format!("{} final re-evaluation", method.name()));
         let mut finalists = self.evaluate(None, picked, &plan.final_seeds(self.seed))?;
@@ -1217,22 +1164,33 @@ mod tests {
         search
     }
 
-    /// The CEM's exploration tries every (pattern, kind) cell within the budget: a catastrophic
-    /// attack that lives in one rare cell (one kind on one of three patterns) cannot be missed
-    /// for lack of a draw, which uniform sampling of the same number of candidates risks.
+    /// Half of every later CEM generation is random search's first candidates of that
+    /// generation, with the same runs: the CEM sees half of what random search sees.
     #[test]
-    fn exploration_tries_every_pattern_and_kind() {
+    fn the_cems_exploration_is_random_searchs_own_candidates_and_runs() {
         let plan = Plan::new(400).expect("plan");
         let sp = space(3);
         for seed in 1..=5 {
             let cem = evaluations(Method::Cem, &plan, &sp, seed);
-            let mut cells: Vec<(usize, Kind)> = cem
-                .iter()
-                .map(|e| (e.candidate.pattern, e.candidate.kind))
-                .collect();
-            cells.sort_by_key(|(p, k)| (*p, kind_index_of(*k)));
-            cells.dedup();
-            assert_eq!(cells.len(), 3 * KINDS.len(), "seed {seed}: {cells:?}");
+            let rnd = evaluations(Method::Random, &plan, &sp, seed);
+            for g in 1..plan.cma_from {
+                let of = |e: &[Evaluation]| -> Vec<Evaluation> {
+                    e.iter()
+                        .filter(|e| e.generation == Some(g) && !e.cmaes)
+                        .cloned()
+                        .collect()
+                };
+                let (c, r) = (of(&cem), of(&rnd));
+                let shared = &c[plan.carry..plan.carry + plan.explore];
+                assert_eq!(shared, &r[..plan.explore], "seed {seed}, generation {g}");
+                // The rest is the CEM's own: carried elites and samples of its distribution.
+                assert!(
+                    c[plan.carry + plan.explore..]
+                        .iter()
+                        .all(|e| !r.contains(e)),
+                    "seed {seed}, generation {g}"
+                );
+            }
         }
     }
 
@@ -1450,59 +1408,5 @@ mod tests {
         assert_eq!(r.len(), 2);
         assert_eq!(*r[0], cand(0.2));
         assert_eq!(*r[1], cand(0.9));
-    }
-
-    /// The CEM re-runs the best candidate of each of its best cells before a second candidate
-    /// of any cell; random search re-runs its best candidates whatever their cells.
-    #[test]
-    fn the_cems_finalists_come_one_per_cell_first() {
-        let sp = space(2);
-        let cand = |pattern: usize, kind: Kind, v: f64| Candidate {
-            pattern,
-            kind,
-            z: vec![v; 7],
-        };
-        let ev = |c: Candidate, value: f64| {
-            let run = SeedRun {
-                seed: 0,
-                robustness: Robustness {
-                    value,
-                    collided: false,
-                    binding: "x".into(),
-                },
-            };
-            Evaluation::new(Some(0), c, &sp, vec![run])
-        };
-        // Three near-copies in (1, freeze) rank first; (0, bias) and (1, bias) come after.
-        let search = vec![
-            ev(cand(1, Kind::Freeze, 0.50), 0.10),
-            ev(cand(1, Kind::Freeze, 0.51), 0.11),
-            ev(cand(1, Kind::Freeze, 0.52), 0.12),
-            ev(cand(0, Kind::Bias, 0.3), 0.20),
-            ev(cand(1, Kind::Bias, 0.3), 0.30),
-        ];
-        let cells = |cs: &[Candidate]| cs.iter().map(|c| (c.pattern, c.kind)).collect::<Vec<_>>();
-        assert_eq!(
-            cells(&pick_finalists(Method::Cem, &search, 4)),
-            [
-                (1, Kind::Freeze),
-                (0, Kind::Bias),
-                (1, Kind::Bias),
-                (1, Kind::Freeze)
-            ]
-        );
-        assert_eq!(
-            pick_finalists(Method::Cem, &search, 4)[3],
-            cand(1, Kind::Freeze, 0.51)
-        );
-        assert_eq!(
-            cells(&pick_finalists(Method::Random, &search, 4)),
-            [
-                (1, Kind::Freeze),
-                (1, Kind::Freeze),
-                (1, Kind::Freeze),
-                (0, Kind::Bias)
-            ]
-        );
     }
 }
