@@ -2,7 +2,10 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
+
+use ftcbf::batch::FailOn;
 
 /// ftcbf — keep a robot safe while its sensors lie.
 ///
@@ -58,9 +61,9 @@ pub enum Command {
     Regress(RegressArgs),
     /// Run N independent trials of a world (paired across controllers) and certify its safety
     /// probability with exact confidence intervals.
-    Batch(crate::batch::BatchArgs),
+    Batch(crate::batch_cmd::BatchArgs),
     /// Merge the JSON results of sharded batches into the summary the unsharded batch gives.
-    Merge(crate::batch::MergeArgs),
+    Merge(crate::batch_cmd::MergeArgs),
     /// Search for the worst attack inside the world's threat model (one fault pattern at a time)
     /// and write it as a world file that `ftcbf run` replays.
     Falsify(crate::falsify_cmd::FalsifyArgs),
@@ -247,4 +250,28 @@ pub struct ReportArgs {
     /// Write nothing; exit 1 when a page in --out differs from what the JSON gives.
     #[arg(long)]
     pub check: bool,
+}
+
+/// The value parser of an option whose values are the names of a library type: clap checks the
+/// value against `values` and lists them (in `--help`, with their help, and in its errors)
+/// exactly as for a `ValueEnum`; the type's own `FromStr` then reads the name, so each type's
+/// names are parsed in one place, the library.
+fn named<T>(values: impl IntoIterator<Item = PossibleValue>) -> impl TypedValueParser<Value = T>
+where
+    T: std::str::FromStr + Clone + Send + Sync + 'static,
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(values.into_iter().collect::<Vec<_>>()).try_map(|s| s.parse::<T>())
+}
+
+/// `ftcbf batch --fail-on`: [`FailOn`]'s names, with what each fails on.
+pub fn fail_on_parser() -> impl TypedValueParser<Value = FailOn> {
+    named(FailOn::ALL.map(|level| {
+        PossibleValue::new(level.name()).help(match level {
+            FailOn::Refuted => {
+                "Fail when a verdict is `refuted` (the interval's upper bound is below 1 − ε)"
+            }
+            FailOn::Unresolved => "Fail unless every verdict is `supported`",
+        })
+    }))
 }

@@ -2,6 +2,7 @@
 
 use ftcbf::runner::prepare_batch;
 use ftcbf::{batch, regress, report};
+mod batch_cmd;
 mod cli;
 mod falsify_cmd;
 
@@ -121,12 +122,12 @@ fn dispatch(command: Command) -> Result<(), Failure> {
         Command::Check(a) => cmd_check(&a),
         Command::Regress(a) => cmd_regress(&a),
         Command::Batch(a) => {
-            batch::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| Failure {
+            batch_cmd::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| Failure {
                 code: code_of(&e),
                 error: e,
             })
         }
-        Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
+        Command::Merge(a) => batch_cmd::merge_command(&a).map_err(Failure::from),
         Command::Falsify(a) => falsify_cmd::falsify_command(&a).map_err(|e| Failure {
             code: if e.is::<falsify_cmd::UsageError>() {
                 EXIT_USAGE
