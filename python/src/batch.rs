@@ -3,9 +3,10 @@
 
 use std::sync::{Arc, Mutex};
 
-use ftcbf::batch::{self as engine, BatchSpec, ParamOverride, PreparedWorld, TrialRunner};
-use ftcbf::runner::{load_point, world_info, WorldRunner};
+use ftcbf::batch::{self as engine, BatchSpec, PreparedWorld, TrialRunner};
+use ftcbf::runner::{world_info, WorldRunner};
 use ftcbf_sim::summary::RunSummary;
+use ftcbf_sim::world::Override;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -101,19 +102,12 @@ pub fn batch(
         .map_err(|_| PyValueError::new_err("jobs is too large for this machine"))?;
     spec.sweep = sweep.map(str::parse).transpose().map_err(bad)?;
     spec.shard = shard.map(str::parse).transpose().map_err(bad)?;
-    spec.overrides = world
-        .overrides
-        .iter()
-        .map(|o| ParamOverride {
-            key: o.key.clone(),
-            value: o.value,
-        })
-        .collect();
+    spec.overrides = world.overrides.clone();
     let raised = Arc::new(Raised::default());
     let laws = Arc::new(laws);
     let outcome = py.detach(|| {
-        let prepare = |overrides: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
-            let builtin = WorldRunner::new(load_point(&spec.world, &[], overrides)?)?;
+        let prepare = |overrides: &[Override]| -> anyhow::Result<PreparedWorld> {
+            let builtin = WorldRunner::new(ftcbf_sim::world::World::load(&spec.world, overrides)?)?;
             Ok(PreparedWorld {
                 info: world_info(&builtin.0),
                 runner: Box::new(Runner {

@@ -33,10 +33,13 @@ pub mod stats;
 mod table;
 
 use ftcbf_sim::summary::RunSummary;
+/// A sweep point's (and a [`BatchSpec`]'s) overrides of world-file values: the world loader's
+/// own type.
+use ftcbf_sim::world::Override;
 
 pub use io::{check_outputs, from_csv, to_csv, to_json, CsvTrial, FORMAT};
 pub use merge::merge;
-pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
+pub use plan::{ArgError, BatchPlan, Execution, Shard, Sweep};
 pub use result::{
     BatchResult, ControllerSummary, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict,
 };

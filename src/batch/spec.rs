@@ -7,13 +7,13 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::{
-    figure, io, run_sweep, table, BatchPlan, BatchResult, Execution, ParamOverride, PreparedWorld,
+    figure, io, run_sweep, table, BatchPlan, BatchResult, Execution, Override, PreparedWorld,
     Shard, Sweep, Verdict, WorldInfo, CONFIDENCE,
 };
 
 /// Loads the world with the given overrides and returns its info and trial runner (for the
 /// world's own controllers: [`crate::runner::prepare_batch`]).
-pub type PrepareFn<'a> = dyn Fn(&[ParamOverride]) -> anyhow::Result<PreparedWorld> + 'a;
+pub type PrepareFn<'a> = dyn Fn(&[Override]) -> anyhow::Result<PreparedWorld> + 'a;
 
 /// One batch: a world run `trials` times with independent seeds for each controller, maybe
 /// over a sweep or as one shard. `ftcbf batch` builds it from its command line, the Python
@@ -27,7 +27,7 @@ pub struct BatchSpec {
     pub world: PathBuf,
     /// Overrides of the world file's values for every trial, applied before a sweep point's.
     /// They are not part of the plan (a sweep point's are).
-    pub overrides: Vec<ParamOverride>,
+    pub overrides: Vec<Override>,
     /// Number of trials N (every controller runs every trial); at least 1.
     pub trials: u64,
     /// Base seed S [`None`: the world's seed].
@@ -36,7 +36,7 @@ pub struct BatchSpec {
     pub controllers: Vec<String>,
     /// One batch per value of a world-file key, reported as one table.
     pub sweep: Option<Sweep>,
-    /// Run only this slice of the trials (combine the slices with [`super::merge`]).
+    /// Run only this slice of the trials (combine the slices with [`super::merge()`]).
     pub shard: Option<Shard>,
     /// Worker threads [`None`: all cores].
     pub jobs: Option<usize>,
@@ -84,27 +84,26 @@ impl BatchSpec {
         io::check_outputs(&self.outputs)?;
         let digest = io::digest_file(&self.world)?;
         let world_file = self.world.display().to_string();
-        let plan_for =
-            |info: &WorldInfo, overrides: Vec<ParamOverride>| -> anyhow::Result<BatchPlan> {
-                let plan = BatchPlan {
-                    world: info.name.clone(),
-                    world_file: world_file.clone(),
-                    world_digest: digest.clone(),
-                    overrides,
-                    trials: self.trials,
-                    base_seed: self.seed.unwrap_or(info.seed),
-                    controllers: self.controllers.clone(),
-                    shard: self.shard,
-                    epsilon: info.epsilon,
-                    confidence: CONFIDENCE,
-                    theorem3: info.theorem3.clone(),
-                    liveness: info.liveness.clone(),
-                };
-                plan.validate()
-                    .with_context(|| format!("world `{world_file}`"))?;
-                Ok(plan)
+        let plan_for = |info: &WorldInfo, overrides: Vec<Override>| -> anyhow::Result<BatchPlan> {
+            let plan = BatchPlan {
+                world: info.name.clone(),
+                world_file: world_file.clone(),
+                world_digest: digest.clone(),
+                overrides,
+                trials: self.trials,
+                base_seed: self.seed.unwrap_or(info.seed),
+                controllers: self.controllers.clone(),
+                shard: self.shard,
+                epsilon: info.epsilon,
+                confidence: CONFIDENCE,
+                theorem3: info.theorem3.clone(),
+                liveness: info.liveness.clone(),
             };
-        let with_base = |point: &[ParamOverride]| prepare(&[&self.overrides[..], point].concat());
+            plan.validate()
+                .with_context(|| format!("world `{world_file}`"))?;
+            Ok(plan)
+        };
+        let with_base = |point: &[Override]| prepare(&[&self.overrides[..], point].concat());
         let results = run_sweep(
             &with_base,
             self.sweep.as_ref(),
@@ -258,7 +257,7 @@ mod tests {
 
     /// The synthetic world of these tests (ε = 0.1): safe with probability `p_default`, or the
     /// last override's value (a sweep point's comes after the spec's own).
-    fn synthetic(o: &[ParamOverride], p_default: f64) -> anyhow::Result<PreparedWorld> {
+    fn synthetic(o: &[Override], p_default: f64) -> anyhow::Result<PreparedWorld> {
         Ok(PreparedWorld {
             info: WorldInfo {
                 name: "synthetic".into(),
@@ -288,7 +287,7 @@ mod tests {
         let dir = scratch("files");
         let world = dir.join("w.toml");
         std::fs::write(&world, "name = \"synthetic\"\n").expect("world file");
-        let prepare = |o: &[ParamOverride]| synthetic(o, 0.9);
+        let prepare = |o: &[Override]| synthetic(o, 0.9);
         let spec = |shard: Option<&str>, out: &str| BatchSpec {
             trials: 30,
             jobs: Some(2),
@@ -328,7 +327,7 @@ mod tests {
 
         // The spec's own overrides come before each sweep point's and stay out of the plan.
         let mut based = spec(None, "based.json");
-        based.overrides = vec![ParamOverride {
+        based.overrides = vec![Override {
             key: "q".into(),
             value: 0.1,
         }];
@@ -373,7 +372,7 @@ mod tests {
         let dir = scratch("fail-on");
         let world = dir.join("w.toml");
         std::fs::write(&world, "name = \"synthetic\"\n").expect("world file");
-        let prepare = |o: &[ParamOverride]| synthetic(o, 0.99);
+        let prepare = |o: &[Override]| synthetic(o, 0.99);
         let mut spec = BatchSpec {
             trials: 200,
             jobs: Some(1),
