@@ -7,7 +7,9 @@ use anyhow::Context;
 
 use ftcbf::batch::{self, BatchSpec, FailOn, PrepareFn, Shard, Sweep};
 
-use crate::cli::fail_on_parser;
+use ftcbf_sim::world::ControllerKindSpec;
+
+use crate::cli::{controller_parser, fail_on_parser};
 
 /// Run a world many times with independent seeds and certify its safety claim.
 ///
@@ -50,10 +52,10 @@ pub struct BatchArgs {
     #[arg(
         long = "controller",
         value_name = "KIND",
-        value_parser = ftcbf_sim::world::ControllerKindSpec::NAMES,
+        value_parser = controller_parser(false),
         default_values = BatchSpec::DEFAULT_CONTROLLERS
     )]
-    pub controllers: Vec<String>,
+    pub controllers: Vec<ControllerKindSpec>,
     /// Write results: FILE.csv (one row per trial) or FILE.json (summary + all trial records,
     /// the input of `ftcbf merge`). Repeatable.
     #[arg(long, value_name = "FILE.csv|FILE.json")]
@@ -101,7 +103,11 @@ impl BatchArgs {
             overrides: Vec::new(),
             trials: self.trials,
             seed: self.seed,
-            controllers: self.controllers.clone(),
+            controllers: self
+                .controllers
+                .iter()
+                .map(|k| k.name().to_string())
+                .collect(),
             sweep: self.sweep.clone(),
             shard: self.shard,
             jobs: self
@@ -176,7 +182,10 @@ mod tests {
             panic!("batch args did not parse");
         };
         assert_eq!(a.trials, 100);
-        assert_eq!(a.controllers, vec!["ft-cbf-clf", "baseline"]);
+        assert_eq!(
+            a.controllers,
+            [ControllerKindSpec::FtCbfClf, ControllerKindSpec::Baseline]
+        );
         assert_eq!((a.jobs, a.seed, a.shard, a.sweep), (None, None, None, None));
         let Ok(Cmd::Batch(a)) = parse(&[
             "batch",
@@ -201,7 +210,7 @@ mod tests {
             panic!("batch args did not parse");
         };
         assert_eq!((a.trials, a.jobs, a.seed), (7, Some(2), Some(9)));
-        assert_eq!(a.controllers, vec!["nominal"]);
+        assert_eq!(a.controllers, [ControllerKindSpec::Nominal]);
         assert_eq!(a.out.len(), 2);
         assert_eq!(
             a.sweep.map(|s| (s.key, s.values)),

@@ -39,8 +39,8 @@ pub struct FalsifyArgs {
     /// World file (TOML). Its own `[[attacks]]` are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
-    #[arg(long, value_name = "KIND", value_parser = ControllerKindSpec::NAMES)]
-    pub controller: Option<String>,
+    #[arg(long, value_name = "KIND", value_parser = crate::cli::controller_parser(false))]
+    pub controller: Option<ControllerKindSpec>,
     /// Runs (simulations) per search method (at least 24), or in all with --scenario (at least 8).
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
@@ -297,10 +297,9 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         .into());
     }
     let template = WorldTemplate::load(&args.world)?;
-    let controller = match &args.controller {
-        Some(c) => c.parse::<ControllerKindSpec>()?,
-        None => template.world.file.control.controller,
-    };
+    let controller = args
+        .controller
+        .unwrap_or(template.world.file.control.controller);
     let settings = Settings {
         controller,
         budget: usize::try_from(args.budget).context("--budget is too large")?,

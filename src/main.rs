@@ -22,8 +22,7 @@ use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
 
 use cli::{
-    CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg,
-    RunArgs, SuiteArg,
+    CheckArgs, Cli, Command, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg, RunArgs, SuiteArg,
 };
 
 /// Exit code: a world file is invalid.
@@ -209,14 +208,6 @@ fn main() -> ExitCode {
     }
 }
 
-fn kind_of(c: ControllerArg) -> ControllerKindSpec {
-    match c {
-        ControllerArg::FtCbfClf => ControllerKindSpec::FtCbfClf,
-        ControllerArg::Baseline => ControllerKindSpec::Baseline,
-        ControllerArg::Nominal => ControllerKindSpec::Nominal,
-    }
-}
-
 fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
     World::load(path, overrides).map_err(invalid)
 }
@@ -278,10 +269,7 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         }
     }
     let world = load(&a.world, &overrides)?;
-    let kind = a
-        .controller
-        .map(kind_of)
-        .unwrap_or(world.file.control.controller);
+    let kind = a.controller.unwrap_or(world.file.control.controller);
     let seed = a.seed.unwrap_or(world.file.seed);
     let opts = RunOptions {
         seed: Some(seed),
