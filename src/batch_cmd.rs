@@ -151,30 +151,8 @@ pub fn merge_command(args: &MergeArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::{CommandFactory, Parser};
-
-    #[derive(Debug, Parser)]
-    struct Cli {
-        #[command(subcommand)]
-        cmd: Cmd,
-    }
-
-    #[derive(Debug, clap::Subcommand)]
-    enum Cmd {
-        Batch(BatchArgs),
-        Merge(MergeArgs),
-    }
-
-    fn parse(args: &[&str]) -> Result<Cmd, String> {
-        Cli::try_parse_from(std::iter::once("ftcbf").chain(args.iter().copied()))
-            .map(|c| c.cmd)
-            .map_err(|e| e.to_string())
-    }
-
-    #[test]
-    fn clap_definitions_are_consistent() {
-        Cli::command().debug_assert();
-    }
+    use crate::cli::tests::parse;
+    use crate::cli::Command as Cmd;
 
     #[test]
     fn batch_arguments_parse_with_defaults() {

@@ -286,11 +286,12 @@ pub fn fail_on_parser() -> impl TypedValueParser<Value = FailOn> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use clap::CommandFactory;
 
-    fn parse(args: &[&str]) -> Result<Command, String> {
+    /// The command `ftcbf ARGS…` gives, or clap's error message.
+    pub(crate) fn parse(args: &[&str]) -> Result<Command, String> {
         Cli::try_parse_from(std::iter::once("ftcbf").chain(args.iter().copied()))
             .map(|c| c.command)
             .map_err(|e| e.to_string())
