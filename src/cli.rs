@@ -2,7 +2,11 @@
 
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
+
+use ftcbf::batch::FailOn;
+use ftcbf_sim::world::ControllerKindSpec;
 
 /// ftcbf — keep a robot safe while its sensors lie.
 ///
@@ -58,9 +62,9 @@ pub enum Command {
     Regress(RegressArgs),
     /// Run N independent trials of a world (paired across controllers) and certify its safety
     /// probability with exact confidence intervals.
-    Batch(crate::batch::BatchArgs),
+    Batch(crate::batch_cmd::BatchArgs),
     /// Merge the JSON results of sharded batches into the summary the unsharded batch gives.
-    Merge(crate::batch::MergeArgs),
+    Merge(crate::batch_cmd::MergeArgs),
     /// Search for the worst attack inside the world's threat model (one fault pattern at a time)
     /// and write it as a world file that `ftcbf run` replays.
     Falsify(crate::falsify_cmd::FalsifyArgs),
@@ -168,18 +172,6 @@ pub enum SuiteArg {
     Any,
 }
 
-/// Which controller to run (overrides the world's `control.controller`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ControllerArg {
-    /// Fault-tolerant CBF-CLF (the paper's controller).
-    #[value(name = "ft-cbf-clf")]
-    FtCbfClf,
-    /// CBF-CLF over one Kalman filter that uses every sensor (the paper's comparison).
-    Baseline,
-    /// CLF only, no barriers: what happens without a safety filter.
-    Nominal,
-}
-
 /// `ftcbf run`
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
@@ -192,8 +184,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Controller to run (overrides the world's `control.controller`).
-    #[arg(long, value_enum)]
-    pub controller: Option<ControllerArg>,
+    #[arg(long, value_parser = controller_parser(true))]
+    pub controller: Option<ControllerKindSpec>,
     /// Simulated duration in seconds (overrides the world's `duration`; in (0, 3600]).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub duration: Option<f64>,
@@ -247,4 +239,101 @@ pub struct ReportArgs {
     /// Write nothing; exit 1 when a page in --out differs from what the JSON gives.
     #[arg(long)]
     pub check: bool,
+}
+
+/// The value parser of an option whose values are the names of a library type: clap checks the
+/// value against `values` and lists them (in `--help`, with their help, and in its errors)
+/// exactly as for a `ValueEnum`; the type's own `FromStr` then reads the name, so each type's
+/// names are parsed in one place, the library.
+fn named<T>(values: impl IntoIterator<Item = PossibleValue>) -> impl TypedValueParser<Value = T>
+where
+    T: std::str::FromStr + Clone + Send + Sync + 'static,
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    PossibleValuesParser::new(values.into_iter().collect::<Vec<_>>()).try_map(|s| s.parse::<T>())
+}
+
+/// `--controller` of `run`, `batch` and `falsify`: [`ControllerKindSpec`]'s names, read by its
+/// `FromStr`; `described` lists what each controller is in `--help` (as `ftcbf run --help` does).
+pub fn controller_parser(described: bool) -> impl TypedValueParser<Value = ControllerKindSpec> {
+    named(ControllerKindSpec::ALL.map(|kind| {
+        let value = PossibleValue::new(kind.name());
+        if !described {
+            return value;
+        }
+        value.help(match kind {
+            ControllerKindSpec::FtCbfClf => "Fault-tolerant CBF-CLF (the paper's controller)",
+            ControllerKindSpec::Baseline => {
+                "CBF-CLF over one Kalman filter that uses every sensor (the paper's comparison)"
+            }
+            ControllerKindSpec::Nominal => {
+                "CLF only, no barriers: what happens without a safety filter"
+            }
+        })
+    }))
+}
+
+/// `ftcbf batch --fail-on`: [`FailOn`]'s names, with what each fails on.
+pub fn fail_on_parser() -> impl TypedValueParser<Value = FailOn> {
+    named(FailOn::ALL.map(|level| {
+        PossibleValue::new(level.name()).help(match level {
+            FailOn::Refuted => {
+                "Fail when a verdict is `refuted` (the interval's upper bound is below 1 − ε)"
+            }
+            FailOn::Unresolved => "Fail unless every verdict is `supported`",
+        })
+    }))
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// The command `ftcbf ARGS…` gives, or clap's error message.
+    pub(crate) fn parse(args: &[&str]) -> Result<Command, String> {
+        Cli::try_parse_from(std::iter::once("ftcbf").chain(args.iter().copied()))
+            .map(|c| c.command)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn every_controller_name_reads_as_its_kind_on_every_command() {
+        Cli::command().debug_assert();
+        for kind in ControllerKindSpec::ALL {
+            let name = kind.name();
+            let Ok(Command::Run(r)) = parse(&["run", "w.toml", "--controller", name]) else {
+                panic!("run --controller {name} did not parse");
+            };
+            assert_eq!(r.controller, Some(kind));
+            let Ok(Command::Falsify(f)) = parse(&["falsify", "w.toml", "--controller", name])
+            else {
+                panic!("falsify --controller {name} did not parse");
+            };
+            assert_eq!(f.controller, Some(kind));
+            let Ok(Command::Batch(b)) = parse(&["batch", "w.toml", "--controller", name]) else {
+                panic!("batch --controller {name} did not parse");
+            };
+            assert_eq!(b.controllers, [kind]);
+        }
+        for command in ["run", "batch", "falsify"] {
+            let e = parse(&[command, "w.toml", "--controller", "pid"]).expect_err("pid");
+            assert!(
+                e.contains("invalid value 'pid' for '--controller <")
+                    && e.contains("[possible values: ft-cbf-clf, baseline, nominal]"),
+                "{command}: {e}"
+            );
+        }
+        let help = Cli::command()
+            .find_subcommand_mut("run")
+            .expect("run")
+            .render_long_help()
+            .to_string();
+        assert!(
+            help.contains(
+                "- nominal:    CLF only, no barriers: what happens without a safety filter"
+            ),
+            "{help}"
+        );
+    }
 }

@@ -7,6 +7,7 @@ use anyhow::{anyhow, Context};
 use ftcbf_sim::record::Recorder;
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
+use indicatif::ProgressBar;
 use serde::Serialize;
 
 use ftcbf::falsify::search::MIN_BUDGET;
@@ -39,8 +40,8 @@ pub struct FalsifyArgs {
     /// World file (TOML). Its own `[[attacks]]` are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
-    #[arg(long, value_name = "KIND", value_parser = ControllerKindSpec::NAMES)]
-    pub controller: Option<String>,
+    #[arg(long, value_name = "KIND", value_parser = crate::cli::controller_parser(false))]
+    pub controller: Option<ControllerKindSpec>,
     /// Runs (simulations) per search method (at least 24), or in all with --scenario (at least 8).
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
@@ -79,6 +80,12 @@ pub struct FalsifyArgs {
     /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,
+}
+
+/// The bar of a search's `runs` on stderr, labelled with the world's name: shown on a
+/// terminal, hidden otherwise.
+fn runs_bar(runs: u64, world: &str) -> ProgressBar {
+    ftcbf::batch::progress_bar(runs, world, true)
 }
 
 /// A command-line value out of range (exit 64, as clap's own usage errors).
@@ -225,7 +232,8 @@ fn scenario_command(
         );
     }
     let ranges = Ranges::resolve(&template.world, &args.range)?;
-    let mut report = scenario(template, settings, &ranges)?;
+    let bar = runs_bar(settings.budget as u64, &template.world.name);
+    let mut report = scenario(template, settings, &ranges, &bar)?;
     let dir = args
         .defects
         .clone()
@@ -297,10 +305,9 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         .into());
     }
     let template = WorldTemplate::load(&args.world)?;
-    let controller = match &args.controller {
-        Some(c) => c.parse::<ControllerKindSpec>()?,
-        None => template.world.file.control.controller,
-    };
+    let controller = args
+        .controller
+        .unwrap_or(template.world.file.control.controller);
     let settings = Settings {
         controller,
         budget: usize::try_from(args.budget).context("--budget is too large")?,
@@ -310,7 +317,6 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
             .map(usize::try_from)
             .transpose()
             .context("--jobs is too large for this machine")?,
-        progress: true,
         compare_random: !args.no_random,
     };
     for w in ftcbf::falsify::model_warnings(&template.world) {
@@ -319,7 +325,8 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     if args.scenario {
         return scenario_command(args, &template, &settings);
     }
-    let report = falsify(&template, &settings)?;
+    let bar = runs_bar(settings.runs()?, &template.world.name);
+    let report = falsify(&template, &settings, &bar)?;
     print!("{}", report.text());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("runs").join(format!("{}-worst-{}.toml", report.world, report.controller))

@@ -2,8 +2,8 @@
 //!
 //! The library half of the `ftcbf` command: [`batch`], the Monte Carlo safety certification
 //! engine (plans, shards and sweeps, trials on a thread pool, exact Clopper–Pearson intervals,
-//! the exact McNemar test, CSV/JSON output, shard merging). It drives any
-//! [`batch::TrialRunner`], so a program can certify its own controller or simulator with the
+//! the exact McNemar test, CSV/JSON output, shard merging), given a [`batch::BatchSpec`] (the
+//! batch without its command line). It drives any [`batch::TrialRunner`], so a program can certify its own controller or simulator with the
 //! same numbers `ftcbf batch` prints (see `examples/custom_controller.rs`); [`falsify`], the
 //! search for the worst attack inside a world's threat model (a cross-entropy method on the
 //! batch engine's thread pool, compared with random search); [`regress`], the world
@@ -11,8 +11,9 @@
 //! parallel, with a table (`ftcbf regress`); [`report`], the book's results pages rendered
 //! from the stored batch and falsify JSON (`ftcbf report`); and [`runner`], the trial runner of a
 //! world file that `ftcbf batch`, the examples and the Python package share. The binary
-//! (`src/main.rs`) is a thin shell over
-//! them and over `ftcbf-sim`.
+//! (`src/main.rs`) is a thin shell over them and over `ftcbf-sim`: the clap arguments, the
+//! commands' printing and their progress bars live there (`src/cli.rs`, `src/batch_cmd.rs`,
+//! `src/falsify_cmd.rs`), not in this library.
 
 #![warn(missing_docs)]
 

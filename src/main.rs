@@ -2,6 +2,7 @@
 
 use ftcbf::runner::prepare_batch;
 use ftcbf::{batch, regress, report};
+mod batch_cmd;
 mod cli;
 mod falsify_cmd;
 
@@ -21,8 +22,7 @@ use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
 
 use cli::{
-    CheckArgs, Cli, Command, ControllerArg, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg,
-    RunArgs, SuiteArg,
+    CheckArgs, Cli, Command, GenArgs, KindArg, RegressArgs, ReportArgs, RobotArg, RunArgs, SuiteArg,
 };
 
 /// Exit code: a world file is invalid.
@@ -121,12 +121,12 @@ fn dispatch(command: Command) -> Result<(), Failure> {
         Command::Check(a) => cmd_check(&a),
         Command::Regress(a) => cmd_regress(&a),
         Command::Batch(a) => {
-            batch::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| Failure {
+            batch_cmd::batch_command(&a, &prepare_batch(&a.world)).map_err(|e| Failure {
                 code: code_of(&e),
                 error: e,
             })
         }
-        Command::Merge(a) => batch::merge_command(&a).map_err(Failure::from),
+        Command::Merge(a) => batch_cmd::merge_command(&a).map_err(Failure::from),
         Command::Falsify(a) => falsify_cmd::falsify_command(&a).map_err(|e| Failure {
             code: if e.is::<falsify_cmd::UsageError>() {
                 EXIT_USAGE
@@ -208,14 +208,6 @@ fn main() -> ExitCode {
     }
 }
 
-fn kind_of(c: ControllerArg) -> ControllerKindSpec {
-    match c {
-        ControllerArg::FtCbfClf => ControllerKindSpec::FtCbfClf,
-        ControllerArg::Baseline => ControllerKindSpec::Baseline,
-        ControllerArg::Nominal => ControllerKindSpec::Nominal,
-    }
-}
-
 fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
     World::load(path, overrides).map_err(invalid)
 }
@@ -277,10 +269,7 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         }
     }
     let world = load(&a.world, &overrides)?;
-    let kind = a
-        .controller
-        .map(kind_of)
-        .unwrap_or(world.file.control.controller);
+    let kind = a.controller.unwrap_or(world.file.control.controller);
     let seed = a.seed.unwrap_or(world.file.seed);
     let opts = RunOptions {
         seed: Some(seed),

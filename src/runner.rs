@@ -9,7 +9,7 @@ use std::path::Path;
 use ftcbf_sim::check;
 use ftcbf_sim::runner::{run, CompiledWorld, RunOptions};
 use ftcbf_sim::summary::RunSummary;
-use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World, WorldError};
+use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World};
 
 use crate::batch;
 
@@ -93,30 +93,13 @@ pub fn world_info(compiled: &CompiledWorld) -> batch::WorldInfo {
     }
 }
 
-/// Loads the world at `path` with `base` overrides, then a sweep point's `point` overrides.
-pub fn load_point(
-    path: &Path,
-    base: &[Override],
-    point: &[batch::ParamOverride],
-) -> Result<World, WorldError> {
-    let overrides: Vec<Override> = base
-        .iter()
-        .cloned()
-        .chain(point.iter().map(|o| Override {
-            key: o.key.clone(),
-            value: o.value,
-        }))
-        .collect();
-    World::load(path, &overrides)
-}
-
-/// What `ftcbf batch` runs for `path`: the world loaded with each sweep point's overrides and
-/// compiled once, its trials run by a [`WorldRunner`].
+/// What `ftcbf batch` runs for `path`: the world loaded with a [`batch::BatchSpec`]'s overrides
+/// and each sweep point's and compiled once, its trials run by a [`WorldRunner`].
 pub fn prepare_batch(
     path: &Path,
-) -> impl Fn(&[batch::ParamOverride]) -> anyhow::Result<batch::PreparedWorld> + '_ {
-    move |point: &[batch::ParamOverride]| {
-        let runner = WorldRunner::new(load_point(path, &[], point)?)?;
+) -> impl Fn(&[Override]) -> anyhow::Result<batch::PreparedWorld> + '_ {
+    move |overrides: &[Override]| {
+        let runner = WorldRunner::new(World::load(path, overrides)?)?;
         Ok(batch::PreparedWorld {
             info: world_info(&runner.0),
             runner: Box::new(runner),

@@ -481,3 +481,31 @@ fn scenario_ranges_are_checked() {
         text(&o)
     );
 }
+
+/// The library takes the caller's progress bar (no progress flag): a hidden one still counts,
+/// and the search advances it exactly `Settings::runs` times, with and without random search.
+#[test]
+fn the_library_search_advances_the_callers_bar_once_per_run() {
+    use ftcbf::falsify::{falsify, Settings, WorldTemplate};
+    let template = WorldTemplate::load(Path::new("worlds/paper_linear.toml")).expect("world");
+    for compare_random in [false, true] {
+        let settings = Settings {
+            controller: template.world.file.control.controller,
+            budget: 24,
+            seed: 1,
+            jobs: Some(2),
+            compare_random,
+        };
+        let bar = indicatif::ProgressBar::hidden();
+        let report = falsify(&template, &settings, &bar).expect("search");
+        assert_eq!(report.methods.len(), 1 + usize::from(compare_random));
+        let runs = settings.runs().expect("runs");
+        assert_eq!(bar.position(), runs, "random search: {compare_random}");
+        // The budget is per method; the two methods share their first generation.
+        if compare_random {
+            assert!(24 < runs && runs < 48, "{runs}");
+        } else {
+            assert_eq!(runs, 24);
+        }
+    }
+}

@@ -3,9 +3,10 @@
 
 use std::sync::{Arc, Mutex};
 
-use ftcbf::batch::{self as engine, BatchArgs, ParamOverride, PreparedWorld, TrialRunner};
-use ftcbf::runner::{load_point, world_info, WorldRunner};
+use ftcbf::batch::{self as engine, BatchSpec, PreparedWorld, TrialRunner};
+use ftcbf::runner::{world_info, WorldRunner};
 use ftcbf_sim::summary::RunSummary;
+use ftcbf_sim::world::Override;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -85,30 +86,28 @@ pub fn batch(
             _ => names.push(c.extract::<String>()?),
         }
     }
-    if names.is_empty() {
-        names = vec!["ft-cbf-clf".into(), "baseline".into()];
+    let mut spec = BatchSpec::new(world.inner.path.clone());
+    if !names.is_empty() {
+        spec.controllers = names;
     }
     if trials == 0 || jobs == Some(0) {
         return Err(PyValueError::new_err("trials and jobs must be at least 1"));
     }
     let bad = |e: engine::ArgError| PyValueError::new_err(e.to_string());
-    let args = BatchArgs {
-        world: world.inner.path.clone(),
-        trials,
-        jobs,
-        seed,
-        controllers: names,
-        out: Vec::new(),
-        sweep: sweep.map(str::parse).transpose().map_err(bad)?,
-        shard: shard.map(str::parse).transpose().map_err(bad)?,
-        fail_on: None,
-    };
-    let base = world.overrides.clone();
+    spec.trials = trials;
+    spec.seed = seed;
+    spec.jobs = jobs
+        .map(usize::try_from)
+        .transpose()
+        .map_err(|_| PyValueError::new_err("jobs is too large for this machine"))?;
+    spec.sweep = sweep.map(str::parse).transpose().map_err(bad)?;
+    spec.shard = shard.map(str::parse).transpose().map_err(bad)?;
+    spec.overrides = world.overrides.clone();
     let raised = Arc::new(Raised::default());
     let laws = Arc::new(laws);
     let outcome = py.detach(|| {
-        let prepare = |point: &[ParamOverride]| -> anyhow::Result<PreparedWorld> {
-            let builtin = WorldRunner::new(load_point(&args.world, &base, point)?)?;
+        let prepare = |overrides: &[Override]| -> anyhow::Result<PreparedWorld> {
+            let builtin = WorldRunner::new(ftcbf_sim::world::World::load(&spec.world, overrides)?)?;
             Ok(PreparedWorld {
                 info: world_info(&builtin.0),
                 runner: Box::new(Runner {
@@ -118,8 +117,8 @@ pub fn batch(
                 }),
             })
         };
-        let (results, text) = engine::run_batch_args(&args, &prepare, false)?;
-        Ok::<_, anyhow::Error>((engine::to_json(&results)?, text))
+        let run = spec.run(&prepare, false)?;
+        Ok::<_, anyhow::Error>((engine::to_json(&run.results)?, run.report))
     });
     outcome.map_err(|e| {
         let text = format!("{e:#}");

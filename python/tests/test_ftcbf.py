@@ -125,6 +125,18 @@ def test_a_sweep_matches_the_cli(cli):
     assert [r["plan"]["overrides"][0]["value"] for r in res.results] == [0.0, 1.0]
 
 
+def test_a_worlds_overrides_apply_to_every_trial_of_its_batch():
+    # The World's overrides go before a sweep point's: removing the attack's bias (1 in the
+    # file) gives the trials of the sweep point attacks[0].value=0, but no sweep point in the plan.
+    w = ftcbf.World.load(LINEAR, overrides={"attacks[0].value": 0.0})
+    got = ftcbf.batch(w, trials=6, controllers=["baseline"], seed=5)
+    swept = ftcbf.batch(LINEAR, trials=6, controllers=["baseline"], seed=5, sweep="attacks[0].value=0,1")
+    assert got.results[0]["plan"]["overrides"] == []
+    bits_equal(got.results[0]["records"], swept.results[0]["records"], "records")
+    plain = ftcbf.batch(LINEAR, trials=6, controllers=["baseline"], seed=5)
+    assert plain.results[0]["records"] != got.results[0]["records"]
+
+
 def test_a_python_law_runs_through_a_batch():
     w = ftcbf.World.load(LINEAR)
     MedianPd.steps = 0

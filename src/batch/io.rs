@@ -440,7 +440,7 @@ mod tests {
             fail_seed: None,
         };
         let mut p = plan(50, None);
-        p.overrides = vec![ParamOverride {
+        p.overrides = vec![Override {
             key: "attacks[0].value".into(),
             value: 0.1 + 0.2,
         }];

@@ -407,7 +407,7 @@ mod tests {
         };
         let point = |v: f64, shard: Option<Shard>| {
             let mut p = plan(20, shard);
-            p.overrides = vec![ParamOverride {
+            p.overrides = vec![Override {
                 key: "noise.scale".into(),
                 value: v,
             }];

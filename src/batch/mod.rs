@@ -1,4 +1,4 @@
-//! Monte Carlo safety certification: `ftcbf batch` and `ftcbf merge`.
+//! Monte Carlo safety certification: the engine of `ftcbf batch` and `ftcbf merge`.
 //!
 //! The thesis' problem statement (§3.1) asks for Pr(x_t ∈ C ∀t) ≥ 1 − ε under any fault pattern,
 //! and Theorem 3 gives sufficient conditions. A batch *measures* that probability: it runs N
@@ -19,31 +19,35 @@
 //!
 //! Modules: `plan` (what runs: plan, shards, sweeps), `run` (thread pool, progress, sweeps),
 //! `result` (records, summaries, verdicts), [`stats`] (numerics), `io` (CSV/JSON), `merge`
-//! (shard merging), `table` (human-readable tables), `cli` (clap arguments and the commands).
+//! (shard merging), `table` (human-readable tables), `spec` (a batch as a program describes it: [`BatchSpec`],
+//! its report and outputs, the `--fail-on` levels).
 
-mod cli;
 pub mod figure;
 mod io;
 mod merge;
 mod plan;
 mod result;
 mod run;
+mod spec;
 pub mod stats;
 mod table;
 
 use ftcbf_sim::summary::RunSummary;
+/// A sweep point's (and a [`BatchSpec`]'s) overrides of world-file values: the world loader's
+/// own type.
+use ftcbf_sim::world::Override;
 
-pub use cli::{
-    batch_command, failing_verdicts, merge_command, run_batch_args, BatchArgs, FailOn, MergeArgs,
-    PrepareFn, VerdictFailure,
-};
-pub use io::{from_csv, to_csv, to_json, CsvTrial, FORMAT};
+pub use io::{check_outputs, from_csv, to_csv, to_json, CsvTrial, FORMAT};
 pub use merge::merge;
-pub use plan::{ArgError, BatchPlan, Execution, ParamOverride, Shard, Sweep};
+pub use plan::{ArgError, BatchPlan, Execution, Shard, Sweep};
 pub use result::{
     BatchResult, ControllerSummary, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict,
 };
 pub use run::{progress_bar, run_batch, run_parallel, run_sweep, worker_pool};
+pub use spec::{
+    failing_verdicts, report_text, write_outputs, BatchOutcome, BatchSpec, FailOn, PrepareFn,
+    UnknownLevel, VerdictFailure,
+};
 
 /// Confidence level of every interval in a batch summary.
 pub const CONFIDENCE: f64 = 0.95;

@@ -4,6 +4,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use anyhow::anyhow;
+use ftcbf_sim::world::Override;
 use serde::{Deserialize, Serialize};
 
 /// One slice of a batch: trial indices k (0-based) with `k % count == index − 1`
@@ -74,15 +75,6 @@ impl FromStr for Shard {
     }
 }
 
-/// One numeric override of a world-file value, e.g. `attacks[0].value = 0.5`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ParamOverride {
-    /// Key path into the world file, e.g. `attacks[0].value`.
-    pub key: String,
-    /// The value to use.
-    pub value: f64,
-}
-
 /// A parameter sweep: run the batch once per value of `key`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sweep {
@@ -145,7 +137,7 @@ pub struct BatchPlan {
     /// `fnv1a64:<hex>` of the world file's bytes: "same world" for merging.
     pub world_digest: String,
     /// Overrides applied to the world (the sweep point), empty without a sweep.
-    pub overrides: Vec<ParamOverride>,
+    pub overrides: Vec<Override>,
     /// Total number of trials N of the whole batch (all shards).
     pub trials: u64,
     /// Base seed S; trial k uses [`super::trial_seed`]`(S, k)`.

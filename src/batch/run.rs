@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{anyhow, Context};
 
 use super::{
-    trial_seed, BatchPlan, BatchResult, Execution, ParamOverride, PrepareFn, Sweep, TrialRecord,
+    trial_seed, BatchPlan, BatchResult, Execution, Override, PrepareFn, Sweep, TrialRecord,
     TrialRunner, WorldInfo,
 };
 
@@ -126,16 +126,16 @@ pub fn run_batch(
 pub fn run_sweep(
     prepare: &PrepareFn<'_>,
     sweep: Option<&Sweep>,
-    plan_for: &dyn Fn(&WorldInfo, Vec<ParamOverride>) -> anyhow::Result<BatchPlan>,
+    plan_for: &dyn Fn(&WorldInfo, Vec<Override>) -> anyhow::Result<BatchPlan>,
     exec: Execution,
 ) -> anyhow::Result<Vec<BatchResult>> {
-    let points: Vec<Vec<ParamOverride>> = match sweep {
+    let points: Vec<Vec<Override>> = match sweep {
         None => vec![Vec::new()],
         Some(s) => s
             .values
             .iter()
             .map(|&value| {
-                vec![ParamOverride {
+                vec![Override {
                     key: s.key.clone(),
                     value,
                 }]

@@ -512,7 +512,7 @@ mod tests {
             .iter()
             .map(|&v| {
                 let mut p = plan(30, None);
-                p.overrides = vec![ParamOverride {
+                p.overrides = vec![Override {
                     key: "sensors[1].noise".into(),
                     value: v,
                 }];

@@ -69,7 +69,9 @@ pub use search::{Method, MethodResult, Plan};
 pub use space::{Candidate, Kind, SearchSpace};
 pub use template::{ReplayInfo, WorldTemplate};
 
-use crate::batch::{progress_bar, worker_pool};
+use indicatif::ProgressBar;
+
+use crate::batch::worker_pool;
 
 /// What to search.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,10 +84,30 @@ pub struct Settings {
     pub seed: u64,
     /// Worker threads (`None` = all cores).
     pub jobs: Option<usize>,
-    /// Show a progress bar (on a terminal).
-    pub progress: bool,
     /// Also run random search with the same budget, for comparison.
     pub compare_random: bool,
+}
+
+impl Settings {
+    /// The methods searched: the CEM, then random search if compared.
+    fn methods(&self) -> &'static [Method] {
+        if self.compare_random {
+            &[Method::Cem, Method::Random]
+        } else {
+            &[Method::Cem]
+        }
+    }
+
+    /// How many runs [`falsify`] makes: each method's [`Plan`], the first generation, which the
+    /// methods share, counted once (the length of its progress bar).
+    pub fn runs(&self) -> anyhow::Result<u64> {
+        // The first generation is the same candidates on the same seeds for both methods: run
+        // once, counted in both budgets.
+        let plan = Plan::new(self.budget)?;
+        let methods = self.methods().len();
+        let shared = (methods - 1) * plan.first * plan.seeds_per_candidate;
+        Ok((plan.runs * methods - shared) as u64)
+    }
 }
 
 /// Everything a search found; serialised as the `--json` file.
@@ -195,25 +217,19 @@ pub fn model_warnings(world: &World) -> Vec<String> {
         .collect()
 }
 
-/// Searches the worst attack on `template`'s world.
-pub fn falsify(template: &WorldTemplate, settings: &Settings) -> anyhow::Result<Report> {
+/// Searches the worst attack on `template`'s world, advancing `bar` once per run: the caller
+/// makes the bar (shown or hidden, [`Settings::runs`] long); the search clears it when its runs
+/// are done.
+pub fn falsify(
+    template: &WorldTemplate,
+    settings: &Settings,
+    bar: &ProgressBar,
+) -> anyhow::Result<Report> {
     let world = &template.world;
     let space = SearchSpace::new(world).with_context(|| format!("world `{}`", world.name))?;
     let plan = Plan::new(settings.budget)?;
-    let methods: &[Method] = if settings.compare_random {
-        &[Method::Cem, Method::Random]
-    } else {
-        &[Method::Cem]
-    };
+    let methods = settings.methods();
     let pool = worker_pool(settings.jobs)?;
-    // The first generation is the same candidates on the same seeds for both methods: run once,
-    // counted in both budgets.
-    let shared = (methods.len() - 1) * plan.first * plan.seeds_per_candidate;
-    let bar = progress_bar(
-        (plan.runs * methods.len() - shared) as u64,
-        &world.name,
-        settings.progress,
-    );
     let search = search::Search {
         template,
         space: &space,
@@ -221,7 +237,7 @@ pub fn falsify(template: &WorldTemplate, settings: &Settings) -> anyhow::Result<
         controller: settings.controller,
         seed: settings.seed,
         pool: &pool,
-        bar: &bar,
+        bar,
     };
     let results = search.first_generation().and_then(|first| {
         methods

@@ -40,7 +40,7 @@ use toml_edit::{Array, DocumentMut, InlineTable, Item};
 use super::search::{run_seed, uniform};
 use super::space::{Candidate, SearchSpace};
 use super::{cmaes, Robustness, Settings, WorldTemplate};
-use crate::batch::{progress_bar, run_parallel, trial_seed, worker_pool};
+use crate::batch::{run_parallel, trial_seed, worker_pool};
 
 /// Smallest budget of a scenario search: two variants' screens.
 pub const MIN_BUDGET: usize = 2 * (ATTACKS_PER_VARIANT + 1);
@@ -542,11 +542,14 @@ struct Accepted {
     world: World,
 }
 
-/// The scenario search on `template`'s world.
+/// The scenario search on `template`'s world, advancing `bar` once per run: the caller makes
+/// the bar (shown or hidden, `settings.budget` long); the search sets its message to the phase
+/// and clears it when the runs are done.
 pub fn scenario(
     template: &WorldTemplate,
     settings: &Settings,
     ranges: &Ranges,
+    bar: &ProgressBar,
 ) -> anyhow::Result<ScenarioReport> {
     let clock = Instant::now();
     let base = &template.world;
@@ -554,7 +557,6 @@ pub fn scenario(
     let controller = settings.controller.name();
     let plan = ScenarioPlan::new(settings.budget, !base.file.attacks.is_empty())?;
     let pool = worker_pool(settings.jobs)?;
-    let bar = progress_bar(plan.budget as u64, &base.name, settings.progress);
     let hidden = ProgressBar::hidden();
 
     // 1. Draw and check variants, in batches, until enough are accepted.
@@ -658,7 +660,7 @@ pub fn scenario(
                 robustness,
             })
         };
-    let mut runs: Vec<ScenarioRun> = run_parallel(&pool, &tasks, &bar, |t| {
+    let mut runs: Vec<ScenarioRun> = run_parallel(&pool, &tasks, bar, |t| {
         one(t.variant, t.seed, t.candidate.as_ref())
     })?;
 
@@ -690,9 +692,8 @@ pub fn scenario(
         let best = es
             .spend(&mut rng, share, |zs| {
                 let cs: Vec<Candidate> = zs.iter().map(|z| c0.with_z(z)).collect();
-                let rs = run_parallel(&pool, &cs, &bar, |c| {
-                    one(start.variant, start.seed, Some(c))
-                })?;
+                let rs =
+                    run_parallel(&pool, &cs, bar, |c| one(start.variant, start.seed, Some(c)))?;
                 let f = rs
                     .iter()
                     .map(|r| r.robustness.value - if r.robustness.collided { 10.0 } else { 0.0 })

@@ -3,8 +3,9 @@
 
 use std::fmt;
 
-/// One override: a key path into the world document and the number to put there.
-#[derive(Debug, Clone, PartialEq)]
+/// One override: a key path into the world document and the number to put there. Serialised as
+/// `{ key, value }` (a batch's sweep point in its JSON file).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Override {
     /// Dotted key path with array indices, e.g. `attacks[0].value` or `control.gamma`.
     pub key: String,
