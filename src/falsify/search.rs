@@ -1194,10 +1194,6 @@ mod tests {
         }
     }
 
-    fn kind_index_of(k: Kind) -> usize {
-        KINDS.iter().position(|x| *x == k).unwrap_or(0)
-    }
-
     fn worst(e: &[Evaluation]) -> f64 {
         e.iter()
             .flat_map(|e| &e.runs)
