@@ -64,7 +64,7 @@ while read -r file kind robot suite attack; do
     fi
     printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$kind" "$robot" "$suite" "$attack" \
         "$verdict" "$stats" "$live" >>"$rows"
-done <"$out/sweep/gen.txt"
+done < <(tail -n +3 "$out/sweep/gen.txt") # the listing's header and rule first
 
 report="$out/sweep/report.txt"
 awk -F'\t' -v n="$trials" '

@@ -495,21 +495,27 @@ fn cmd_gen(a: &GenArgs) -> anyhow::Result<()> {
     let count = usize::try_from(a.count).context("--count")?;
     let worlds = generator.worlds(count)?;
     let paths = write_worlds(&a.out, &worlds)?;
-    let width = paths
+    let rows: Vec<Vec<String>> = worlds
         .iter()
-        .map(|p| p.display().to_string().chars().count())
-        .max()
-        .unwrap_or(0);
-    for (w, p) in worlds.iter().zip(&paths) {
-        println!(
-            "{:<width$}  {:<8}  {:<6}  {:<17}  {}",
-            p.display().to_string(),
-            w.kind.name(),
-            w.robot.name(),
-            w.suite.name(),
-            w.attack_label()
-        );
-    }
+        .zip(&paths)
+        .map(|(w, p)| {
+            vec![
+                p.display().to_string(),
+                w.kind.name().to_string(),
+                w.robot.name().to_string(),
+                w.suite.name().to_string(),
+                w.attack_label(),
+            ]
+        })
+        .collect();
+    print!(
+        "{}",
+        ftcbf::batch::render_table(
+            &["file", "kind", "robot", "suite", "attack"],
+            &[ftcbf::batch::Align::Left; 5],
+            &rows
+        )
+    );
     Ok(())
 }
 

@@ -250,28 +250,40 @@ impl CaseResult {
 /// The table `ftcbf regress` prints: per case the seed counts, the worst seed's margins and the
 /// verdict, then a total line.
 pub fn table_text(results: &[CaseResult]) -> String {
+    use crate::batch::{render_table, Align};
     use std::fmt::Write;
-    let mut t = String::new();
-    let _ = writeln!(
-        t,
-        "{:<22} {:<11} {:>6} {:>6} {:>6} {:>9} {:>12} {:>10}  verdict",
-        "world", "controller", "safe", "hit", "goal", "worst h", "worst clr[m]", "worst t[s]"
+    let rows: Vec<Vec<String>> = results
+        .iter()
+        .map(|r| {
+            vec![
+                r.world.clone(),
+                r.controller.to_string(),
+                r.count(|s| s.safe).to_string(),
+                r.count(|s| s.collided).to_string(),
+                r.count(|s| s.goal_reached).to_string(),
+                r.worst("min_h", true),
+                r.worst("min_clearance", true),
+                r.worst("time_to_goal", false),
+                r.verdict().to_string(),
+            ]
+        })
+        .collect();
+    let (l, rt) = (Align::Left, Align::Right);
+    let mut t = render_table(
+        &[
+            "world",
+            "controller",
+            "safe",
+            "hit",
+            "goal",
+            "worst h",
+            "worst clr[m]",
+            "worst t[s]",
+            "verdict",
+        ],
+        &[l, l, rt, rt, rt, rt, rt, rt, l],
+        &rows,
     );
-    for r in results {
-        let _ = writeln!(
-            t,
-            "{:<22} {:<11} {:>6} {:>6} {:>6} {:>9} {:>12} {:>10}  {}",
-            r.world,
-            r.controller,
-            r.count(|s| s.safe),
-            r.count(|s| s.collided),
-            r.count(|s| s.goal_reached),
-            r.worst("min_h", true),
-            r.worst("min_clearance", true),
-            r.worst("time_to_goal", false),
-            r.verdict()
-        );
-    }
     let runs: usize = results.iter().map(|r| r.runs.len()).sum();
     let failed = results.iter().filter(|r| !r.passed()).count();
     let _ = write!(

@@ -162,8 +162,14 @@ fn ftcbf_gen_writes_the_same_files_twice_and_lists_them() {
     );
     let listing = String::from_utf8_lossy(&first.stdout).into_owned();
     let lines: Vec<&str> = listing.lines().collect();
-    assert_eq!(lines.len(), 3, "{listing}");
-    for ((name, text), line) in a.iter().zip(&lines) {
+    // a header, its rule, then one row per world
+    assert_eq!(lines.len(), 2 + 3, "{listing}");
+    assert_eq!(
+        lines[0].split_whitespace().collect::<Vec<_>>(),
+        ["file", "kind", "robot", "suite", "attack"],
+        "{listing}"
+    );
+    for ((name, text), line) in a.iter().zip(&lines[2..]) {
         // file, kind, robot, suite, attack
         let cols: Vec<&str> = line.split_whitespace().collect();
         assert_eq!(cols.len(), 5, "{line}");

@@ -48,6 +48,7 @@ pub use spec::{
     failing_verdicts, report_text, write_outputs, BatchOutcome, BatchSpec, FailOn, PrepareFn,
     UnknownLevel, VerdictFailure,
 };
+pub use table::{render as render_table, Align};
 
 /// Confidence level of every interval in a batch summary.
 pub const CONFIDENCE: f64 = 0.95;

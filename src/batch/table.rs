@@ -6,15 +6,18 @@ use super::{stats, BatchResult, LowerQuantiles, UpperQuantiles, Verdict};
 
 /// Column alignment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Align {
+pub enum Align {
+    /// Padded on the right.
     Left,
+    /// Padded on the left (numbers).
     Right,
 }
 
 /// Render a table: a header row, a rule, then the rows; columns padded to their widest cell,
 /// separated by two spaces, no trailing blanks (comfy-table without borders: the rule is its
 /// header line, the gap its right padding).
-pub(crate) fn render(headers: &[&str], align: &[Align], rows: &[Vec<String>]) -> String {
+/// Every plain-text table the tool prints (`batch`, `merge`, `regress`, `gen`) goes through here.
+pub fn render(headers: &[&str], align: &[Align], rows: &[Vec<String>]) -> String {
     use comfy_table::{presets::NOTHING, CellAlignment, Table, TableComponent};
     let ncol = headers.len();
     let mut table = Table::new();
