@@ -20,14 +20,12 @@
 //!   cell's best candidate with the CEM's spread there as its step, every candidate on the same
 //!   2 seeds (common random numbers: the seed-averaged ρ is then a deterministic function of z,
 //!   on which CMA-ES converges; the CEM's own update stalls where its elites cluster, issue #31),
-//!   and half of every later CEM generation explores, in two halves: random search's own first
-//!   candidates of that generation, on the same seeds (so those runs are random search's, bit
-//!   for bit), and uniform parameters in the (pattern, kind) cell tried least so far (so every
-//!   kind on every pattern is tried within the budget). The first half answers the 4 of 24
-//!   catalogue pairs random search won with attacks in cells the CEM had tried 4 times; the
-//!   second keeps the rare cells where nearly every run gives the same ρ and one cell dips
-//!   below it (`turtlebot_odometry_bias`: without it the CEM lost its unsafe attacks on 2 of 3
-//!   seeds). Measurements: issue #31 in the book's falsify history.
+//!   and half of every later CEM generation explores: it is random search's own first
+//!   candidates of that generation, on the same seeds, so the CEM sees half of random search's
+//!   candidates and runs them bit for bit as random search does. Exploring the least-tried
+//!   (pattern, kind) cell instead spread those runs thinly over every cell, and on 4 of 24
+//!   catalogue pairs random search's best attack lay in a cell the CEM had tried 4 times
+//!   (issue #31; the measurements are in the book's falsify history).
 //!   The elites are ranked by their worst run, then their mean, since the search looks for the
 //!   worst run. The CEM pays, from its CMA-ES share, as many runs as one finalist's held-out
 //!   re-run for a counterexample refinement after the finalists: the worst run so far
@@ -295,7 +293,7 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} exploring: half random search's candidates of that generation, half the least-tried (pattern, kind) cells); the CEM spends generations {}–{} ({} candidates, {} runs = {:.0} % of the budget) on CMA-ES over the continuous parameters of its best {} (pattern, kind) cell(s), seeded from the CEM's elites, on 2 fixed seeds; then the best {} on {} held-out seeds = {} runs; the CEM pays {} of its CMA-ES runs for a descent from its worst run so far on that run's seed, after the held-out runs ({} rounds × {} runs)",
+            "plan: {} candidates × {} seeds in {} generations (the first: {} uniform candidates, the same for both methods; then {} each: CEM elites {}, {} carried over, {} of random search's candidates of that generation); the CEM spends generations {}–{} ({} candidates, {} runs = {:.0} % of the budget) on CMA-ES over the continuous parameters of its best {} (pattern, kind) cell(s), seeded from the CEM's elites, on 2 fixed seeds; then the best {} on {} held-out seeds = {} runs; the CEM pays {} of its CMA-ES runs for a descent from its worst run so far on that run's seed, after the held-out runs ({} rounds × {} runs)",
             p.candidates,
             p.seeds_per_candidate,
             p.generations,

@@ -76,9 +76,8 @@ pub struct Plan {
     pub cma_candidates: usize,
     /// (pattern, kind) cells refined by CMA-ES, best first, `cma_candidates` split evenly.
     pub cma_cells: usize,
-    /// Candidates of each later generation that the CEM draws for exploration: the first half
-    /// (rounded up) random search's first candidates of that generation, the rest uniform
-    /// parameters in the least-tried (pattern, kind) cell.
+    /// Candidates of each later generation that the CEM takes from random search's candidates
+    /// of that generation (its first ones; exploration with random search's own draws and runs).
     pub explore: usize,
     /// Rounds of the CEM's counterexample refinement, which comes after the finalists and
     /// spends the held-out runs of random search's last finalist (the CEM re-runs one finalist
@@ -553,8 +552,6 @@ struct Proposer<'a> {
     dist: Sampler,
     /// The previous generation's candidates, worst for the controller first.
     ranked: Vec<Candidate>,
-    /// Candidates proposed so far per (pattern, kind) cell, `pattern · KINDS.len() + kind`.
-    visits: Vec<usize>,
 }
 
 impl<'a> Proposer<'a> {
@@ -567,29 +564,6 @@ impl<'a> Proposer<'a> {
             own: stream(seed, Method::Cem),
             dist: Sampler::new(space.patterns.len(), space.dim),
             ranked: Vec::new(),
-            visits: vec![0; space.patterns.len() * KINDS.len()],
-        }
-    }
-
-    /// A candidate with uniform parameters in the (pattern, kind) cell proposed least so far
-    /// (ties broken at random).
-    fn least_tried(&mut self) -> Candidate {
-        let least = self.visits.iter().copied().min().unwrap_or(0);
-        let cells: Vec<usize> = (0..self.visits.len())
-            .filter(|&i| self.visits[i] == least)
-            .collect();
-        let cell = cells[self.own.random_range(0..cells.len())];
-        let mut c = uniform(self.space, &mut self.own);
-        c.pattern = cell / KINDS.len();
-        c.kind = KINDS[cell % KINDS.len()];
-        c
-    }
-
-    fn count(&mut self, cs: &[Candidate]) {
-        for c in cs {
-            if let Some(v) = self.visits.get_mut(c.pattern * KINDS.len() + kind_index(c)) {
-                *v += 1;
-            }
         }
     }
 
@@ -606,7 +580,6 @@ impl<'a> Proposer<'a> {
         let n = self.plan.generation_size(g);
         let random = self.random_generation(n);
         if g == 0 || self.method == Method::Random {
-            self.count(&random);
             return random;
         }
         // Elitism: the previous generation's best, re-run on this generation's seeds.
@@ -619,31 +592,17 @@ impl<'a> Proposer<'a> {
                 out.push(c.clone());
             }
         }
-        // Exploration, half of each later generation, in two halves. The first is random
-        // search's own first candidates of that generation, run on the same seeds, so those runs
-        // are random search's, bit for bit: where random search's best attack lies in a cell the
-        // CEM's distribution left, the CEM has a fair chance of having it too (issue #31: on the
-        // 4 of 24 pairs random search won, its best attack lay in a cell the CEM had tried 4
-        // times). The second takes uniform parameters in the (pattern, kind) cell tried least so
-        // far, so every kind on every pattern is tried within the budget: where nearly every run
-        // gives the same ρ and one rare cell dips below it (`turtlebot_odometry_bias`, 36
-        // cells), uniform draws alone miss it (random search's half alone lost the CEM's unsafe
-        // attacks there on 2 of 3 seeds).
-        self.count(&out);
+        // Exploration: half of each later generation is random search's own candidates of
+        // that generation (the first of them), run on the same seeds, so those runs are
+        // random search's runs, bit for bit. The CEM then sees half of what random search
+        // sees, and where random search's best attack lies in a cell the CEM's distribution
+        // left, the CEM has it among its candidates with a fair chance (issue #31: on the 4 of
+        // 24 pairs random search won, its best attack lay in a cell the CEM had tried 4 times).
         let explore = self.plan.explore.min(n - out.len());
-        let shared = explore.div_ceil(2);
-        out.extend(random.into_iter().take(shared));
-        self.count(&out[out.len() - shared..]);
-        for _ in shared..explore {
-            let c = self.least_tried();
-            self.count(std::slice::from_ref(&c));
-            out.push(c);
-        }
-        let sampled = out.len();
+        out.extend(random.into_iter().take(explore));
         while out.len() < n {
             out.push(self.dist.sample(&mut self.own));
         }
-        self.count(&out[sampled..]);
         out
     }
 
@@ -1205,13 +1164,12 @@ mod tests {
         search
     }
 
-    /// A quarter of every later CEM generation is random search's first candidates of that
-    /// generation, with the same runs; another quarter tries the least-tried cells.
+    /// Half of every later CEM generation is random search's first candidates of that
+    /// generation, with the same runs: the CEM sees half of what random search sees.
     #[test]
-    fn the_cems_exploration_shares_random_searchs_candidates_and_runs() {
+    fn the_cems_exploration_is_random_searchs_own_candidates_and_runs() {
         let plan = Plan::new(400).expect("plan");
         let sp = space(3);
-        let shared = plan.explore.div_ceil(2);
         for seed in 1..=5 {
             let cem = evaluations(Method::Cem, &plan, &sp, seed);
             let rnd = evaluations(Method::Random, &plan, &sp, seed);
@@ -1223,36 +1181,16 @@ mod tests {
                         .collect()
                 };
                 let (c, r) = (of(&cem), of(&rnd));
-                assert_eq!(
-                    &c[plan.carry..plan.carry + shared],
-                    &r[..shared],
-                    "seed {seed}, generation {g}"
-                );
-                // The rest is the CEM's own: carried elites, least-tried cells, its samples.
+                let shared = &c[plan.carry..plan.carry + plan.explore];
+                assert_eq!(shared, &r[..plan.explore], "seed {seed}, generation {g}");
+                // The rest is the CEM's own: carried elites and samples of its distribution.
                 assert!(
-                    c[plan.carry + shared..].iter().all(|e| !r.contains(e)),
+                    c[plan.carry + plan.explore..]
+                        .iter()
+                        .all(|e| !r.contains(e)),
                     "seed {seed}, generation {g}"
                 );
             }
-        }
-    }
-
-    /// The CEM's exploration tries every (pattern, kind) cell within the budget: a catastrophic
-    /// attack that lives in one rare cell (one kind on one of three patterns) cannot be missed
-    /// for lack of a draw, which uniform sampling of the same number of candidates risks.
-    #[test]
-    fn exploration_tries_every_pattern_and_kind() {
-        let plan = Plan::new(400).expect("plan");
-        let sp = space(3);
-        for seed in 1..=5 {
-            let cem = evaluations(Method::Cem, &plan, &sp, seed);
-            let mut cells: Vec<(usize, usize)> = cem
-                .iter()
-                .map(|e| (e.candidate.pattern, kind_index(&e.candidate)))
-                .collect();
-            cells.sort();
-            cells.dedup();
-            assert_eq!(cells.len(), 3 * KINDS.len(), "seed {seed}: {cells:?}");
         }
     }
 
