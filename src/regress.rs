@@ -257,14 +257,14 @@ pub fn table_text(results: &[CaseResult]) -> String {
         .map(|r| {
             vec![
                 r.world.clone(),
-                r.controller.to_string(),
-                r.count(|s| s.safe).to_string(),
-                r.count(|s| s.collided).to_string(),
-                r.count(|s| s.goal_reached).to_string(),
+                r.controller.clone(),
+                r.count(|s| s.safe),
+                r.count(|s| s.collided),
+                r.count(|s| s.goal_reached),
                 r.worst("min_h", true),
                 r.worst("min_clearance", true),
                 r.worst("time_to_goal", false),
-                r.verdict().to_string(),
+                r.verdict(),
             ]
         })
         .collect();

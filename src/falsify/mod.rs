@@ -38,10 +38,8 @@
 //! - **Noise**: every candidate runs on 2 seeds (common within a generation, fresh for every
 //!   generation, the same for both methods); the CEM's elites are ranked by their worst run (then
 //!   the mean, collisions first), the finalists by seed-averaged robustness; the best 4 distinct
-//!   candidates (a re-run candidate ranked by all its runs; the CEM's are the best of each of its
-//!   best 4 (pattern, kind) cells, since its top candidates are otherwise near-copies of one
-//!   attack) are re-run on held-out seeds, and both the seed-averaged and the worst robustness
-//!   are reported.
+//!   candidates of each method (a re-run candidate ranked by all its runs) are re-run on
+//!   held-out seeds, and both the seed-averaged and the worst robustness are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
 //!   run count and the same seeds.
 //! - **Determinism**: candidates are drawn from seeded ChaCha streams; runs go to the batch

@@ -43,7 +43,7 @@ const REFINE_TAG: u64 = 0x52_45_46;
 const KIND_FLOOR: f64 = 0.12;
 
 /// How a budget of runs is spent (the same for the CEM and for random search, but for the
-/// CEM's last finalist, whose runs go to its counterexample refinement).
+/// CEM's counterexample refinement, paid from its CMA-ES candidates).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Plan {
     /// Runs allowed.
@@ -68,7 +68,8 @@ pub struct Plan {
     /// First generation whose candidates the CEM spends on its CMA-ES refinement instead
     /// (random search keeps drawing uniform candidates there): the CEM runs generations
     /// `0 .. cma_from`, then CMA-ES on the continuous parameters of its best (pattern, kind)
-    /// cells with the candidates of generations `cma_from ..` (`cma_candidates` of them, each on
+    /// cells with the candidates of generations `cma_from ..` less those paying for the
+    /// counterexample refinement (`cma_candidates` of them, each on
     /// the 2 seeds of generation `cma_from`, fixed for the whole refinement: common random
     /// numbers make the seed-averaged ρ a deterministic function of z, on which CMA-ES converges).
     pub cma_from: usize,
@@ -80,17 +81,20 @@ pub struct Plan {
     /// of that generation (its first ones; exploration with random search's own draws and runs).
     pub explore: usize,
     /// Rounds of the CEM's counterexample refinement, which comes after the finalists and
-    /// spends the held-out runs of random search's last finalist (the CEM re-runs one finalist
-    /// fewer): with the worst run's seed fixed, ρ is a deterministic function of the attack, and
+    /// makes as many runs as one finalist's held-out re-run, paid from the CMA-ES candidates
+    /// (`refine_runs` / `seeds_per_candidate` of them, rounded up): with the worst run's seed
+    /// fixed, ρ is a deterministic function of the attack, and
     /// each round runs `refine_per_round` perturbations of the worst attack so far on that seed.
     pub refine_rounds: usize,
     /// Candidates per refinement round (one run each).
     pub refine_per_round: usize,
-    /// Best searched candidates re-run on held-out seeds (random search; the CEM one fewer).
+    /// Best searched candidates re-run on held-out seeds (both methods).
     pub finalists: usize,
     /// Held-out seeds per finalist (the same for every finalist).
     pub final_seeds: usize,
-    /// Runs used: candidates × seeds_per_candidate + finalists × final_seeds ≤ budget.
+    /// Runs used by random search: candidates × seeds_per_candidate + finalists × final_seeds
+    /// ≤ budget (the CEM's are at most as many: its refinement's runs replace as many or more
+    /// CMA-ES runs).
     pub runs: usize,
 }
 
@@ -937,8 +941,8 @@ impl Search<'_> {
             .set_message(format!("{} final re-evaluation", method.name()));
         let mut finalists = self.evaluate(None, picked, &plan.final_seeds(self.seed))?;
         finalists.sort_by(|a, b| a.cmp_worse(b));
-        // The CEM's last finalist's runs: refine the worst run so far, held-out runs included
-        // (the finalists' held-out results are final before it starts).
+        // The CEM's refinement (paid from its CMA-ES share): refine the worst run so far,
+        // held-out runs included (the finalists' held-out results are final before it starts).
         if refine {
             if let Some(start) = worst_run(search.iter().chain(&finalists)) {
                 self.bar
