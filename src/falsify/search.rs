@@ -556,6 +556,11 @@ struct Proposer<'a> {
     dist: Sampler,
     /// The previous generation's candidates, worst for the controller first.
     ranked: Vec<Candidate>,
+    /// The previous generation was flat: its best candidate tied with its first non-elite
+    /// (nothing ranked above the rest), so it told the CEM nothing.
+    flat: bool,
+    /// Candidates proposed so far per (pattern, kind) cell, `pattern · KINDS.len() + kind`.
+    visits: Vec<usize>,
 }
 
 impl<'a> Proposer<'a> {
@@ -568,6 +573,31 @@ impl<'a> Proposer<'a> {
             own: stream(seed, Method::Cem),
             dist: Sampler::new(space.patterns.len(), space.dim),
             ranked: Vec::new(),
+            flat: false,
+            visits: vec![0; space.patterns.len() * KINDS.len()],
+        }
+    }
+
+    /// A candidate with uniform parameters in a (pattern, kind) cell proposed least so far
+    /// (ties broken at random), from the CEM's own stream.
+    fn least_tried(&mut self) -> Candidate {
+        let least = self.visits.iter().copied().min().unwrap_or(0);
+        let cells: Vec<usize> = (0..self.visits.len())
+            .filter(|&i| self.visits[i] == least)
+            .collect();
+        let cell = cells[self.own.random_range(0..cells.len())];
+        let mut c = uniform(self.space, &mut self.own);
+        c.pattern = cell / KINDS.len();
+        c.kind = KINDS[cell % KINDS.len()];
+        c
+    }
+
+    /// Counts `cs` in [`Proposer::visits`].
+    fn count(&mut self, cs: &[Candidate]) {
+        for c in cs {
+            if let Some(v) = self.visits.get_mut(c.pattern * KINDS.len() + kind_index(c)) {
+                *v += 1;
+            }
         }
     }
 
@@ -584,6 +614,7 @@ impl<'a> Proposer<'a> {
         let n = self.plan.generation_size(g);
         let random = self.random_generation(n);
         if g == 0 || self.method == Method::Random {
+            self.count(&random);
             return random;
         }
         // Elitism: the previous generation's best, re-run on this generation's seeds.
@@ -604,8 +635,21 @@ impl<'a> Proposer<'a> {
         // 24 pairs random search won, its best attack lay in a cell the CEM had tried 4 times).
         let explore = self.plan.explore.min(n - out.len());
         out.extend(random.into_iter().take(explore));
+        self.count(&out);
+        // The rest is the CEM's own: samples of its distribution, or, after a flat generation
+        // (nothing ranked above the rest, so the distribution learnt nothing), uniform
+        // parameters in the least-tried (pattern, kind) cells. On a plateau, where nearly every
+        // run gives the same ρ (the start's margin) and one rare cell dips below it
+        // (`turtlebot_odometry_bias`: 3 patterns × 12 kinds), the CEM then covers the cells
+        // instead of following arbitrary tied elites.
         while out.len() < n {
-            out.push(self.dist.sample(&mut self.own));
+            let c = if self.flat {
+                self.least_tried()
+            } else {
+                self.dist.sample(&mut self.own)
+            };
+            self.count(std::slice::from_ref(&c));
+            out.push(c);
         }
         out
     }
@@ -614,12 +658,12 @@ impl<'a> Proposer<'a> {
     fn observe(&mut self, evals: &[Evaluation]) {
         let mut order: Vec<&Evaluation> = evals.iter().collect();
         order.sort_by(|a, b| a.cmp_worse_tail(b));
-        if self.method == Method::Cem {
-            let elites: Vec<&Candidate> = order
-                .iter()
-                .take(Plan::elites_of(evals.len()))
-                .map(|e| &e.candidate)
-                .collect();
+        let e = Plan::elites_of(evals.len());
+        // Flat: the best ties the first non-elite, so the elites are an arbitrary pick of
+        // equals and moving the distribution towards them would be a random walk.
+        self.flat = order.len() > e && order[0].cmp_worse_tail(order[e]).is_eq();
+        if self.method == Method::Cem && !self.flat {
+            let elites: Vec<&Candidate> = order.iter().take(e).map(|e| &e.candidate).collect();
             self.dist.update(&elites);
         }
         self.ranked = order.into_iter().map(|e| e.candidate.clone()).collect();
@@ -1196,6 +1240,98 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A plateau: every run gives the start's margin 0.05 (the same for every candidate on a
+    /// seed), but for scale attacks on pattern 2 with z₀ < 0.25 if `dip`, which give −0.5.
+    fn plateau(c: &Candidate, dip: bool) -> f64 {
+        if dip && c.pattern == 2 && c.kind == Kind::Scale && c.z[0] < 0.25 {
+            -0.5
+        } else {
+            0.05
+        }
+    }
+
+    /// The CEM's generations before CMA-ES on [`plateau`]: per generation, its candidates'
+    /// evaluations and whether the proposer then called it flat, and the distribution's kind
+    /// probabilities before and after it observed them.
+    #[allow(clippy::type_complexity)]
+    fn cem_on_plateau(
+        plan: &Plan,
+        sp: &SearchSpace,
+        seed: u64,
+        dip: bool,
+    ) -> Vec<(Vec<Evaluation>, bool, Vec<f64>, Vec<f64>)> {
+        let mut proposer = Proposer::new(Method::Cem, plan, sp, seed);
+        (0..plan.cma_from)
+            .map(|g| {
+                let seeds = plan.generation_seeds(seed, g);
+                let evals: Vec<Evaluation> = proposer
+                    .propose(g)
+                    .into_iter()
+                    .map(|c| {
+                        let runs = seeds
+                            .iter()
+                            .map(|&s| SeedRun {
+                                seed: s,
+                                robustness: Robustness {
+                                    value: plateau(&c, dip),
+                                    collided: false,
+                                    binding: "floor".into(),
+                                },
+                            })
+                            .collect();
+                        Evaluation::new(Some(g), c, sp, runs)
+                    })
+                    .collect();
+                let before = proposer.dist.kinds.clone();
+                proposer.observe(&evals);
+                (evals, proposer.flat, before, proposer.dist.kinds.clone())
+            })
+            .collect()
+    }
+
+    /// On a plateau every generation is flat: the CEM does not move its distribution towards
+    /// tied elites, and its own candidates go to the least-tried (pattern, kind) cells, so it
+    /// tries all 36 cells of a 3-pattern space before CMA-ES. Where one cell dips below the
+    /// plateau, the first generation that finds it is not flat, and the next carries the dip.
+    #[test]
+    fn on_a_plateau_the_cem_covers_every_cell_and_keeps_a_dip_it_finds() {
+        let plan = Plan::new(400).expect("plan");
+        let sp = space(3);
+        let mut kept = 0;
+        for seed in 0..20 {
+            let gens = cem_on_plateau(&plan, &sp, seed, false);
+            let cells: std::collections::BTreeSet<(usize, usize)> = gens
+                .iter()
+                .flat_map(|(evals, ..)| evals.iter())
+                .map(|e| (e.candidate.pattern, kind_index(&e.candidate)))
+                .collect();
+            assert_eq!(cells.len(), 3 * KINDS.len(), "seed {seed}");
+            for (g, (_, flat, before, after)) in gens.iter().enumerate() {
+                assert!(*flat, "seed {seed}, generation {g}");
+                assert_eq!(
+                    before, after,
+                    "seed {seed}: a flat generation moved the CEM"
+                );
+            }
+            let gens = cem_on_plateau(&plan, &sp, seed, true);
+            let found = gens[..plan.cma_from - 1]
+                .iter()
+                .position(|(evals, ..)| evals.iter().any(|e| e.mean < 0.0));
+            if let Some(g) = found {
+                let dip = gens[g].0.iter().find(|e| e.mean < 0.0).expect("dip");
+                assert!(!gens[g].1, "seed {seed}: a generation with a dip is flat");
+                assert!(
+                    gens[g + 1].0[..plan.carry]
+                        .iter()
+                        .any(|e| e.candidate == dip.candidate),
+                    "seed {seed}: the dip was not carried"
+                );
+                kept += 1;
+            }
+        }
+        assert!(kept >= 5, "the dip was found on only {kept} of 20 seeds");
     }
 
     fn worst(e: &[Evaluation]) -> f64 {
