@@ -25,7 +25,10 @@
 //!   candidates and runs them bit for bit as random search does. Exploring the least-tried
 //!   (pattern, kind) cell instead spread those runs thinly over every cell, and on 4 of 24
 //!   catalogue pairs random search's best attack lay in a cell the CEM had tried 4 times
-//!   (issue #31; the measurements are in the book's falsify history).
+//!   (issue #31; the measurements are in the book's falsify history). After a flat generation
+//!   (its best candidate ties its first non-elite: a plateau of ρ, where the elites are an
+//!   arbitrary pick of equals) the CEM leaves its distribution as it was and spends its own
+//!   candidates of the next generation on the least-tried cells.
 //!   The elites are ranked by their worst run, then their mean, since the search looks for the
 //!   worst run. The CEM pays, from its CMA-ES share, as many runs as one finalist's held-out
 //!   re-run for a counterexample refinement after the finalists: the worst run so far
