@@ -1164,12 +1164,13 @@ mod tests {
         arm + d + 0.01 * noise
     }
 
-    /// Synthetic evaluations of `cs` on `seeds`.
-    fn synthetic_evals(
+    /// Evaluations of `cs` on `seeds` with the made-up robustness `rho(candidate, seed)`.
+    fn evals_with(
         g: Option<usize>,
         cs: Vec<Candidate>,
         space: &SearchSpace,
         seeds: &[u64],
+        rho: impl Fn(&Candidate, u64) -> f64,
     ) -> Vec<Evaluation> {
         cs.into_iter()
             .map(|c| {
@@ -1178,7 +1179,7 @@ mod tests {
                     .map(|&s| SeedRun {
                         seed: s,
                         robustness: Robustness {
-                            value: synthetic(&c, s),
+                            value: rho(&c, s),
                             collided: false,
                             binding: "x".into(),
                         },
@@ -1187,6 +1188,16 @@ mod tests {
                 Evaluation::new(g, c, space, runs)
             })
             .collect()
+    }
+
+    /// Synthetic evaluations of `cs` on `seeds`.
+    fn synthetic_evals(
+        g: Option<usize>,
+        cs: Vec<Candidate>,
+        space: &SearchSpace,
+        seeds: &[u64],
+    ) -> Vec<Evaluation> {
+        evals_with(g, cs, space, seeds, synthetic)
     }
 
     /// One method's searched evaluations, then (the CEM) its refinement from the worst of them,
@@ -1265,25 +1276,13 @@ mod tests {
         let mut proposer = Proposer::new(Method::Cem, plan, sp, seed);
         (0..plan.cma_from)
             .map(|g| {
-                let seeds = plan.generation_seeds(seed, g);
-                let evals: Vec<Evaluation> = proposer
-                    .propose(g)
-                    .into_iter()
-                    .map(|c| {
-                        let runs = seeds
-                            .iter()
-                            .map(|&s| SeedRun {
-                                seed: s,
-                                robustness: Robustness {
-                                    value: plateau(&c, dip),
-                                    collided: false,
-                                    binding: "floor".into(),
-                                },
-                            })
-                            .collect();
-                        Evaluation::new(Some(g), c, sp, runs)
-                    })
-                    .collect();
+                let evals = evals_with(
+                    Some(g),
+                    proposer.propose(g),
+                    sp,
+                    &plan.generation_seeds(seed, g),
+                    |c, _| plateau(c, dip),
+                );
                 let before = proposer.dist.kinds.clone();
                 proposer.observe(&evals);
                 (evals, proposer.flat, before, proposer.dist.kinds.clone())
