@@ -1263,16 +1263,24 @@ mod tests {
         }
     }
 
-    /// The CEM's generations before CMA-ES on [`plateau`]: per generation, its candidates'
-    /// evaluations and whether the proposer then called it flat, and the distribution's kind
-    /// probabilities before and after it observed them.
-    #[allow(clippy::type_complexity)]
+    /// One CEM generation on [`plateau`], as the proposer saw it.
+    struct PlateauGeneration {
+        /// Its candidates' evaluations.
+        evals: Vec<Evaluation>,
+        /// The proposer called it flat after observing it.
+        flat: bool,
+        /// The distribution's kind probabilities before and after it observed them.
+        kinds_before: Vec<f64>,
+        kinds_after: Vec<f64>,
+    }
+
+    /// The CEM's generations before CMA-ES on [`plateau`].
     fn cem_on_plateau(
         plan: &Plan,
         sp: &SearchSpace,
         seed: u64,
         dip: bool,
-    ) -> Vec<(Vec<Evaluation>, bool, Vec<f64>, Vec<f64>)> {
+    ) -> Vec<PlateauGeneration> {
         let mut proposer = Proposer::new(Method::Cem, plan, sp, seed);
         (0..plan.cma_from)
             .map(|g| {
@@ -1283,9 +1291,14 @@ mod tests {
                     &plan.generation_seeds(seed, g),
                     |c, _| plateau(c, dip),
                 );
-                let before = proposer.dist.kinds.clone();
+                let kinds_before = proposer.dist.kinds.clone();
                 proposer.observe(&evals);
-                (evals, proposer.flat, before, proposer.dist.kinds.clone())
+                PlateauGeneration {
+                    evals,
+                    flat: proposer.flat,
+                    kinds_before,
+                    kinds_after: proposer.dist.kinds.clone(),
+                }
             })
             .collect()
     }
@@ -1303,26 +1316,29 @@ mod tests {
             let gens = cem_on_plateau(&plan, &sp, seed, false);
             let cells: std::collections::BTreeSet<(usize, usize)> = gens
                 .iter()
-                .flat_map(|(evals, ..)| evals.iter())
+                .flat_map(|gen| gen.evals.iter())
                 .map(|e| (e.candidate.pattern, kind_index(&e.candidate)))
                 .collect();
             assert_eq!(cells.len(), 3 * KINDS.len(), "seed {seed}");
-            for (g, (_, flat, before, after)) in gens.iter().enumerate() {
-                assert!(*flat, "seed {seed}, generation {g}");
+            for (g, gen) in gens.iter().enumerate() {
+                assert!(gen.flat, "seed {seed}, generation {g}");
                 assert_eq!(
-                    before, after,
+                    gen.kinds_before, gen.kinds_after,
                     "seed {seed}: a flat generation moved the CEM"
                 );
             }
             let gens = cem_on_plateau(&plan, &sp, seed, true);
             let found = gens[..plan.cma_from - 1]
                 .iter()
-                .position(|(evals, ..)| evals.iter().any(|e| e.mean < 0.0));
+                .position(|gen| gen.evals.iter().any(|e| e.mean < 0.0));
             if let Some(g) = found {
-                let dip = gens[g].0.iter().find(|e| e.mean < 0.0).expect("dip");
-                assert!(!gens[g].1, "seed {seed}: a generation with a dip is flat");
+                let dip = gens[g].evals.iter().find(|e| e.mean < 0.0).expect("dip");
                 assert!(
-                    gens[g + 1].0[..plan.carry]
+                    !gens[g].flat,
+                    "seed {seed}: a generation with a dip is flat"
+                );
+                assert!(
+                    gens[g + 1].evals[..plan.carry]
                         .iter()
                         .any(|e| e.candidate == dip.candidate),
                     "seed {seed}: the dip was not carried"
