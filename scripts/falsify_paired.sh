@@ -27,17 +27,28 @@ for w in $worlds; do
     t0=$(date +%s)
     "$ftcbf" falsify "worlds/$w.toml" --controller ft-cbf-clf --budget "$budget" --seed "$s" \
       --jobs "$jobs" --no-record --out "$out/$w-s$s-worst.toml" --json "$out/partial.json" >/dev/null
-    jq --argjson wall $(($(date +%s) - t0)) '. + {wall_s: $wall}' "$out/partial.json" >"$j" && rm "$out/partial.json"
+    # The report is kept as ftcbf wrote it: jq 1.6 would round its 64-bit seeds through doubles,
+    # and a seed that no longer replays is useless. The wall time goes beside it.
+    echo $(($(date +%s) - t0)) >"$out/$w-s$s.wall_s"
+    mv "$out/partial.json" "$j"
   done
 done
 
-printf 'world\tseed\tcem_worse\trandom_worse\tp\tverdict\tcem_worst_rho\trandom_worst_rho\twall_s\n'
+# attack_free_mean: the world without attacks on the same held-out seeds; moves_rho: "yes" when
+# some method's best attack is worse than no attack on significantly many of them (sign test).
+printf 'world\tseed\tcem_worse\trandom_worse\tp\tverdict\tcem_worst_rho\trandom_worst_rho\tattack_free_mean\tmoves_rho\twall_s\n'
 for w in $worlds; do
   for s in $seeds; do
-    jq -r --arg s "$s" '
+    jq -r --arg s "$s" --arg wall "$(cat "$out/$w-s$s.wall_s" 2>/dev/null || echo -)" '
       (.methods | map({(.method): .witness.robustness.value}) | add) as $w
       | [.world, $s, .paired.cem_worse, .paired.random_worse, (.paired.p * 1000 | round / 1000),
          (if .paired.p < 0.05 then (if .paired.cem_worse > .paired.random_worse then "CEM" else "random" end)
-          else "tie" end), $w.cem, $w.random, .wall_s] | @tsv' "$out/$w-s$s.json"
+          else "tie" end), $w.cem, $w.random, (.attack_free.mean * 10000 | round / 10000),
+         (if any(.attack_free.moved[]; .p < 0.05 and .attack_worse > .attack_free_worse) then "yes" else "no" end),
+         $wall] | @tsv' "$out/$w-s$s.json"
   done
 done
+# The tally over the pairs: CEM wins, ties, random-search wins.
+for w in $worlds; do for s in $seeds; do cat "$out/$w-s$s.json"; done; done |
+  jq -s -r 'map(.paired | if .p >= 0.05 then "tie" elif .cem_worse > .random_worse then "CEM" else "random" end)
+    | "pairs \(length): CEM \(map(select(. == "CEM")) | length), tie \(map(select(. == "tie")) | length), random \(map(select(. == "random")) | length)"'

@@ -42,7 +42,8 @@ pub struct FalsifyArgs {
     /// Controller under test [default: the world's `control.controller`].
     #[arg(long, value_name = "KIND", value_parser = crate::cli::controller_parser(false))]
     pub controller: Option<ControllerKindSpec>,
-    /// Runs (simulations) per search method (at least 24), or in all with --scenario (at least 8).
+    /// Runs (simulations) per search method (at least 24; plus one run of the world without
+    /// attacks per held-out seed, the reference), or in all with --scenario (at least 8).
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub budget: u64,

@@ -78,6 +78,32 @@ pub struct FalsifyJson {
     pub methods: Vec<FalsifyMethod>,
     /// Both methods' best attacks on the same held-out seeds.
     pub paired: Option<FalsifyPaired>,
+    /// The world without attacks on the same held-out seeds (absent in reports written before
+    /// falsify ran it).
+    #[serde(default)]
+    pub attack_free: Option<FalsifyAttackFree>,
+}
+
+/// The attack-free reference of a falsify report.
+#[derive(Debug, Clone, Deserialize)]
+pub struct FalsifyAttackFree {
+    /// Mean ρ without attacks (`None`: not finite).
+    pub mean: Option<f64>,
+    /// Each method's best attack against no attack.
+    pub moved: Vec<FalsifyMoved>,
+}
+
+/// One method's best attack against the attack-free runs, seed by seed.
+#[derive(Debug, Clone, Deserialize)]
+pub struct FalsifyMoved {
+    /// `cem` or `random`.
+    pub method: String,
+    /// Seeds where the attack is the worse.
+    pub attack_worse: usize,
+    /// Seeds where no attack is the worse.
+    pub attack_free_worse: usize,
+    /// Sign test.
+    pub p: f64,
 }
 
 /// One search method's result.
@@ -681,9 +707,13 @@ fn falsify_page(inputs: &Inputs) -> String {
         out,
         "| world | Theorem 3 | CEM worst ρ (binding) | random worst ρ | CEM unsafe runs | random \
          unsafe runs | CEM held-out mean ρ | random held-out mean ρ | worst run: worse for the \
-         controller | paired: CEM : random (sign test) | paired: better search |"
+         controller | paired: CEM : random (sign test) | paired: better search | no attack: \
+         held-out mean ρ (best attack worse : better, CEM; random) |"
     );
-    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---|---|---|");
+    let _ = writeln!(
+        out,
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---|---|---|"
+    );
     for (_, f) in &inputs.falsify {
         let batch = t3.get(f.world_file.as_str()).copied();
         let cem = f.methods.iter().find(|m| m.method == "cem");
@@ -725,9 +755,32 @@ fn falsify_page(inputs: &Inputs) -> String {
             ),
             None => ("—".to_string(), "—".to_string()),
         };
+        let attack_free = f.attack_free.as_ref().map_or("—".to_string(), |a| {
+            let counts: Vec<String> = a
+                .moved
+                .iter()
+                .map(|m| {
+                    format!(
+                        "{} : {}{}",
+                        m.attack_worse,
+                        m.attack_free_worse,
+                        if m.p < 0.05 && m.attack_worse > m.attack_free_worse {
+                            ""
+                        } else {
+                            " (not moved)"
+                        }
+                    )
+                })
+                .collect();
+            format!(
+                "{} ({})",
+                a.mean.map_or("−∞".to_string(), |v| format!("{v:.4}")),
+                counts.join("; ")
+            )
+        });
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f.world,
             theorem3_short(batch.and_then(|b| b.plan.theorem3.as_deref())),
             cell(cem, &|m| format!(
@@ -743,6 +796,7 @@ fn falsify_page(inputs: &Inputs) -> String {
             worst_run,
             paired,
             paired_better,
+            attack_free,
         );
     }
     let _ = writeln!(out);

@@ -204,6 +204,62 @@ fn outputs_do_not_depend_on_jobs_and_the_threat_model_holds() {
         "{paired}"
     );
     assert!(out1.contains("best attacks, paired on the"), "{out1}");
+    // The attack-free reference runs the world without attacks on the same held-out seeds, each
+    // run as `ftcbf run` of the world with its [[attacks]] removed gives it, and counts, seed by
+    // seed, where each method's best attack is the worse.
+    let free = &v["attack_free"];
+    let free_runs: Vec<(u64, f64)> = free["runs"]
+        .as_array()
+        .expect("attack_free.runs")
+        .iter()
+        .map(|r| (r["seed"].as_u64().expect("seed"), rho(r)))
+        .collect();
+    assert_eq!(
+        free_runs.iter().map(|r| r.0).collect::<Vec<_>>(),
+        a.iter().map(|r| r.0).collect::<Vec<_>>()
+    );
+    for (m, best) in [(0, &a), (1, &b)] {
+        let moved = &free["moved"][m];
+        let worse = best
+            .iter()
+            .zip(&free_runs)
+            .filter(|((_, ra), (_, rf))| ra < rf)
+            .count();
+        assert_eq!(
+            moved["attack_worse"].as_u64(),
+            Some(worse as u64),
+            "{moved}"
+        );
+        assert_eq!(moved["seeds"].as_u64(), Some(best.len() as u64), "{moved}");
+    }
+    let mut plain: toml::Table = std::fs::read_to_string("worlds/paper_linear.toml")
+        .expect("world")
+        .parse()
+        .expect("toml");
+    plain.remove("attacks");
+    plain.remove("expect");
+    let plain_path = tmp("lin_attack_free.toml");
+    std::fs::write(&plain_path, toml::to_string(&plain).expect("toml")).expect("write");
+    let (seed, rho_free) = free_runs[free_runs.len() - 1];
+    let o = ftcbf(&[
+        "run",
+        s(&plain_path),
+        "--seed",
+        &seed.to_string(),
+        "--no-record",
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let summary: Value = serde_json::from_slice(&o.stdout).expect("run json");
+    let replayed = summary["min_barrier"]
+        .as_array()
+        .expect("min_barrier")
+        .iter()
+        .map(|b| b["value"].as_f64().expect("h"))
+        .chain(summary["min_clearance"].as_f64())
+        .fold(f64::INFINITY, f64::min);
+    assert_eq!(replayed, rho_free, "{summary}");
+    assert!(out1.contains("no attack, on the same"), "{out1}");
     let patterns: Vec<Vec<String>> = v["patterns"]
         .as_array()
         .expect("patterns")
@@ -501,11 +557,17 @@ fn the_library_search_advances_the_callers_bar_once_per_run() {
         assert_eq!(report.methods.len(), 1 + usize::from(compare_random));
         let runs = settings.runs().expect("runs");
         assert_eq!(bar.position(), runs, "random search: {compare_random}");
-        // The budget is per method; the two methods share their first generation.
+        // The budget is per method; the two methods share their first generation; the
+        // attack-free reference adds one run per held-out seed, outside the budgets.
+        let reference = report.plan.final_seeds as u64;
+        assert_eq!(
+            report.attack_free.as_ref().map(|a| a.runs.len() as u64),
+            Some(reference)
+        );
         if compare_random {
-            assert!(24 < runs && runs < 48, "{runs}");
+            assert!(24 + reference < runs && runs < 48 + reference, "{runs}");
         } else {
-            assert_eq!(runs, 24);
+            assert_eq!(runs, 24 + reference);
         }
     }
 }

@@ -44,7 +44,10 @@
 //!   candidates of each method (a re-run candidate ranked by all its runs) are re-run on
 //!   held-out seeds, and both the seed-averaged and the worst robustness are reported.
 //! - **Comparison**: random search (uniform over the same space) with the same plan, the same
-//!   run count and the same seeds.
+//!   run count and the same seeds; the paired verdict on the held-out seeds ([`Paired`]).
+//! - **Reference** ([`AttackFree`]): the world without attacks on the same held-out seeds
+//!   (outside both budgets), against which each method's best attack is paired: whether an
+//!   attack moved ρ at all.
 //! - **Determinism**: candidates are drawn from seeded ChaCha streams; runs go to the batch
 //!   engine's thread pool ([`crate::batch::run_parallel`]) and come back in order, so the result
 //!   does not depend on the number of threads.
@@ -66,7 +69,7 @@ use ftcbf_sim::world::{ControllerKindSpec, World};
 use serde::Serialize;
 
 pub use robustness::{Robustness, CLEARANCE};
-pub use search::{Method, MethodResult, Plan};
+pub use search::{Method, MethodResult, Plan, SeedRun};
 pub use space::{Candidate, Kind, SearchSpace};
 pub use template::{ReplayInfo, WorldTemplate};
 
@@ -107,7 +110,8 @@ impl Settings {
         let plan = Plan::new(self.budget)?;
         let methods = self.methods().len();
         let shared = (methods - 1) * plan.first * plan.seeds_per_candidate;
-        Ok((plan.runs * methods - shared) as u64)
+        // The attack-free reference runs once, on the held-out seeds, outside both budgets.
+        Ok((plan.runs * methods - shared + plan.final_seeds) as u64)
     }
 }
 
@@ -135,6 +139,8 @@ pub struct Report {
     /// The two methods' best attacks compared seed by seed on the common held-out seeds (when
     /// random search ran).
     pub paired: Option<Paired>,
+    /// The world without attacks on the held-out seeds, and each method's best attack against it.
+    pub attack_free: Option<AttackFree>,
 }
 
 /// The CEM's and random search's best attacks (best finalists) on the same held-out seeds: a
@@ -154,32 +160,40 @@ pub struct Paired {
     pub mean_difference: f64,
 }
 
+/// Two lists of runs paired by seed: on how many seeds each is the worse for the controller,
+/// the exact two-sided sign test (ties left out) and the mean of ρ_a − ρ_b. `None` when no seed
+/// is shared.
+fn pair_runs(a: &[SeedRun], b: &[SeedRun]) -> Option<(usize, usize, usize, f64, f64)> {
+    let (mut a_worse, mut b_worse, mut diff, mut seeds) = (0, 0, 0.0, 0);
+    for ra in a {
+        let Some(rb) = b.iter().find(|r| r.seed == ra.seed) else {
+            continue;
+        };
+        seeds += 1;
+        diff += ra.robustness.value - rb.robustness.value;
+        match ra.robustness.cmp_worse(&rb.robustness) {
+            std::cmp::Ordering::Less => a_worse += 1,
+            std::cmp::Ordering::Greater => b_worse += 1,
+            std::cmp::Ordering::Equal => {}
+        }
+    }
+    (seeds > 0).then(|| {
+        let p = crate::batch::stats::mcnemar_exact_p(a_worse as u64, b_worse as u64);
+        (seeds, a_worse, b_worse, p, diff / seeds as f64)
+    })
+}
+
 impl Paired {
     /// Pairs the two best finalists' runs by seed.
     fn of(cem: &MethodResult, random: &MethodResult) -> Option<Paired> {
-        let (a, b) = (cem.best(), random.best());
-        let mut cem_worse = 0;
-        let mut random_worse = 0;
-        let mut diff = 0.0;
-        let mut seeds = 0;
-        for ra in &a.runs {
-            let Some(rb) = b.runs.iter().find(|r| r.seed == ra.seed) else {
-                continue;
-            };
-            seeds += 1;
-            diff += ra.robustness.value - rb.robustness.value;
-            match ra.robustness.cmp_worse(&rb.robustness) {
-                std::cmp::Ordering::Less => cem_worse += 1,
-                std::cmp::Ordering::Greater => random_worse += 1,
-                std::cmp::Ordering::Equal => {}
-            }
-        }
-        (seeds > 0).then(|| Paired {
+        let (seeds, cem_worse, random_worse, p, mean_difference) =
+            pair_runs(&cem.best().runs, &random.best().runs)?;
+        Some(Paired {
             seeds,
             cem_worse,
             random_worse,
-            p: crate::batch::stats::mcnemar_exact_p(cem_worse as u64, random_worse as u64),
-            mean_difference: diff / seeds as f64,
+            p,
+            mean_difference,
         })
     }
 
@@ -193,6 +207,77 @@ impl Paired {
         } else {
             "random search's"
         }
+    }
+}
+
+/// The world without any attack on the same held-out seeds as the finalists: the reference
+/// that says whether an attack moved ρ at all. Where no method's best attack is worse than no
+/// attack (sign test), attacks do not move ρ in this world at this seed, and the two methods'
+/// best attacks cannot differ by more than the seeds do.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AttackFree {
+    /// Its runs, one per held-out seed.
+    pub runs: Vec<SeedRun>,
+    /// Their mean ρ.
+    pub mean: f64,
+    /// Unsafe runs without any attack.
+    pub unsafe_runs: usize,
+    /// Each method's best attack against no attack, paired by seed.
+    pub moved: Vec<Moved>,
+}
+
+/// One method's best attack (best finalist) against the attack-free runs on the same seeds.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Moved {
+    /// `cem` or `random`.
+    pub method: Method,
+    /// Seeds compared.
+    pub seeds: usize,
+    /// Seeds where the attack made ρ worse than no attack did.
+    pub attack_worse: usize,
+    /// Seeds where the run without an attack was the worse.
+    pub attack_free_worse: usize,
+    /// Exact two-sided sign test of the two counts (ties left out).
+    pub p: f64,
+    /// Mean over the seeds of ρ_attack − ρ_no-attack (negative: the attack moved ρ down).
+    pub mean_difference: f64,
+}
+
+impl Moved {
+    /// The attack made ρ significantly worse than no attack (sign test at the 5 % level).
+    pub fn moves_rho(&self) -> bool {
+        self.p < 0.05 && self.attack_worse > self.attack_free_worse
+    }
+}
+
+impl AttackFree {
+    fn of(runs: Vec<SeedRun>, methods: &[MethodResult]) -> AttackFree {
+        let moved = methods
+            .iter()
+            .filter_map(|m| {
+                let (seeds, attack_worse, attack_free_worse, p, mean_difference) =
+                    pair_runs(&m.best().runs, &runs)?;
+                Some(Moved {
+                    method: m.method,
+                    seeds,
+                    attack_worse,
+                    attack_free_worse,
+                    p,
+                    mean_difference,
+                })
+            })
+            .collect();
+        AttackFree {
+            mean: runs.iter().map(|r| r.robustness.value).sum::<f64>() / runs.len().max(1) as f64,
+            unsafe_runs: runs.iter().filter(|r| r.robustness.is_unsafe()).count(),
+            runs,
+            moved,
+        }
+    }
+
+    /// Some method's best attack moved ρ below the attack-free runs.
+    pub fn attacks_move_rho(&self) -> bool {
+        self.moved.iter().any(Moved::moves_rho)
     }
 }
 
@@ -246,6 +331,10 @@ pub fn falsify(
             .map(|&m| search.run(m, Some(&first)))
             .collect::<anyhow::Result<Vec<_>>>()
     });
+    let attack_free = match &results {
+        Ok(ms) => Some(AttackFree::of(search.attack_free()?, ms)),
+        Err(_) => None,
+    };
     bar.finish_and_clear();
     let patterns: Vec<String> = space
         .patterns
@@ -275,6 +364,7 @@ pub fn falsify(
             Err(_) => None,
         },
         methods: results?,
+        attack_free,
     })
 }
 
@@ -377,6 +467,33 @@ impl Report {
                 p.p,
                 p.verdict()
             );
+        }
+        if let Some(f) = &self.attack_free {
+            let _ = writeln!(
+                s,
+                "no attack, on the same {} held-out seeds: mean ρ = {:.4}, unsafe in {}/{}",
+                f.runs.len(),
+                f.mean,
+                f.unsafe_runs,
+                f.runs.len()
+            );
+            for m in &f.moved {
+                let _ = writeln!(
+                    s,
+                    "  {}'s best attack against no attack: worse on {}, better on {} of {} seeds (mean Δρ = {:+.4}; sign test p = {:.3}): {}",
+                    m.method.name(),
+                    m.attack_worse,
+                    m.attack_free_worse,
+                    m.seeds,
+                    m.mean_difference,
+                    m.p,
+                    if m.moves_rho() {
+                        "the attack moves ρ"
+                    } else {
+                        "NOT distinguishable from no attack"
+                    }
+                );
+            }
         }
         for m in &self.methods {
             let _ = writeln!(s);

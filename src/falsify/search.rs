@@ -904,20 +904,7 @@ impl Search<'_> {
             .flat_map(|i| seeds.iter().map(move |&s| (i, s)))
             .collect();
         let results = run_parallel(self.pool, &tasks, self.bar, |&(i, seed)| {
-            let opts = RunOptions {
-                seed: Some(seed),
-                controller: Some(self.controller),
-                duration: None,
-            };
-            let s = run(&worlds[i], &opts).with_context(|| {
-                format!(
-                    "run of {} with seed {seed} failed",
-                    self.space.describe(&candidates[i])
-                )
-            })?;
-            let robustness = Robustness::of(worlds[i].world(), &s)
-                .ok_or_else(|| anyhow!("the world has no safe set and no obstacle"))?;
-            Ok(SeedRun { seed, robustness })
+            self.run_one(&worlds[i], seed, || self.space.describe(&candidates[i]))
         })?;
         let mut runs = results.into_iter();
         Ok(candidates
@@ -927,6 +914,39 @@ impl Search<'_> {
                 Evaluation::new(generation, c, self.space, r)
             })
             .collect())
+    }
+
+    /// One run of `world` on `seed` under the controller under test, and its robustness;
+    /// `what` names the attack in an error.
+    fn run_one(
+        &self,
+        world: &CompiledWorld,
+        seed: u64,
+        what: impl Fn() -> String,
+    ) -> anyhow::Result<SeedRun> {
+        let opts = RunOptions {
+            seed: Some(seed),
+            controller: Some(self.controller),
+            duration: None,
+        };
+        let s = run(world, &opts)
+            .with_context(|| format!("run of {} with seed {seed} failed", what()))?;
+        let robustness = Robustness::of(world.world(), &s)
+            .ok_or_else(|| anyhow!("the world has no safe set and no obstacle"))?;
+        Ok(SeedRun { seed, robustness })
+    }
+
+    /// The world with no attack at all, on the held-out seeds of the finalists: the reference
+    /// that says how far the best attacks moved ρ (runs outside both methods' budgets).
+    pub fn attack_free(&self) -> anyhow::Result<Vec<SeedRun>> {
+        let world = self.template.compiled_with(&[])?;
+        self.bar.set_message("no attack, on the held-out seeds");
+        run_parallel(
+            self.pool,
+            &self.plan.final_seeds(self.seed),
+            self.bar,
+            |&seed| self.run_one(&world, seed, || "the world without attacks".to_string()),
+        )
     }
 
     /// Runs random search's (and the CEM's) first generation; pass it to [`Search::run`] so
