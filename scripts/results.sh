@@ -40,11 +40,13 @@ if [[ $# -gt 0 ]]; then falsify=("$@"); else falsify=("${catalogue[@]}"); fi
 
 stamp=results/stamp.toml
 if [[ ${RESUME:-0} != 1 || ! -f $stamp ]]; then
-    rm -rf results/batch results/falsify
+    # The tree is judged before the old results are removed: their removal is not a change
+    # to the code that measures.
     commit=$(git rev-parse HEAD)
     if [[ -n $(git status --porcelain --untracked-files=no) ]]; then
         commit="$commit (uncommitted changes)"
     fi
+    rm -rf results/batch results/falsify
     cpu=$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -n 1)
     mkdir -p results
     {

@@ -332,10 +332,11 @@ pub fn falsify(
             .collect::<anyhow::Result<Vec<_>>>()
     });
     let attack_free = match &results {
-        Ok(ms) => Some(AttackFree::of(search.attack_free()?, ms)),
+        Ok(ms) => Some(search.attack_free().map(|runs| AttackFree::of(runs, ms))),
         Err(_) => None,
     };
     bar.finish_and_clear();
+    let attack_free = attack_free.transpose()?;
     let patterns: Vec<String> = space
         .patterns
         .iter()
