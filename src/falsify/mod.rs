@@ -481,8 +481,11 @@ impl Report {
             for m in &f.moved {
                 let _ = writeln!(
                     s,
-                    "  {}'s best attack against no attack: worse on {}, better on {} of {} seeds (mean Δρ = {:+.4}; sign test p = {:.3}): {}",
-                    m.method.name(),
+                    "  {} best attack against no attack: worse on {}, better on {} of {} seeds (mean Δρ = {:+.4}; sign test p = {:.3}): {}",
+                    match m.method {
+                        Method::Cem => "the CEM's",
+                        Method::Random => "random search's",
+                    },
                     m.attack_worse,
                     m.attack_free_worse,
                     m.seeds,
