@@ -326,8 +326,16 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
     if args.scenario {
         return scenario_command(args, &template, &settings);
     }
-    let bar = runs_bar(settings.runs()?, &template.world.name);
+    let runs = settings.runs()?;
+    let bar = runs_bar(runs, &template.world.name);
+    let clock = std::time::Instant::now();
     let report = falsify(&template, &settings, &bar)?;
+    // The time goes to stderr: the summary on stdout and the JSON stay the same for any --jobs.
+    eprintln!(
+        "searched {} in {:.1} s ({runs} runs)",
+        report.world,
+        clock.elapsed().as_secs_f64()
+    );
     print!("{}", report.text());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("runs").join(format!("{}-worst-{}.toml", report.world, report.controller))

@@ -51,6 +51,13 @@ fn baseline_on_paper_turtlebot_is_falsified_and_the_world_replays_it() {
     assert!(rho < 0.0, "no unsafe attack found: ρ = {rho}");
     assert_eq!(v["methods"][0]["runs"], 200);
     assert_eq!(v["replay"]["robustness"], witness["robustness"]);
+    // The search's time and run count on stderr: the budget plus the attack-free reference.
+    let runs = 200 + v["plan"]["final_seeds"].as_u64().expect("final_seeds");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("searched paper_turtlebot in ") && err.contains(&format!(" s ({runs} runs)")),
+        "{err}"
+    );
 
     // The written world is an ordinary world: `ftcbf run` replays the worst run with the
     // seed and controller it names.
