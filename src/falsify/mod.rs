@@ -160,6 +160,10 @@ pub struct Paired {
     pub mean_difference: f64,
 }
 
+/// The level of the sign tests that decide a paired verdict: which method's attack is the
+/// worse, and whether an attack moved ρ.
+const SIGNIFICANCE: f64 = 0.05;
+
 /// Two lists of runs paired by seed: on how many seeds each is the worse for the controller,
 /// the exact two-sided sign test (ties left out) and the mean of ρ_a − ρ_b. `None` when no seed
 /// is shared.
@@ -200,7 +204,7 @@ impl Paired {
     /// "the CEM's" / "random search's" / "neither method's" attack is the more damaging at the
     /// 5 % level.
     pub fn verdict(&self) -> &'static str {
-        if self.p >= 0.05 {
+        if self.p >= SIGNIFICANCE {
             "neither (no significant difference)"
         } else if self.cem_worse > self.random_worse {
             "the CEM's"
@@ -246,7 +250,7 @@ pub struct Moved {
 impl Moved {
     /// The attack made ρ significantly worse than no attack (sign test at the 5 % level).
     pub fn moves_rho(&self) -> bool {
-        self.p < 0.05 && self.attack_worse > self.attack_free_worse
+        self.p < SIGNIFICANCE && self.attack_worse > self.attack_free_worse
     }
 }
 
@@ -273,11 +277,6 @@ impl AttackFree {
             runs,
             moved,
         }
-    }
-
-    /// Some method's best attack moved ρ below the attack-free runs.
-    pub fn attacks_move_rho(&self) -> bool {
-        self.moved.iter().any(Moved::moves_rho)
     }
 }
 
