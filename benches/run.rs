@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ftcbf_sim::record::Recorder;
+use ftcbf_sim::record::{Recorder, RecordingName};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::World;
 
@@ -20,7 +20,15 @@ fn bench(c: &mut Criterion) {
     let out = std::env::temp_dir().join("ftcbf-bench.rrd");
     g.bench_function("record_on", |b| {
         b.iter(|| {
-            let mut rec = Recorder::create(&out, "bench").expect("recording");
+            let mut rec = Recorder::create(
+                &out,
+                &RecordingName {
+                    world: "bench".into(),
+                    controller: "ft-cbf-clf".into(),
+                    seed: 0,
+                },
+            )
+            .expect("recording");
             let s = run_observed(&world, &opts, Some(&mut rec)).expect("runs");
             rec.finish().expect("flushed");
             s

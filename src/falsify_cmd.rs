@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context};
-use ftcbf_sim::record::Recorder;
+use ftcbf_sim::record::{Recorder, RecordingName};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
 use indicatif::ProgressBar;
@@ -189,13 +189,12 @@ pub fn write_worst(
     let summary = match recording {
         None => run(&world, &opts)?,
         Some(path) => {
-            let id = format!(
-                "{}-{}-seed{}",
-                world.name,
-                world.file.control.controller.name(),
-                world.file.seed
-            );
-            let mut rec = Recorder::create(path, &id).context("recording")?;
+            let name = RecordingName {
+                world: world.name.clone(),
+                controller: world.file.control.controller.name().to_string(),
+                seed: world.file.seed,
+            };
+            let mut rec = Recorder::create(path, &name).context("recording")?;
             let s = run_observed(&world, &opts, Some(&mut rec))?;
             rec.finish().context("recording")?;
             s

@@ -16,7 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use ftcbf_sim::check;
 use ftcbf_sim::observe::{Frame, Observer, Scene};
-use ftcbf_sim::record::Recorder;
+use ftcbf_sim::record::{Recorder, RecordingName};
 use ftcbf_sim::runner::{preflight, run, run_observed, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ranges, ControllerKindSpec, Override, World, WorldError};
@@ -212,9 +212,13 @@ fn load(path: &Path, overrides: &[Override]) -> Result<World, Failure> {
     World::load(path, overrides).map_err(invalid)
 }
 
-/// The recording id: what ran, so the same world + controller + seed gives the same id.
-fn recording_id(world: &World, kind: ControllerKindSpec, seed: u64) -> String {
-    format!("{}-{}-seed{}", world.name, kind.name(), seed)
+/// What ran, so the same world + controller + seed gives the same recording name.
+fn recording_name(world: &World, kind: ControllerKindSpec, seed: u64) -> RecordingName {
+    RecordingName {
+        world: world.name.clone(),
+        controller: kind.name().to_string(),
+        seed,
+    }
 }
 
 /// Shows a progress bar over control steps while forwarding to the recorder.
@@ -339,7 +343,8 @@ fn run_recorded(
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}.rrd", world.name)));
-    let mut rec = Recorder::create(&out, &recording_id(world, kind, seed)).context("recording")?;
+    let mut rec =
+        Recorder::create(&out, &recording_name(world, kind, seed)).context("recording")?;
     let duration = a.duration.unwrap_or(world.file.duration);
     let bar = steps_bar((duration / world.control_dt()).round() as u64, &world.name);
     let summary = {

@@ -126,6 +126,13 @@ def obstacle_boxes(store):
             local = col("Mesh3D:vertex_positions")
         if local is None:
             continue
+        # An obstacle drawn see-through (alpha < 255: a mesh around the robot, such as an
+        # arena's wall) hides nothing.
+        colour = col("Mesh3D:albedo_factor") or col("Boxes3D:colors") or col("Cylinders3D:colors") \
+            or col("Ellipsoids3D:colors") or col("Capsules3D:colors")
+        if colour and (colour[0] & 0xFF) < 255:
+            print(f"rrd_check: {ent} is drawn see-through (alpha {colour[0] & 0xFF})")
+            continue
         tr = col("Transform3D:translation") or [[0.0, 0.0, 0.0]]
         q = col("Transform3D:quaternion") or [[0.0, 0.0, 0.0, 1.0]]
         pts = [[a + b for a, b in zip(rotate(q[0], p), tr[0])] for p in local]

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use ftcbf_sim::observe::{Frame as SimFrame, Observer};
-use ftcbf_sim::record::Recorder;
+use ftcbf_sim::record::{Recorder, RecordingName};
 use ftcbf_sim::runner::{RunOptions, Simulation as Loop, Source};
 use ftcbf_sim::world::World as SimWorld;
 use numpy::{PyArray1, PyArrayMethods};
@@ -242,14 +242,13 @@ impl Simulation {
                 "record() must be called once, before the first step",
             ));
         }
-        let id = format!(
-            "{}-{}-seed{}",
-            st.run.borrow_owner().name,
-            self.controller,
-            self.seed
-        );
-        let mut rec =
-            Recorder::create(&path, &id).map_err(|e| Error::new_err(format!("recording: {e}")))?;
+        let name = RecordingName {
+            world: st.run.borrow_owner().name.clone(),
+            controller: self.controller.clone(),
+            seed: self.seed,
+        };
+        let mut rec = Recorder::create(&path, &name)
+            .map_err(|e| Error::new_err(format!("recording: {e}")))?;
         st.run.with_dependent_mut(|_, sim| {
             sim.set_link_poses(true);
             rec.scene(&sim.scene());

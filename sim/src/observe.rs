@@ -60,6 +60,9 @@ pub struct Scene {
     pub world: String,
     /// Obstacles in the world frame.
     pub obstacles: Vec<Placed>,
+    /// Names of the obstacles that are half-spaces, drawn as a finite patch (a [`Geometry::Mesh`]
+    /// in world coordinates that the recording cuts to a low wall on the ground).
+    pub half_space_walls: Vec<String>,
     /// Robot links: (link name, its shapes in the link frame).
     pub robot_links: Vec<(String, Vec<Placed>)>,
     /// Safe-set boundaries at zero velocity, as polylines on the ground (name, points).

@@ -160,9 +160,16 @@ pub(crate) fn scene_extent(scene: &Scene, start: [f32; 2]) -> Rect {
     r.add([gx, gy], [gr; 2]);
     for ob in &scene.obstacles {
         match &ob.geometry {
-            // Meshes (cones, hulls, 6 m wall patches) count by their origin only, so a wall
-            // patch does not stretch the ground.
-            Geometry::Mesh { .. } => r.add([ob.translation[0], ob.translation[1]], [0.0; 2]),
+            // A half-space's 6 m wall patch counts by its origin only, so it does not stretch
+            // the ground; other meshes (cones, hulls, walls) by their footprint.
+            Geometry::Mesh { .. } if scene.half_space_walls.contains(&ob.name) => {
+                r.add([ob.translation[0], ob.translation[1]], [0.0; 2])
+            }
+            Geometry::Mesh { .. } => {
+                let (lo, hi) = mesh_footprint(ob);
+                r.add(lo, [0.0; 2]);
+                r.add(hi, [0.0; 2]);
+            }
             g => r.add(
                 [ob.translation[0], ob.translation[1]],
                 footprint(g, yaw(ob.rotation)),
@@ -212,14 +219,13 @@ pub(crate) fn standing(p: &Placed) -> Placed {
 /// Height of a half-space wall as drawn \[m\].
 const WALL_HEIGHT: f32 = 0.3;
 
-/// A mesh given in world coordinates (identity placement) that reaches outside the ground —
-/// a half-space's wall patch — is cut to the ground and [`WALL_HEIGHT`]: its vertices are
-/// clamped to the box, so a 6 m patch becomes a wall along the ground's edge or across it.
-/// Anything else is returned as is.
-pub(crate) fn cut_to_ground(p: &Placed, r: &Rect) -> Placed {
+/// A half-space's wall patch (`wall`: a mesh given in world coordinates) that reaches outside
+/// the ground is cut to the ground and [`WALL_HEIGHT`]: its vertices are clamped to the box, so
+/// a 6 m patch becomes a wall along the ground's edge or across it. Anything else is returned
+/// as is.
+pub(crate) fn cut_to_ground(p: &Placed, r: &Rect, wall: bool) -> Placed {
     let mut q = p.clone();
-    let identity = p.translation == [0.0; 3] && p.rotation == [0.0, 0.0, 0.0, 1.0];
-    if let (true, Geometry::Mesh { vertices, .. }) = (identity, &mut q.geometry) {
+    if let (true, Geometry::Mesh { vertices, .. }) = (wall, &mut q.geometry) {
         let outside = vertices
             .iter()
             .any(|v| v[0] < r.lo[0] || v[0] > r.hi[0] || v[1] < r.lo[1] || v[1] > r.hi[1]);
@@ -232,6 +238,70 @@ pub(crate) fn cut_to_ground(p: &Placed, r: &Rect) -> Placed {
         }
     }
     q
+}
+
+/// Opacity (of 255) of an obstacle drawn see-through.
+pub(crate) const SEE_THROUGH_ALPHA: u8 = 70;
+
+/// Whether a mesh obstacle surrounds one of `points` on the ground: the point lies inside the
+/// mesh's footprint (its world-frame bounding box in x and y). The robot cannot be inside a
+/// solid there, so the mesh is an enclosing wall (an arena, a room's walls as one mesh) and is
+/// drawn see-through, or the default eye, outside it, would see its outside and not the robot.
+pub(crate) fn encloses(p: &Placed, points: &[[f32; 2]]) -> bool {
+    if !matches!(p.geometry, Geometry::Mesh { .. }) {
+        return false;
+    }
+    let (lo, hi) = mesh_footprint(p);
+    points
+        .iter()
+        .any(|q| (lo[0]..=hi[0]).contains(&q[0]) && (lo[1]..=hi[1]).contains(&q[1]))
+}
+
+/// The world-frame bounding box (x, y) of a mesh's vertices: (lo, hi); an empty box (lo > hi)
+/// for anything else.
+fn mesh_footprint(p: &Placed) -> ([f32; 2], [f32; 2]) {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    let Geometry::Mesh { vertices, .. } = &p.geometry else {
+        return (lo, hi);
+    };
+    let [x, y, z, w] = p.rotation;
+    for v in vertices {
+        // v turned by q = (x, y, z, w): v + w t + q × t with t = 2 q × v; then translated.
+        let t = [
+            2.0 * (y * v[2] - z * v[1]),
+            2.0 * (z * v[0] - x * v[2]),
+            2.0 * (x * v[1] - y * v[0]),
+        ];
+        let a = v[0] + w * t[0] + y * t[2] - z * t[1] + p.translation[0];
+        let b = v[1] + w * t[1] + z * t[0] - x * t[2] + p.translation[1];
+        lo = [lo[0].min(a), lo[1].min(b)];
+        hi = [hi[0].max(a), hi[1].max(b)];
+    }
+    (lo, hi)
+}
+
+/// Distance on the ground from the segment a–b to an obstacle's footprint (its bounding box
+/// in x and y; 0 when they overlap) \[m\]: the segment is sampled every ≤ 5 cm.
+pub(crate) fn distance_to_segment(p: &Placed, a: [f32; 2], b: [f32; 2]) -> f32 {
+    let (lo, hi) = match &p.geometry {
+        Geometry::Mesh { .. } => mesh_footprint(p),
+        g => {
+            let r = footprint(g, yaw(p.rotation));
+            let c = [p.translation[0], p.translation[1]];
+            ([c[0] - r[0], c[1] - r[1]], [c[0] + r[0], c[1] + r[1]])
+        }
+    };
+    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+    let n = ((len / 0.05).ceil() as usize).clamp(1, 10_000);
+    (0..=n)
+        .map(|k| {
+            let t = k as f32 / n as f32;
+            let q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            let dx = (lo[0] - q[0]).max(q[0] - hi[0]).max(0.0);
+            let dy = (lo[1] - q[1]).max(q[1] - hi[1]).max(0.0);
+            (dx * dx + dy * dy).sqrt()
+        })
+        .fold(f32::INFINITY, f32::min)
 }
 
 /// Logs a placed shape (transform and solid shape) as static data under `base/<name>`.
@@ -377,11 +447,63 @@ mod tests {
             translation: [0.0; 3],
             rotation: [0.0, 0.0, 0.0, 1.0],
         };
-        let Geometry::Mesh { vertices, .. } = cut_to_ground(&patch, &r).geometry else {
+        let Geometry::Mesh { vertices, .. } = cut_to_ground(&patch, &r, true).geometry else {
             panic!("still a mesh")
         };
         assert_eq!(vertices[0], [2.0, -0.3, WALL_HEIGHT]);
         assert_eq!(vertices[2], [-1.0, -0.3, 0.0]);
+    }
+
+    /// A square ring (walls 0.1 m thick around a 4 m room) given as one mesh, placed at `at`.
+    fn ring(at: [f32; 3]) -> Placed {
+        let mut vertices = Vec::new();
+        for r in [2.0f32, 1.9] {
+            for (x, y) in [(r, r), (-r, r), (-r, -r), (r, -r)] {
+                vertices.push([x, y, 0.0]);
+                vertices.push([x, y, 0.4]);
+            }
+        }
+        Placed {
+            name: "arena".into(),
+            geometry: Geometry::Mesh {
+                vertices,
+                triangles: vec![[0, 1, 2]],
+            },
+            translation: at,
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        }
+    }
+
+    #[test]
+    fn a_mesh_around_the_robot_is_see_through_and_framed_whole_a_pillar_is_not() {
+        let arena = ring([1.0, 0.0, 0.0]);
+        assert!(encloses(&arena, &[[0.0, 0.0]]));
+        assert!(
+            encloses(&arena, &[[9.0, 9.0], [2.5, 1.5]]),
+            "the goal inside"
+        );
+        assert!(!encloses(&arena, &[[3.5, 0.0]]), "outside its footprint");
+        let pillar = Placed {
+            geometry: Geometry::Cylinder {
+                radius: 0.1,
+                half_height: 0.3,
+            },
+            ..arena.clone()
+        };
+        assert!(!encloses(&pillar, &[[1.0, 0.0]]), "only meshes enclose");
+        // Not a half-space: its walls are not cut to the ground, and the ground frames it.
+        let r = Rect {
+            lo: [-0.5, -0.5],
+            hi: [0.5, 0.5],
+        };
+        assert_eq!(cut_to_ground(&arena, &r, false), arena);
+        let scene = Scene {
+            obstacles: vec![arena],
+            goal: ([0.5, 0.0], 0.1),
+            ..Scene::default()
+        };
+        let g = scene_extent(&scene, [0.0, 0.0]);
+        assert!(g.lo[0] <= -1.0 && g.hi[0] >= 3.0 && g.lo[1] <= -2.0 && g.hi[1] >= 2.0);
     }
 
     #[test]

@@ -15,11 +15,12 @@ use rerun::blueprint::{
     Blueprint, BlueprintActivation, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel,
     Spatial3DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
+use rerun::external::re_log_types::BlueprintActivationCommand;
 use rerun::external::re_sdk_types::blueprint::archetypes::EyeControls3D;
 use rerun::log::{Chunk, LogMsg};
-use rerun::{EntityPath, RecordingStream, RecordingStreamBuilder, StoreKind, TimePoint, Timeline};
+use rerun::{EntityPath, RecordingStreamBuilder, StoreKind, TimePoint, Timeline};
 
-use super::draw::{colour_name, seg, Rect};
+use super::draw::{self, colour_name, seg, Rect};
 use crate::observe::{Geometry, Scene};
 
 /// Angle of the eye above the ground plane \[rad\]: steep enough that a 0.3 m wall hides at most
@@ -70,15 +71,15 @@ pub(crate) fn eye(ground: &Rect, from_plus_y: bool) -> ([f32; 3], [f32; 3]) {
     ([c[0], c[1] - side * d * co, d * s], [c[0], c[1], 0.0])
 }
 
-/// Whether the eye should look from the +y side: when the half-space walls (meshes given in
+/// Whether the eye should look from the +y side: when the half-space walls (patches given in
 /// world coordinates) stand, on average, on the −y side of the ground's centre, so the eye is
 /// on their free side and does not look over them at a robot driving along them.
 fn walls_on_minus_y(scene: &Scene, ground: &Rect) -> bool {
     let cy = (ground.lo[1] + ground.hi[1]) / 2.0;
     let (mut sum, mut n) = (0.0f32, 0usize);
     for ob in &scene.obstacles {
-        let world_frame = ob.translation == [0.0; 3] && ob.rotation == [0.0, 0.0, 0.0, 1.0];
-        if let (true, Geometry::Mesh { vertices, .. }) = (world_frame, &ob.geometry) {
+        let wall = scene.half_space_walls.contains(&ob.name);
+        if let (true, Geometry::Mesh { vertices, .. }) = (wall, &ob.geometry) {
             for v in vertices {
                 sum += v[1] - cy;
                 n += 1;
@@ -100,8 +101,38 @@ fn channel_order(scene: &Scene) -> Vec<(&String, bool)> {
     v
 }
 
-/// The viewer layout for `scene`, and the blueprint path of its 3D view.
-fn blueprint(scene: &Scene) -> (Blueprint, Option<EntityPath>) {
+/// At most this many barriers get a plot tab of their own; the farther obstacles share one.
+pub const BARRIER_TABS: usize = 8;
+
+/// The barriers with a plot tab of their own — every safe set, then the obstacles nearest the
+/// straight line from `start` to the goal, up to [`BARRIER_TABS`] in all — and the obstacles'
+/// barriers that share one plot (their h on the truth), nearest first.
+fn barrier_tabs<'s>(scene: &'s Scene, start: [f32; 2]) -> (Vec<&'s String>, Vec<&'s String>) {
+    let obstacle = |b: &str| {
+        b.strip_prefix("obstacle:")
+            .and_then(|n| scene.obstacles.iter().find(|o| o.name == n))
+    };
+    let (mut own, mut obstacles): (Vec<&String>, Vec<(f32, &String)>) = (Vec::new(), Vec::new());
+    for b in &scene.barriers {
+        match obstacle(b) {
+            Some(o) => obstacles.push((draw::distance_to_segment(o, start, scene.goal.0), b)),
+            None => own.push(b),
+        }
+    }
+    obstacles.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let room = BARRIER_TABS.saturating_sub(own.len()).max(1);
+    let split = if obstacles.len() > room + 1 {
+        room
+    } else {
+        obstacles.len()
+    };
+    own.extend(obstacles[..split].iter().map(|(_, b)| *b));
+    (own, obstacles[split..].iter().map(|(_, b)| *b).collect())
+}
+
+/// The viewer layout for `scene` (the robot starting at `start`), and the blueprint path of its
+/// 3D view.
+fn blueprint(scene: &Scene, start: [f32; 2]) -> (Blueprint, Option<EntityPath>) {
     let names: Vec<String> = scene
         .filters
         .iter()
@@ -120,12 +151,31 @@ fn blueprint(scene: &Scene) -> (Blueprint, Option<EntityPath>) {
         _ => None,
     };
     let log = TextLogView::new("events: policy, safety, attacks").with_origin("/events");
-    let barriers = Tabs::new(scene.barriers.iter().map(|b| {
-        plot(
-            format!("h_{b}: truth (black) and per estimate; below 0 is unsafe"),
-            format!("/barriers/{}", seg(b)),
-        )
-    }));
+    let (own, rest) = barrier_tabs(scene, start);
+    let mut tabs: Vec<ContainerLike> = own
+        .iter()
+        .map(|b| {
+            plot(
+                format!("h_{b}: truth (black) and per estimate; below 0 is unsafe"),
+                format!("/barriers/{}", seg(b)),
+            )
+        })
+        .collect();
+    if !rest.is_empty() {
+        tabs.push(
+            TimeSeriesView::new(format!(
+                "h of the {} farther obstacles, on the truth; below 0 is unsafe",
+                rest.len()
+            ))
+            .with_contents(
+                rest.iter()
+                    .map(|b| format!("/barriers/{}/truth", seg(b)))
+                    .collect::<Vec<_>>(),
+            )
+            .into(),
+        );
+    }
+    let barriers = Tabs::new(tabs);
     let sensors = Tabs::new(channel_order(scene).into_iter().map(|(c, attacked)| {
         let what = if attacked { " (attacked)" } else { "" };
         plot(
@@ -177,21 +227,24 @@ fn blueprint(scene: &Scene) -> (Blueprint, Option<EntityPath>) {
     (bp, view3d_path)
 }
 
-/// Sends the default blueprint for `scene` (with the 3D eye framed on `ground`) through `rec`:
-/// the viewer shows it unless the user has edited the layout of this application id.
+/// The default blueprint for `scene` (the 3D eye framed on `ground`, barrier tabs for the
+/// obstacles nearest the path from `start`) as the messages of
+/// application `app`'s blueprint store and their activation: the viewer shows it unless the
+/// user has edited the layout of this application id (`make_default`, not `make_active`).
 ///
 /// rerun's `Blueprint::send` writes into an in-memory stream first; its blueprint-store messages
-/// are forwarded with one more chunk, the 3D view's `EyeControls3D`, before the activation
-/// command. Send it before any data, as `RecordingStreamBuilder::with_default_blueprint` does.
-pub(crate) fn send(rec: &RecordingStream, scene: &Scene, ground: &Rect) -> Result<(), String> {
+/// are kept with one more chunk, the 3D view's `EyeControls3D`, before the activation command.
+/// They must reach the file before any message of the recording (see `Recorder::open`).
+pub(crate) fn messages(
+    app: &rerun::ApplicationId,
+    scene: &Scene,
+    ground: &Rect,
+    start: [f32; 2],
+) -> Result<(Vec<LogMsg>, BlueprintActivationCommand), String> {
     let e = |x: &dyn std::fmt::Display| format!("default blueprint: {x}");
-    let app = rec
-        .store_info()
-        .map(|i| i.application_id().clone())
-        .ok_or_else(|| e(&"the recording stream is disabled"))?;
-    let (bp, view3d) = blueprint(scene);
+    let (bp, view3d) = blueprint(scene, start);
     let view3d = view3d.ok_or_else(|| e(&"the 3D view is not a view"))?;
-    let (mem, storage) = RecordingStreamBuilder::new(app)
+    let (mem, storage) = RecordingStreamBuilder::new(app.clone())
         .memory()
         .map_err(|x| e(&x))?;
     bp.send(
@@ -227,8 +280,7 @@ pub(crate) fn send(rec: &RecordingStream, scene: &Scene, ground: &Rect) -> Resul
         .map_err(|x| e(&x))?;
     let arrow = chunk.to_arrow_msg().map_err(|x| e(&x))?;
     msgs.push(LogMsg::ArrowMsg(activation.blueprint_id.clone(), arrow));
-    rec.send_blueprint(msgs, activation);
-    Ok(())
+    Ok((msgs, activation))
 }
 
 fn collapsed() -> rerun::blueprint::components::PanelState {
@@ -342,10 +394,65 @@ mod side_tests {
         };
         let scene = |obstacles| Scene {
             obstacles,
+            half_space_walls: vec!["wall".into()],
             ..Scene::default()
         };
         assert!(walls_on_minus_y(&scene(vec![wall(-0.3)]), &ground));
         assert!(!walls_on_minus_y(&scene(vec![wall(0.3)]), &ground));
         assert!(!walls_on_minus_y(&scene(vec![]), &ground));
+    }
+}
+
+#[cfg(test)]
+mod tab_tests {
+    use super::*;
+    use crate::observe::Placed;
+
+    fn pillar(name: String, y: f32) -> Placed {
+        Placed {
+            name,
+            geometry: Geometry::Cylinder {
+                radius: 0.1,
+                half_height: 0.2,
+            },
+            translation: [1.0, y, 0.2],
+            rotation: [0.0, 0.0, 0.0, 1.0],
+        }
+    }
+
+    #[test]
+    fn safe_sets_and_the_nearest_obstacles_get_tabs_the_farther_ones_share_a_plot() {
+        // Pillars 0.5 m, 1.0 m, … off the start–goal line y = 0, listed farthest first.
+        let n = 20;
+        let obstacles: Vec<Placed> = (0..n)
+            .rev()
+            .map(|k| pillar(format!("p{k}"), 0.5 * (k + 1) as f32))
+            .collect();
+        let mut barriers = vec!["safe_set:floor".to_string(), "safe_set:room".to_string()];
+        barriers.extend(obstacles.iter().map(|o| format!("obstacle:{}", o.name)));
+        let scene = Scene {
+            obstacles,
+            barriers,
+            goal: ([3.0, 0.0], 0.1),
+            ..Scene::default()
+        };
+        let (own, rest) = barrier_tabs(&scene, [0.0, 0.0]);
+        let own: Vec<&str> = own.iter().map(|s| s.as_str()).collect();
+        assert_eq!(own.len(), BARRIER_TABS);
+        assert_eq!(
+            &own[..3],
+            ["safe_set:floor", "safe_set:room", "obstacle:p0"]
+        );
+        assert_eq!(own[BARRIER_TABS - 1], "obstacle:p5");
+        assert_eq!(rest.len(), 2 + n - BARRIER_TABS);
+        assert_eq!(rest[0].as_str(), "obstacle:p6");
+        assert_eq!(rest.last().map(|s| s.as_str()), Some("obstacle:p19"));
+        // Few barriers: each its own tab, none shared (not even one left over).
+        let few = Scene {
+            barriers: scene.barriers[..BARRIER_TABS + 1].to_vec(),
+            ..scene.clone()
+        };
+        let (own, rest) = barrier_tabs(&few, [0.0, 0.0]);
+        assert_eq!((own.len(), rest.len()), (BARRIER_TABS + 1, 0));
     }
 }

@@ -36,6 +36,9 @@ mod plots;
 
 use std::path::Path;
 
+use rerun::external::re_log_types::BlueprintActivationCommand;
+use rerun::log::LogMsg;
+use rerun::sink::{FileSink, LogSink};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::observe::{Frame, Observer, Scene};
@@ -69,6 +72,39 @@ pub enum RecordError {
     },
 }
 
+/// What a recording is of: the same world, controller and seed give the same name, id and
+/// application id (so the viewer keeps one stored layout per world, controller and seed).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecordingName {
+    /// The world's name (its file stem).
+    pub world: String,
+    /// The controller's name, as `--controller` takes it.
+    pub controller: String,
+    /// The run's seed.
+    pub seed: u64,
+}
+
+impl RecordingName {
+    /// `<world>-<controller>-seed<N>`: the recording id and the name the viewer lists.
+    pub fn id(&self) -> String {
+        format!("{}-{}-seed{}", self.world, self.controller, self.seed)
+    }
+
+    /// The recording's name and properties (`world`, `controller`, `seed` under `ftcbf`), which
+    /// the viewer shows for the recording in its source list.
+    fn send(&self, rec: &RecordingStream) -> Result<(), String> {
+        use rerun::components::Text;
+        rec.send_recording_name(self.id())
+            .map_err(|e| e.to_string())?;
+        let props = rerun::AnyValues::default()
+            .with_component::<Text>("world", [self.world.as_str()])
+            .with_component::<Text>("controller", [self.controller.as_str()])
+            .with_component::<Text>("seed", [self.seed.to_string()]);
+        rec.send_property("ftcbf", &props)
+            .map_err(|e| e.to_string())
+    }
+}
+
 /// A robot link's name, translations and quaternions (x, y, z, w) at every step.
 type LinkTrack = (String, Vec<[f32; 3]>, Vec<[f32; 4]>);
 
@@ -77,7 +113,7 @@ pub struct Recorder {
     rec: RecordingStream,
     file: std::path::PathBuf,
     app: rerun::ApplicationId,
-    recording_id: String,
+    name: RecordingName,
     path: String,
     scene: Scene,
     plots: Plots,
@@ -96,11 +132,12 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Checks that `path` (and its directory) can be created and names the stream by
-    /// `recording_id` (`<world>-<controller>-seed<N>`): recording id, recording name and
-    /// application id. The file is written from the first frame on ([`Observer::frame`]),
-    /// because the default blueprint needs the scene's names and the robot's start.
-    pub fn create(path: &Path, recording_id: &str) -> Result<Self, RecordError> {
+    /// Checks that `path` (and its directory) can be created and names the stream by `name`:
+    /// recording id, recording name (`<world>-<controller>-seed<N>`), application id and the
+    /// recording's properties. The file is written from the first frame on
+    /// ([`Observer::frame`]), because the default blueprint needs the scene's names and the
+    /// robot's start.
+    pub fn create(path: &Path, name: &RecordingName) -> Result<Self, RecordError> {
         let p = path.display().to_string();
         let create_err = |message: String| RecordError::Create {
             path: p.clone(),
@@ -110,13 +147,13 @@ impl Recorder {
             std::fs::create_dir_all(dir).map_err(|e| create_err(e.to_string()))?;
         }
         std::fs::File::create(path).map_err(|e| create_err(e.to_string()))?;
-        let app = rerun::ApplicationId::try_new(format!("ftcbf-{}", seg(recording_id)))
+        let app = rerun::ApplicationId::try_new(format!("ftcbf-{}", seg(&name.id())))
             .map_err(|e| create_err(e.to_string()))?;
         Ok(Self {
             rec: RecordingStream::disabled(),
             file: path.to_path_buf(),
             app,
-            recording_id: recording_id.to_string(),
+            name: name.clone(),
             path: p,
             scene: Scene::default(),
             plots: Plots::default(),
@@ -132,31 +169,31 @@ impl Recorder {
         })
     }
 
-    /// Opens the file stream at the first frame, when the robot's start is known: the default
-    /// blueprint first (its 3D eye is framed on the ground, which the start is part of), then the
-    /// static scene — ground, obstacles, safe sets, goal, robot shapes, estimator colours.
+    /// Opens the file stream at the first frame, when the robot's start is known. The file
+    /// starts with the default blueprint and its activation (its 3D eye is framed on the ground,
+    /// which the start is part of), and only then the recording's store info, its name and
+    /// properties, and the static scene — ground, obstacles, safe sets, goal, robot shapes,
+    /// estimator colours. The order matters to the viewer: a recording it sees before its
+    /// blueprint becomes active at once, its heuristics fill an empty blueprint, and a default
+    /// blueprint that arrives later is stored but not shown (measured with the rerun 0.36.3
+    /// viewer; rerun's Python `rr.save(…, default_blueprint=…)` writes the blueprint first too).
+    /// The stream is therefore created buffered, the blueprint written to the file sink
+    /// directly, and the sink swapped in afterwards (the stream's backlog, store info first,
+    /// follows the blueprint).
     fn open(&mut self, start: [f32; 2]) {
         let ground = draw::scene_extent(&self.scene, start);
         self.ground = Some(ground);
-        let rec = RecordingStreamBuilder::new(self.app.clone())
-            .recording_id(self.recording_id.as_str())
-            .recording_name(self.recording_id.as_str())
-            .enabled(true)
-            .save(&self.file);
-        match rec {
-            Ok(rec) => {
-                rec.set_log_time_enabled(false);
-                self.rec = rec;
-            }
-            Err(e) => {
-                self.keep::<(), _>(Err(e));
-                return;
-            }
+        let sink = match FileSink::new(&self.file) {
+            Ok(sink) => sink,
+            Err(e) => return self.keep::<(), _>(Err(e)),
+        };
+        let blueprint = layout::messages(&self.app, &self.scene, &ground, start);
+        match start_stream(&self.app, &self.name, Box::new(sink), blueprint) {
+            Ok(rec) => self.rec = rec,
+            Err(e) => return self.keep::<(), _>(Err(e)),
         }
-        let r = layout::send(&self.rec, &self.scene, &ground);
-        self.keep(r);
         self.log_scene();
-        self.log_ground(ground);
+        self.log_ground(ground, start);
     }
 
     fn keep<T, E: std::fmt::Display>(&mut self, r: Result<T, E>) {
@@ -165,8 +202,9 @@ impl Recorder {
         }
     }
 
-    /// The ground (`r`), the obstacles and the safe sets.
-    fn log_ground(&mut self, r: Rect) {
+    /// The ground (`r`), the obstacles and the safe sets. A mesh around the robot's `start` or
+    /// the goal (an arena's or a room's walls) is drawn see-through ([`draw::encloses`]).
+    fn log_ground(&mut self, r: Rect, start: [f32; 2]) {
         let c = [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, -0.005];
         let h = [(r.hi[0] - r.lo[0]) / 2.0, (r.hi[1] - r.lo[1]) / 2.0, 0.005];
         let res = self.rec.log_static(
@@ -176,12 +214,19 @@ impl Recorder {
                 .with_fill_mode(rerun::FillMode::Solid),
         );
         self.keep(res);
+        let ([gx, gy], _) = self.scene.goal;
         for ob in &self.scene.obstacles {
+            let wall = self.scene.half_space_walls.contains(&ob.name);
+            let alpha = if draw::encloses(ob, &[start, [gx, gy]]) {
+                draw::SEE_THROUGH_ALPHA
+            } else {
+                255
+            };
             let res = log_placed(
                 &self.rec,
                 "world/obstacles",
-                &draw::cut_to_ground(&draw::standing(ob), &r),
-                rerun::Color::from_rgb(130, 130, 150),
+                &draw::cut_to_ground(&draw::standing(ob), &r, wall),
+                rerun::Color::from_unmultiplied_rgba(130, 130, 150, alpha),
             );
             if let Err(e) = res {
                 self.first_error.get_or_insert_with(|| e.to_string());
@@ -365,6 +410,28 @@ impl Recorder {
     }
 }
 
+/// A recording stream of application `app` named `name` on `sink`, which receives the default
+/// `blueprint` and its activation before any message of the recording (see `Recorder::open`
+/// for why), then the recording's store info, name and properties. Log time is off.
+fn start_stream(
+    app: &rerun::ApplicationId,
+    name: &RecordingName,
+    sink: Box<dyn LogSink>,
+    blueprint: Result<(Vec<LogMsg>, BlueprintActivationCommand), String>,
+) -> Result<RecordingStream, String> {
+    let rec = RecordingStreamBuilder::new(app.clone())
+        .recording_id(name.id())
+        .enabled(true)
+        .buffered()
+        .map_err(|e| e.to_string())?;
+    rec.set_log_time_enabled(false);
+    let (msgs, activation) = blueprint?;
+    sink.send_blueprint(msgs, activation);
+    rec.set_sink(sink);
+    name.send(&rec)?;
+    Ok(rec)
+}
+
 impl Observer for Recorder {
     fn scene(&mut self, scene: &Scene) {
         self.scene = scene.clone();
@@ -412,5 +479,60 @@ impl Observer for Recorder {
         }
         self.plots.push(f);
         self.log_events(f);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+
+    use rerun::sink::CallbackSink;
+    use rerun::StoreKind;
+
+    use super::*;
+
+    /// What the viewer needs to show the designed layout: every blueprint message and the
+    /// activation before the recording's first message; and the recording named.
+    #[test]
+    fn the_blueprint_and_its_activation_come_before_the_recording() {
+        let seen: Arc<Mutex<Vec<String>>> = Arc::default();
+        let log = seen.clone();
+        let sink = CallbackSink::new(move |msgs: &[LogMsg]| {
+            let mut log = log.lock().expect("log");
+            for m in msgs {
+                let kind = match m {
+                    LogMsg::BlueprintActivationCommand(_) => "activation",
+                    m if m.store_id().kind() == StoreKind::Blueprint => "blueprint",
+                    _ => "recording",
+                };
+                log.push(kind.to_string());
+            }
+        });
+        let name = RecordingName {
+            world: "w".into(),
+            controller: "ft-cbf-clf".into(),
+            seed: 7,
+        };
+        let app = rerun::ApplicationId::try_new(format!("ftcbf-{}", name.id())).expect("app id");
+        let ground = Rect {
+            lo: [-1.0, -1.0],
+            hi: [1.0, 1.0],
+        };
+        let blueprint = layout::messages(&app, &Scene::default(), &ground, [0.0, 0.0]);
+        let rec = start_stream(&app, &name, Box::new(sink), blueprint).expect("stream");
+        rec.log_static("world/x", &rerun::Points3D::new([[0.0f32, 0.0, 0.0]]))
+            .expect("log");
+        rec.flush_blocking().expect("flush");
+        let seen = seen.lock().expect("seen").clone();
+        let first = |k: &str| seen.iter().position(|s| s == k);
+        let (bp, act, data) = (first("blueprint"), first("activation"), first("recording"));
+        assert!(bp.is_some() && act.is_some() && data.is_some(), "{seen:?}");
+        assert!(bp < act && act < data, "order {seen:?}");
+        let last_bp = seen.iter().rposition(|s| s == "blueprint");
+        assert!(
+            last_bp < act,
+            "a blueprint message after the activation: {seen:?}"
+        );
+        assert_eq!(name.id(), "w-ft-cbf-clf-seed7");
     }
 }

@@ -248,6 +248,12 @@ pub fn build_scene(
     Scene {
         world: world.name.clone(),
         obstacles: world.obstacles.iter().map(obstacle_geometry).collect(),
+        half_space_walls: world
+            .obstacles
+            .iter()
+            .filter(|ob| matches!(ob.spec.shape, ShapeSpec::HalfSpace { .. }))
+            .map(|ob| ob.name.clone())
+            .collect(),
         robot_links,
         safe_set_outlines: world
             .file
