@@ -110,8 +110,10 @@ def wait_listening(port, proc, timeout):
     return False
 
 
-def open_once(path, view3d, shot, timeout):
-    """Opens `path` in a new viewer with a fresh home; True when it shows the designed layout."""
+def open_once(path, view3d, shot, timeout, wait=0.0):
+    """Opens `path` in a new viewer with a fresh home; True when it shows the designed layout.
+    The window's screenshot is taken `wait` seconds after the 3D view answered (the viewer plays
+    the run from its start at real speed, so that is about the simulated time shown)."""
     home = tempfile.mkdtemp(prefix="ftcbf-viewer-home-")
     port = free_port()
     env = dict(os.environ, HOME=home, XDG_DATA_HOME=os.path.join(home, ".local/share"),
@@ -125,6 +127,7 @@ def open_once(path, view3d, shot, timeout):
             print(f"viewer_check: {path}: the viewer did not start (log: {log.name})")
             return False
         ok = screenshot(url, shot + ".3d.png", view3d, timeout)
+        time.sleep(wait)
         # The whole window as the user sees it (the artefact), taken after the 3D view answered
         # (or gave up), so the data has loaded.
         screenshot(url, shot, None, timeout)
@@ -147,6 +150,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=45.0,
                     help="seconds the designed 3D view may take to answer (default 45)")
     ap.add_argument("--order-only", action="store_true", help="check the message order only")
+    ap.add_argument("--wait", type=float, default=0.0,
+                    help="seconds between the 3D view's answer and the window's screenshot")
     args = ap.parse_args()
     os.makedirs(args.shots, exist_ok=True)
     failures = 0
@@ -171,7 +176,8 @@ def main():
         designed = 0
         for i in range(args.opens):
             t0 = time.time()
-            ok = open_once(path, view3d, os.path.join(args.shots, f"{name}-{i + 1}.png"), args.timeout)
+            ok = open_once(path, view3d, os.path.join(args.shots, f"{name}-{i + 1}.png"),
+                           args.timeout, args.wait)
             designed += ok
             print(f"viewer_check: {name} open {i + 1}: {'designed layout' if ok else 'NOT the designed layout'}"
                   f" ({time.time() - t0:.1f} s)", flush=True)
