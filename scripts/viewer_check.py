@@ -110,36 +110,46 @@ def wait_listening(port, proc, timeout):
     return False
 
 
-def open_once(path, view3d, shot, timeout, wait=0.0):
+def open_once(path, view3d, shot, timeout, wait=0.0, starts=3):
     """Opens `path` in a new viewer with a fresh home; True when it shows the designed layout.
     The window's screenshot is taken `wait` seconds after the 3D view answered (the viewer plays
-    the run from its start at real speed, so that is about the simulated time shown)."""
-    home = tempfile.mkdtemp(prefix="ftcbf-viewer-home-")
-    port = free_port()
-    env = dict(os.environ, HOME=home, XDG_DATA_HOME=os.path.join(home, ".local/share"),
-               XDG_CONFIG_HOME=os.path.join(home, ".config"), WGPU_BACKEND="vulkan")
-    log = open(os.path.join(home, "viewer.log"), "w")
-    proc = subprocess.Popen(["rerun", "--bind", "127.0.0.1", "--port", str(port), path],
-                            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        url = f"rerun+http://127.0.0.1:{port}/proxy"
-        if not wait_listening(port, proc, 60):
-            print(f"viewer_check: {path}: the viewer did not start (log: {log.name})")
-            return False
-        ok = screenshot(url, shot + ".3d.png", view3d, timeout)
-        time.sleep(wait)
-        # The whole window as the user sees it (the artefact), taken after the 3D view answered
-        # (or gave up), so the data has loaded.
-        screenshot(url, shot, None, timeout)
-        return ok
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
+    the run from its start at real speed, so that is about the simulated time shown). A viewer
+    that exits before it listens (it is started up to `starts` times) is reported with its log;
+    that is a failure to start, not a layout."""
+    for attempt in range(starts):
+        home = tempfile.mkdtemp(prefix="ftcbf-viewer-home-")
+        port = free_port()
+        env = dict(os.environ, HOME=home, XDG_DATA_HOME=os.path.join(home, ".local/share"),
+                   XDG_CONFIG_HOME=os.path.join(home, ".config"), WGPU_BACKEND="vulkan")
+        log_path = os.path.join(home, "viewer.log")
+        log = open(log_path, "w")
+        proc = subprocess.Popen(["rerun", "--bind", "127.0.0.1", "--port", str(port), path],
+                                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-        log.close()
-        shutil.rmtree(home, ignore_errors=True)
+            url = f"rerun+http://127.0.0.1:{port}/proxy"
+            if not wait_listening(port, proc, 60):
+                log.flush()
+                kept = shot + f".viewer-{attempt + 1}.log"
+                shutil.copy(log_path, kept)
+                print(f"viewer_check: {path}: the viewer did not start (exit {proc.poll()}, log {kept})")
+                continue
+            ok = screenshot(url, shot + ".3d.png", view3d, timeout)
+            time.sleep(wait)
+            # The whole window as the user sees it (the artefact), taken after the 3D view
+            # answered (or gave up), so the data has loaded.
+            screenshot(url, shot, None, timeout)
+            return ok
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+                proc.wait(10)
+            except ProcessLookupError:
+                pass
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+            log.close()
+            shutil.rmtree(home, ignore_errors=True)
+    return False
 
 
 def main():
