@@ -119,7 +119,7 @@ END {
 {
     echo "# Generated worlds: defaults only"
     echo
-    echo "Written by \`scripts/gen_sweep.sh $seed $count $trials $out\` (do not edit by hand):"
+    echo "Written by \`scripts/gen_sweep.sh $seed $count $trials OUT_DIR\` (any output folder; do not edit by hand):"
     echo "$count worlds from \`ftcbf gen --seed $seed\`, every one with defaults only (no tuning key,"
     echo "no \`[control]\` table), \`ftcbf check\` on each, then \`ftcbf batch --trials $trials"
     echo "--controller ft-cbf-clf\`. Commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD 2>/dev/null || echo ' (with local changes)'),"

@@ -8,7 +8,8 @@
 #   FTCBF=path/to/ftcbf overrides the binary (default target/release/ftcbf, built by
 #   `cargo build --release --workspace --all-targets --locked`); JOBS=N the worker threads (default
 #   all cores); RESUME=1 keeps results/stamp.toml and skips every command already in it (to
-#   finish an interrupted measurement). Run from the repository root.
+#   finish an interrupted measurement, or to measure a world added to the catalogue since: its
+#   commands then record the commit they ran at). Run from the repository root.
 #
 # Writes results/batch/*.json, results/falsify/*.json and results/stamp.toml (the invocation,
 # commit, date, machine and every command exactly as run, with its wall time), then runs
@@ -26,7 +27,7 @@ ftcbf=${FTCBF:-target/release/ftcbf}
 jobs=${JOBS:-$(nproc)}
 
 # The catalogue: every world in worlds/, paired FT-CBF-CLF vs the all-sensor baseline.
-catalogue=(paper_linear paper_turtlebot paper_turtlebot_sf paper_turtlebot_receivers
+catalogue=(quickstart paper_linear paper_turtlebot paper_turtlebot_sf paper_turtlebot_receivers
     corridor_spoof field_replay elliptic_arena_drift three_gnss stealthy_gnss outside_model
     waffle_pillars doorway_clutter turtlebot_realistic turtlebot_odometry_bias
     turtlebot_encoders turtlebot_gyro_compass)
@@ -59,6 +60,13 @@ if [[ ${RESUME:-0} != 1 || ! -f $stamp ]]; then
     } >"$stamp"
 fi
 mkdir -p results/batch results/falsify runs/falsify
+# A command run at another commit than the stamp's (RESUME=1 after a world was added) records
+# its own, and the pages say so.
+head=$(git rev-parse HEAD)
+if [[ -n $(git status --porcelain --untracked-files=no) ]]; then
+    head="$head (uncommitted changes)"
+fi
+stamp_commit=$(sed -n 's/^commit = "\(.*\)"$/\1/p' "$stamp" | head -n 1)
 
 # run JSON COMMAND...: runs COMMAND (unless the stamp lists JSON already), then appends it (as
 # typed, with `ftcbf` for the binary) and its wall time to the stamp.
@@ -75,6 +83,9 @@ run() {
     [[ $shown != *"'"* ]] || { echo "a quote in a command: $shown" >&2; exit 1; }
     printf "\n[[run]]\njson = \"%s\"\ncommand = '%s'\nseconds = %d\n" \
         "$json" "$shown" $((SECONDS - t0)) >>"$stamp"
+    if [[ $head != "$stamp_commit" ]]; then
+        printf 'commit = "%s"\n' "$head" >>"$stamp"
+    fi
     echo "$shown ($((SECONDS - t0)) s)"
 }
 

@@ -56,6 +56,10 @@ pub struct StampedRun {
     pub command: String,
     /// Its wall time \[s\].
     pub seconds: u64,
+    /// The commit it ran at, when that is not the stamp's: a world added to the catalogue and
+    /// measured alone afterwards (`RESUME=1 scripts/results.sh`). Absent: the stamp's commit.
+    #[serde(default)]
+    pub commit: Option<String>,
 }
 
 /// A batch JSON file as written by `ftcbf batch --out X.json`.
@@ -353,7 +357,24 @@ fn commands(out: &mut String, stamp: &Stamp, runs: &[&StampedRun]) {
         minutes(total)
     );
     for r in runs {
-        let _ = writeln!(out, "{}   # {} s", r.command, r.seconds);
+        match &r.commit {
+            Some(c) => {
+                let _ = writeln!(out, "{}   # {} s, at commit {c}", r.command, r.seconds);
+            }
+            None => {
+                let _ = writeln!(out, "{}   # {} s", r.command, r.seconds);
+            }
+        }
+    }
+    if runs.iter().any(|r| r.commit.is_some()) {
+        let _ = writeln!(
+            out,
+            "```\n\nA command marked with a commit ran later than the others, at that commit \
+             (`RESUME=1 scripts/results.sh`, for a world added to the catalogue since); the rest \
+             ran at `{}`.\n",
+            stamp.commit
+        );
+        return;
     }
     let _ = writeln!(out, "```\n");
 }
@@ -891,6 +912,23 @@ mod tests {
         );
         assert_eq!(theorem3_short(Some("Theorem 3 does NOT apply: x")), "no");
         assert_eq!(theorem3_short(None), "—");
+    }
+
+    #[test]
+    fn a_run_measured_at_another_commit_says_so() {
+        let text = "script = \"s\"\ncommit = \"a\"\ndate = \"d\"\nmachine = \"m\"\ntoolchain = \"t\"\n\n[[run]]\njson = \"x.json\"\ncommand = \"ftcbf batch x\"\nseconds = 3\n\n[[run]]\njson = \"y.json\"\ncommand = \"ftcbf batch y\"\nseconds = 4\ncommit = \"b\"\n";
+        let stamp: Stamp = toml::from_str(text).expect("a stamp");
+        assert_eq!(stamp.run[0].commit, None);
+        assert_eq!(stamp.run[1].commit.as_deref(), Some("b"));
+        let runs: Vec<&StampedRun> = stamp.run.iter().collect();
+        let mut out = String::new();
+        commands(&mut out, &stamp, &runs);
+        assert!(out.contains("ftcbf batch x   # 3 s\n"), "{out}");
+        assert!(
+            out.contains("ftcbf batch y   # 4 s, at commit b\n"),
+            "{out}"
+        );
+        assert!(out.contains("the rest ran at `a`"), "{out}");
     }
 
     #[test]

@@ -2,9 +2,16 @@
 //!
 //! - a fenced block after `<!-- book-test: save FILE -->` is written to FILE in a scratch
 //!   folder that links the repository's `robots/`, `worlds/` and `tests/`;
-//! - a fenced shell block after `<!-- book-test: run -->` (optionally `run; expect: TEXT; …`)
-//!   runs there under `bash -euo pipefail`, with the built `ftcbf` first on `PATH`, and must
-//!   exit 0 and print every TEXT;
+//! - a fenced shell block after `<!-- book-test: run -->` (optionally `run; expect: TEXT; …`,
+//!   and `exit: N` for a block whose last command fails on purpose) runs there under
+//!   `bash -euo pipefail`, with the built `ftcbf` first on `PATH`, and must exit 0 (or N) and
+//!   print every TEXT;
+//! - a fenced block after `<!-- book-test: output -->` quotes the output of the run block just
+//!   before it on the same page (issue #49): every line it shows must be a line of that output
+//!   (stdout or stderr, either). `…` in a quoted line stands for text left out, so
+//!   `verdict: Theorem 3 applies: … over the run's 30 s` matches a line that starts with the
+//!   text before `…` and ends with the text after it; a line that is only `…` stands for lines
+//!   left out. The quoted lines must appear in the order the page shows them;
 //! - every ```rust block consists of `{{#include FILE…}}` lines naming files that exist, so the
 //!   book shows Rust only from files the build compiles (examples, tests);
 //! - the README's world is the book's first world, byte for byte.
@@ -108,10 +115,35 @@ fn the_books_command_blocks_run_and_print_what_they_promise() {
             std::fs::write(dir.join(name.trim()), &b.text).expect("save a block");
         }
     }
+    let mut last: Option<(&Block, String)> = None;
+    let mut quoted = 0;
     for b in &all {
         let Some(m) = b.marker.as_deref() else {
             continue;
         };
+        if m == "output" {
+            let (run, output) = last
+                .as_ref()
+                .filter(|(r, _)| r.file == b.file)
+                .unwrap_or_else(|| {
+                    panic!(
+                        "{}:{}: an output block must follow a run block on the same page",
+                        b.file.display(),
+                        b.line
+                    )
+                });
+            if let Err(e) = quotes_in_order(&b.text, output) {
+                panic!(
+                    "{}:{}: the page quotes output that the command at line {} does not print: \
+                     {e}\n--- output\n{output}",
+                    b.file.display(),
+                    b.line,
+                    run.line
+                );
+            }
+            quoted += 1;
+            continue;
+        }
         let mut parts = m.split(';').map(str::trim);
         if parts.next() != Some("run") {
             continue;
@@ -123,6 +155,11 @@ fn the_books_command_blocks_run_and_print_what_they_promise() {
             b.line,
             b.info
         );
+        let options: Vec<&str> = parts.collect();
+        let exit: i32 = options
+            .iter()
+            .find_map(|p| p.strip_prefix("exit:"))
+            .map_or(0, |n| n.trim().parse().expect("`exit: N` takes a number"));
         let out = Command::new("bash")
             .args(["-euo", "pipefail", "-c", &b.text])
             .current_dir(&dir)
@@ -132,14 +169,14 @@ fn the_books_command_blocks_run_and_print_what_they_promise() {
         let stdout = String::from_utf8_lossy(&out.stdout);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(
-            out.status.success(),
-            "{}:{}: the block failed ({}):\n{}\n--- stdout\n{stdout}\n--- stderr\n{stderr}",
+            out.status.code() == Some(exit),
+            "{}:{}: the block ended with {} (expected exit code {exit}):\n{}\n--- stdout\n{stdout}\n--- stderr\n{stderr}",
             b.file.display(),
             b.line,
             out.status,
             b.text
         );
-        for want in parts.filter_map(|p| p.strip_prefix("expect:")) {
+        for want in options.iter().filter_map(|p| p.strip_prefix("expect:")) {
             assert!(
                 stdout.contains(want.trim()),
                 "{}:{}: the output lacks {:?}:\n{stdout}",
@@ -148,12 +185,77 @@ fn the_books_command_blocks_run_and_print_what_they_promise() {
                 want.trim()
             );
         }
+        last = Some((b, format!("{stdout}{stderr}")));
         ran += 1;
     }
+    assert!(
+        quoted >= 3,
+        "only {quoted} output blocks are marked `<!-- book-test: output -->`"
+    );
     assert!(
         ran >= 1,
         "no command block is marked `<!-- book-test: run -->`"
     );
+}
+
+/// Whether `line` of the output matches one quoted line: equal after trimming, or, with `…`
+/// in the quote, starting with the text before the first `…`, ending with the text after the
+/// last, and holding the pieces between in order.
+fn line_matches(quote: &str, line: &str) -> bool {
+    let (quote, line) = (quote.trim(), line.trim());
+    let pieces: Vec<&str> = quote.split('…').map(str::trim).collect();
+    if pieces.len() == 1 {
+        return quote == line;
+    }
+    let (first, last) = (pieces[0], pieces[pieces.len() - 1]);
+    if !line.starts_with(first) || !line.ends_with(last) || line.len() < first.len() + last.len() {
+        return false;
+    }
+    let mut rest = &line[first.len()..line.len() - last.len()];
+    for p in &pieces[1..pieces.len() - 1] {
+        match rest.find(p) {
+            Some(i) => rest = &rest[i + p.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+/// Every quoted line (but `…` alone) matches a line of `output`, in the quoted order.
+fn quotes_in_order(quoted: &str, output: &str) -> Result<(), String> {
+    let lines: Vec<&str> = output.lines().collect();
+    let mut at = 0;
+    for q in quoted
+        .lines()
+        .filter(|q| !q.trim().is_empty() && q.trim() != "…")
+    {
+        match lines[at..].iter().position(|l| line_matches(q, l)) {
+            Some(i) => at += i + 1,
+            None if lines.iter().any(|l| line_matches(q, l)) => {
+                return Err(format!(
+                    "{q:?} is printed, but not after the line quoted before it"
+                ))
+            }
+            None => return Err(format!("{q:?} is not printed")),
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn quoted_lines_match_with_elisions_and_in_order() {
+    let out =
+        "check: world.toml\nverdict: Theorem 3 applies: Pr(safe) ≥ 0.95 over 30 s\ndrive: ok\n";
+    assert!(quotes_in_order("verdict: Theorem 3 applies: … over 30 s", out).is_ok());
+    assert!(quotes_in_order("check: world.toml\n…\ndrive: ok", out).is_ok());
+    assert!(quotes_in_order("verdict: Theorem 3 applies … 0.95 … 30 s", out).is_ok());
+    // a changed number, a line that is not there, and lines out of order all fail
+    assert!(quotes_in_order("verdict: Theorem 3 applies: … over 20 s", out).is_err());
+    assert!(quotes_in_order("verdict: Theorem 3 does NOT apply", out).is_err());
+    let e = quotes_in_order("drive: ok\ncheck: world.toml", out).unwrap_err();
+    assert!(e.contains("not after"), "{e}");
+    // a quote is a whole line, not a piece of one
+    assert!(quotes_in_order("Theorem 3 applies", out).is_err());
 }
 
 #[test]

@@ -21,6 +21,7 @@ fn catalogue_holds_the_required_scenarios() {
         .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
         .collect();
     for required in [
+        "quickstart",
         "paper_linear",
         "paper_turtlebot",
         "corridor_spoof",

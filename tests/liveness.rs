@@ -147,7 +147,7 @@ fn run_ends_with_why_the_goal_was_not_reached() {
 
 #[test]
 fn suggest_finds_the_smallest_box_or_says_none_exists() {
-    // turtlebot_encoders: Theorem 3 fails only on the input limit (README, Results); the search
+    // turtlebot_encoders: Theorem 3 fails only on the input limit (book/src/results/catalogue.md); the search
     // raises the box, one key, and re-checks the world with it.
     let s = ftcbf_sim::check::suggest(&world("worlds/turtlebot_encoders.toml")).unwrap();
     assert!(!s.already);

@@ -638,7 +638,7 @@ impl Controller {
         let (tracker, use_clf) = form_parts(cfg.form, cfg.input_limit, &cfg.x0)?;
         problem.use_clf = use_clf;
         problem.step2_every_step = tracker.is_some();
-        // A departure from the paper's Step 3 (README, "The controller, as implemented"): it
+        // A departure from the paper's Step 3 (book/src/theory/controller.md): it
         // turned the stealthy counterexample of `falsify` from 58/200 safe into 200/200.
         problem.step3_keeps_saturated = true;
         Ok(Self {

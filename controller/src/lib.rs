@@ -1,8 +1,10 @@
 //! # ftcbf-controller
 //!
 //! The Fault-Tolerant Control Barrier Function + Control Lyapunov Function controller of
-//! *Control Barrier Functions for Safe CPS Under Sensor Faults and Attacks* (the thesis in
-//! `shared/paper/ft-cbf-thesis.md`; equation numbers in this crate refer to it).
+//! *Control Barrier Functions for Safe CPS Under Sensor Faults and Attacks* (H. Zhang, M.S.
+//! thesis, Worcester Polytechnic Institute; A. Clark, Z. Li, H. Zhang, IEEE CDC 2020). Equation
+//! numbers in this crate refer to the thesis; the book's "The thesis in brief"
+//! (book/src/theory/thesis.md) states what they mean.
 //!
 //! Pure math: depends on `nalgebra`, `clarabel` (the QP), `statrs` (χ² and normal quantiles) and
 //! `thiserror` (typed errors) only — never on the simulator, physics or recording — so it runs

@@ -1,4 +1,4 @@
-//! The closed loop (DESIGN.md, "Data flow of one control tick"):
+//! The closed loop (one control tick):
 //!
 //! ```text
 //! plant ──truth──► sensors ──y──► attacks ──ỹ──► controller ──u──► drive ──wheel speeds──► plant

@@ -1,5 +1,5 @@
 //! The serde schema of a world file (TOML). Every table denies unknown keys, so a typo is an
-//! error, not a silently ignored setting. See the README's world-file reference.
+//! error, not a silently ignored setting. See the book's world-file reference (book/src/reference/world-file.md).
 
 use std::path::PathBuf;
 
@@ -576,7 +576,7 @@ fn default_rate() -> f64 {
     50.0
 }
 /// The floor of `cbf_gain = "auto"` (and κ of the paper form's `"auto"` base): the value every
-/// catalogue robot world was measured with (13 worlds, 200-1000 trials each; README, "Results").
+/// catalogue robot world was measured with (13 worlds, 200-1000 trials each; book/src/results/catalogue.md).
 pub const SAFETY_FILTER_CBF_GAIN: f64 = 10.0;
 
 fn default_cbf_gain() -> f64 {

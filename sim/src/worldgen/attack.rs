@@ -8,7 +8,7 @@ use rand::Rng;
 use super::layout::pick;
 use super::text::{dec, Attack, Sensor, Value};
 
-/// Every `kind` the world file accepts in `[[attacks]]` (README, "The attack kinds").
+/// Every `kind` the world file accepts in `[[attacks]]` (book/src/reference/world-file.md, "Attack kinds").
 pub const ATTACK_KINDS: [&str; 12] = [
     "bias",
     "ramp",

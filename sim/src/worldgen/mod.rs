@@ -117,7 +117,7 @@ impl RobotModel {
     }
 }
 
-/// The sensor suites the README's "Sensors" section documents.
+/// The sensor suites the book's "Your sensors" guide documents (book/src/guide/sensors.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Suite {
     /// Two receivers (x, y each) and an IMU heading (compass).
@@ -200,7 +200,7 @@ pub struct GenConfig {
     /// Where the robots' URDF files are read now (the project's `robots/`).
     pub robots_dir: PathBuf,
     /// Where the world files will be written: their `urdf` key is the path of the robot file
-    /// relative to this directory, as a world file's relative paths are (README, `[robot]
+    /// relative to this directory, as a world file's relative paths are (book/src/reference/world-file.md, `[robot]
     /// urdf`).
     pub out_dir: PathBuf,
 }

@@ -1,8 +1,9 @@
-//! The sensor suites of the README's "Sensors" section, with noise levels from the data sheets
-//! of the parts a user puts on a TurtleBot-class robot: GNSS/UWB receivers 1–5 cm, their Doppler
-//! velocity 2–10 cm/s, a magnetometer or IMU yaw 0.005–0.05 rad (0.02–0.1 rad when fused with a
-//! gyro, as a raw magnetometer indoors), a MEMS gyro 0.005–0.02 rad/s with a turn-on bias of a
-//! few mrad/s, wheel odometry 0.5–2 cm/s, encoders of 1024–4096 counts per revolution.
+//! The sensor suites of the book's "Your sensors" guide (book/src/guide/sensors.md), with
+//! noise levels from the data sheets of the parts a user puts on a TurtleBot-class robot:
+//! GNSS/UWB receivers 1–5 cm, their Doppler velocity 2–10 cm/s, a magnetometer or IMU yaw
+//! 0.005–0.05 rad (0.02–0.1 rad when fused with a gyro, as a raw magnetometer indoors), a MEMS
+//! gyro 0.005–0.02 rad/s with a turn-on bias of a few mrad/s, wheel odometry 0.5–2 cm/s,
+//! encoders of 1024–4096 counts per revolution.
 
 use rand::Rng;
 
