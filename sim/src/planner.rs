@@ -109,7 +109,7 @@ fn line_of_sight(
     while k <= n {
         let t = k as f64 / n as f64;
         let here = clear([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-        if !(here >= need) {
+        if here.is_nan() || here < need {
             return false;
         }
         let spare = (here - need - LIPSCHITZ_SLACK) / spacing;

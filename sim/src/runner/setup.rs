@@ -757,7 +757,7 @@ fn waypoints_inside(world: &World, safe_sets: &[Arc<dyn Barrier>]) -> Result<(),
         let at_rest = State::new(w[0], w[1], 0.0, 0.0);
         for b in safe_sets {
             let h = b.eval(&at_rest).value;
-            if !(h >= 0.0) {
+            if h.is_nan() || h < 0.0 {
                 return Err(setup_err(
                     world,
                     &format!("goal.waypoints[{i}]"),
