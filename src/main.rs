@@ -273,6 +273,9 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
         }
     }
     let world = load(&a.world, &overrides)?;
+    for note in world.obstacles.iter().filter_map(|o| o.note.as_ref()) {
+        eprintln!("warning: {note}");
+    }
     let kind = a.controller.unwrap_or(world.file.control.controller);
     let seed = a.seed.unwrap_or(world.file.seed);
     let opts = RunOptions {
@@ -313,6 +316,15 @@ fn cmd_run(a: &RunArgs) -> Result<(), Failure> {
             },
         };
         print_expectations(&summary, seed, &seeds, judgement);
+    }
+    if let Some(d) = &summary.disagreement {
+        // Not a verdict: the run's own numbers contradict each other (exit 1).
+        return Err(Failure::from(anyhow::anyhow!(
+            "{}: no safety verdict: the run's barrier and physics disagree about obstacle `{}`: {d} (tolerance {} m); the barrier does not describe the obstacle the robot meets",
+            world.path.display(),
+            d.obstacle,
+            ftcbf_sim::summary::DISAGREEMENT_TOLERANCE
+        )));
     }
     if failures.is_empty() {
         Ok(())

@@ -3,14 +3,22 @@
 //! Each input is a catalogue world (worlds/*.toml) with one to three mutations — a number set to
 //! an extreme (0, −x, ±1e308, 1e-320, 5e-324, NaN, ±∞, x·1e±6), a key deleted, an entry of an
 //! array of tables duplicated — and, for a quarter of the robot worlds, one number of the robot's
-//! URDF set to an extreme as well. Every input goes through what the CLI does: load and
-//! validate, `check`, the run's preflight and a short run. The properties:
+//! URDF set to an extreme as well. Half the mutations aim at the keys added since (#46):
+//! waypoints (near, at ±5000 m, at the ±1e4 m edge, the 256 cap within ±50 m, non-finite),
+//! sensor rates and dropouts, `from_wheels` (two, three or one entries, swapped, unknown), an STL
+//! obstacle (wound outward, inward or mixed, open, degenerate, not an STL), replay and stealthy
+//! attacks, `[expect]` keys (judged on the run as `ftcbf run` judges them). Every input goes
+//! through what the CLI does: load and validate, `check`, the run's preflight and a short run.
+//! The properties:
 //!
 //! - no panic anywhere (a panic is caught and counted, with the input that caused it);
 //! - no input over the time bound ([`TIME_BOUND`], a hang is counted and the input named);
 //! - no SAFE summary with a non-finite barrier value, clearance or state, and no "Theorem 3
 //!   applies" with a NaN or ∞ in a hypothesis or a parameter;
-//! - `check` and `run` agree on validity (both accept the world or both refuse it).
+//! - `check` and `run` agree on validity (both accept the world or both refuse it);
+//! - no SAFE next to a safe-set barrier below 0, a collision, or a barrier/physics disagreement
+//!   (such a run has no verdict; these are counted and printed, as are SAFE runs whose lifted
+//!   obstacle barrier dipped below 0 inside its margin without contact).
 //!
 //! CI runs [`DEFAULT_INPUTS`] inputs (well under a minute in release); `FTCBF_FUZZ_N=10000`
 //! runs more, `FTCBF_FUZZ_SEED` picks another seed. The README ("Fuzzing") has the last large
@@ -26,7 +34,9 @@ use rayon::prelude::*;
 use toml_edit::{DocumentMut, Item, Value};
 
 use ftcbf_sim::check::check_world;
+use ftcbf_sim::regress::{expectation_for, failures_of_run};
 use ftcbf_sim::runner::{preflight, run, RunOptions};
+use ftcbf_sim::summary::NamedValue;
 use ftcbf_sim::world::World;
 
 /// Inputs per CI run.
@@ -207,6 +217,305 @@ fn mutate(doc: &mut DocumentMut, rng: &mut ChaCha8Rng) -> String {
     "no-op".into()
 }
 
+/// A number for a key added since #29: mostly ordinary, sometimes at or past its range.
+fn wild(rng: &mut ChaCha8Rng, typical: f64) -> f64 {
+    match rng.random_range(0..8) {
+        0..=3 => typical * rng.random_range(0.0..2.0),
+        _ => extreme(rng, typical),
+    }
+}
+
+/// A waypoint list: a few points near the route, far ones (±5000 m, ±1e4 m: the documented
+/// range's edge), up to the 256 cap within ±50 m, or non-finite coordinates.
+fn waypoints(rng: &mut ChaCha8Rng) -> (Value, String) {
+    let (n, span, what) = match rng.random_range(0..5) {
+        0 => (rng.random_range(1..=4), 3.0, "near"),
+        1 => (rng.random_range(1..=3), 5000.0, "±5000 m"),
+        2 => (1, 1.0e4, "±1e4 m"),
+        3 => (256, 50.0, "256 within ±50 m"),
+        _ => (rng.random_range(1..=3), f64::NAN, "non-finite"),
+    };
+    let mut arr = toml_edit::Array::new();
+    for _ in 0..n {
+        let mut p = toml_edit::Array::new();
+        for _ in 0..2 {
+            let v = if span.is_nan() {
+                extreme(rng, 1.0)
+            } else if span == 1.0e4 {
+                if rng.random_bool(0.5) {
+                    1.0e4
+                } else {
+                    -1.0e4
+                }
+            } else {
+                rng.random_range(-span..=span)
+            };
+            p.push(v);
+        }
+        arr.push(p);
+    }
+    (Value::Array(arr), format!("goal.waypoints: {n} {what}"))
+}
+
+/// A closed cube's triangles (outward), 0.15 m half-size, around `c`.
+fn cube(c: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+    let h = 0.15;
+    let v: Vec<[f64; 3]> = (0..8)
+        .map(|i| {
+            let s = |b: usize| if i & b != 0 { h } else { -h };
+            [c[0] + s(1), c[1] + s(2), c[2] + s(4)]
+        })
+        .collect();
+    let t = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    (v, t)
+}
+
+/// An STL obstacle file: a cube wound outward, inward, at random per triangle, open (a face
+/// missing), degenerate, or not an STL at all; returns the file's note.
+fn stl_file(rng: &mut ChaCha8Rng, path: &Path) -> String {
+    let (v, mut t) = cube([0.0, 0.0, 0.15]);
+    let what = match rng.random_range(0..6) {
+        0 => "outward",
+        1 => {
+            t.iter_mut().for_each(|x| x.swap(1, 2));
+            "inward"
+        }
+        2 => {
+            t.iter_mut().for_each(|x| {
+                if rng.random_bool(0.5) {
+                    x.swap(1, 2);
+                }
+            });
+            "mixed winding"
+        }
+        3 => {
+            t.truncate(10);
+            "open"
+        }
+        4 => {
+            t.iter_mut().for_each(|x| x[2] = x[1]);
+            "degenerate"
+        }
+        _ => {
+            let _ = std::fs::write(path, "solid broken\nfacet normal 0 0\n");
+            return "not an STL".into();
+        }
+    };
+    let mut s = String::from("solid fuzz\n");
+    for tri in &t {
+        s.push_str("facet normal 0 0 0\nouter loop\n");
+        for &i in tri {
+            s.push_str(&format!("vertex {} {} {}\n", v[i][0], v[i][1], v[i][2]));
+        }
+        s.push_str("endloop\nendfacet\n");
+    }
+    s.push_str("endsolid fuzz\n");
+    let _ = std::fs::write(path, s);
+    what.into()
+}
+
+/// The channel names of the document's `[[sensors]]`, with what each measures.
+fn channels(doc: &DocumentMut) -> Vec<(String, String)> {
+    doc.get("sensors")
+        .and_then(Item::as_array_of_tables)
+        .map(|a| {
+            a.iter()
+                .filter_map(|t| {
+                    Some((
+                        t.get("name")?.as_str()?.to_string(),
+                        t.get("measures")?.as_str()?.to_string(),
+                    ))
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Appends `[[name]]` `table` to the document.
+fn push_table(doc: &mut DocumentMut, name: &str, table: toml_edit::Table) {
+    if doc.get(name).and_then(Item::as_array_of_tables).is_none() {
+        doc[name] = Item::ArrayOfTables(toml_edit::ArrayOfTables::new());
+    }
+    if let Some(a) = doc[name].as_array_of_tables_mut() {
+        a.push(table);
+    }
+}
+
+/// A replay or stealthy attack on a random channel, with parameters in and out of range.
+fn attack(doc: &mut DocumentMut, rng: &mut ChaCha8Rng) -> String {
+    let names = channels(doc);
+    if names.is_empty() {
+        return "no channels: no attack".into();
+    }
+    let (ch, _) = &names[rng.random_range(0..names.len())];
+    let mut t = toml_edit::Table::new();
+    let mut a = toml_edit::Array::new();
+    a.push(ch.as_str());
+    t["channels"] = toml_edit::value(a);
+    let start = wild(rng, 3.0);
+    t["start"] = toml_edit::value(start);
+    if rng.random_bool(0.5) {
+        t["kind"] = toml_edit::value("replay");
+        let record_start = match rng.random_range(0..4) {
+            0 => -1.0,
+            1 => 0.0,
+            2 => start,
+            _ => wild(rng, 1.0),
+        };
+        t["record_start"] = toml_edit::value(record_start);
+        t["length"] = toml_edit::value(wild(rng, 1.0));
+        push_table(doc, "attacks", t);
+        return format!("replay on {ch} from {start:e}, record_start {record_start:e}");
+    }
+    t["kind"] = toml_edit::value("stealthy");
+    t["max_rate"] = toml_edit::value(wild(rng, 0.05));
+    t["threshold"] = toml_edit::value(wild(rng, 3.0));
+    t["max_bias"] = toml_edit::value(wild(rng, 0.5));
+    match rng.random_range(0..4) {
+        0 => t["direction"] = toml_edit::value("positive"),
+        1 => t["direction"] = toml_edit::value("negative"),
+        2 => {
+            let mut d = toml_edit::Array::new();
+            d.push(1.0);
+            d.push(-1.0);
+            t["direction"] = toml_edit::value(d);
+        }
+        _ => {}
+    }
+    push_table(doc, "attacks", t);
+    format!("stealthy on {ch} from {start:e}")
+}
+
+/// `from_wheels` on a speed or yaw-rate channel: a correct pair, three entries, one, swapped,
+/// or an unknown name.
+fn from_wheels(doc: &mut DocumentMut, rng: &mut ChaCha8Rng) -> String {
+    let names = channels(doc);
+    let wheel = |m: &str| names.iter().find(|(_, q)| q == m).map(|(n, _)| n.clone());
+    let (l, r) = (
+        wheel("wheel_left").unwrap_or_else(|| "enc_left".into()),
+        wheel("wheel_right").unwrap_or_else(|| "enc_right".into()),
+    );
+    let list: Vec<String> = match rng.random_range(0..5) {
+        0 => vec![l, r],
+        1 => vec![l.clone(), r, l],
+        2 => vec![l],
+        3 => vec![r, l],
+        _ => vec![l, "no_such_channel".into()],
+    };
+    let Some(sensors) = doc
+        .get_mut("sensors")
+        .and_then(Item::as_array_of_tables_mut)
+    else {
+        return "no sensors: no from_wheels".into();
+    };
+    let n = sensors.len();
+    let i = rng.random_range(0..n);
+    let Some(t) = sensors.get_mut(i) else {
+        return "no sensor".into();
+    };
+    let mut a = toml_edit::Array::new();
+    for s in &list {
+        a.push(s.as_str());
+    }
+    t["from_wheels"] = toml_edit::value(a);
+    format!("sensors[{i}].from_wheels = {list:?}")
+}
+
+/// One mutation of a key added since the harness was written (#46): waypoints, a sensor's rate
+/// or dropout, `from_wheels`, an STL obstacle, a replay or stealthy attack, an `[expect]` key.
+fn mutate_new_keys(doc: &mut DocumentMut, rng: &mut ChaCha8Rng, stl: &Path) -> String {
+    match rng.random_range(0..7) {
+        0 => {
+            let (v, what) = waypoints(rng);
+            doc["goal"]["waypoints"] = Item::Value(v);
+            what
+        }
+        1 | 2 => {
+            let n = doc
+                .get("sensors")
+                .and_then(Item::as_array_of_tables)
+                .map_or(0, |a| a.len());
+            if n == 0 {
+                return "no sensors".into();
+            }
+            let i = rng.random_range(0..n);
+            let (key, v) = if rng.random_bool(0.5) {
+                ("rate_hz", wild(rng, 10.0))
+            } else {
+                let p = match rng.random_range(0..4) {
+                    0 => 1.0,
+                    1 => 0.999_999,
+                    2 => rng.random_range(0.0..0.5),
+                    _ => extreme(rng, 0.1),
+                };
+                ("dropout_prob", p)
+            };
+            doc["sensors"][i][key] = toml_edit::value(v);
+            format!("sensors[{i}].{key} = {v:e}")
+        }
+        3 => from_wheels(doc, rng),
+        4 => {
+            let what = stl_file(rng, stl);
+            let mut t = toml_edit::Table::new();
+            t["name"] = toml_edit::value("fuzz_mesh");
+            let mut pos = toml_edit::Array::new();
+            pos.push(rng.random_range(-1.0..2.0));
+            pos.push(rng.random_range(-1.0..1.0));
+            pos.push(0.0);
+            t["position"] = toml_edit::value(pos);
+            let mut shape = toml_edit::InlineTable::new();
+            shape.insert("kind", "tri_mesh".into());
+            shape.insert("file", stl.display().to_string().into());
+            if rng.random_bool(0.3) {
+                shape.insert("scale", wild(rng, 1.0).into());
+            }
+            t["shape"] = toml_edit::value(shape);
+            push_table(doc, "obstacles", t);
+            format!("STL obstacle ({what})")
+        }
+        5 => attack(doc, rng),
+        _ => {
+            let keys = ["seeds", "min_h", "min_clearance", "time_to_goal", "safe"];
+            let k = keys[rng.random_range(0..keys.len())];
+            let v = match k {
+                "seeds" => toml_edit::value(rng.random_range(-2..40i64)),
+                "safe" => toml_edit::value(rng.random_bool(0.5)),
+                _ => {
+                    let mut m = toml_edit::InlineTable::new();
+                    let side = if rng.random_bool(0.5) {
+                        "at_least"
+                    } else {
+                        "at_most"
+                    };
+                    m.insert(side, extreme(rng, 0.1).into());
+                    if rng.random_bool(0.5) {
+                        m.insert("tolerance", extreme(rng, 0.01).into());
+                    }
+                    toml_edit::value(m)
+                }
+            };
+            if doc.get("expect").is_none() {
+                doc["expect"] = toml_edit::table();
+            }
+            doc["expect"][k] = v;
+            format!("expect.{k} mutated")
+        }
+    }
+}
+
 /// Sets one number in an attribute of the URDF `text` to an extreme.
 fn mutate_urdf(text: &str, rng: &mut ChaCha8Rng) -> (String, String) {
     // Byte ranges of numeric tokens inside attribute values ("…").
@@ -252,9 +561,18 @@ enum Outcome {
     /// Refused by load/validation or by both check and run (a clean error).
     Invalid,
     /// Accepted and run.
-    Ran,
+    Ran(Ran),
     /// A property failed (the message says which).
     Violation(String),
+}
+
+/// What a run that was carried out showed, beyond the properties.
+#[derive(Debug, Default, Clone, Copy)]
+struct Ran {
+    /// No verdict: its barrier and physics disagreed (a typed outcome, not a violation).
+    no_verdict: bool,
+    /// SAFE with an obstacle barrier below 0 (its margin or velocity lift; no contact).
+    safe_below_obstacle_margin: bool,
 }
 
 /// The hypotheses and numbers of a check report that show a non-finite number.
@@ -304,9 +622,15 @@ fn evaluate(text: &str, path: &Path) -> Outcome {
     match run(&world, &opts) {
         Err(e) => Outcome::Violation(format!("preflight passed but the run refused: {e}")),
         Ok(s) => {
+            // The world's `[expect]` judged on the run, as `ftcbf run` does (no panic).
+            if let Some(e) = expectation_for(&world, world.file.control.controller) {
+                let _ = failures_of_run(&e, &s);
+            }
             let finite = s.min_barrier.iter().all(|b| b.value.is_finite())
                 && s.min_clearance.is_none_or(f64::is_finite)
                 && s.final_state.iter().all(|v| v.is_finite());
+            let obstacle = |b: &&NamedValue| b.name.starts_with("obstacle:");
+            let negative_set = s.min_barrier.iter().find(|b| !obstacle(b) && b.value < 0.0);
             if s.safe && !finite {
                 Outcome::Violation(format!(
                     "SAFE with a non-finite number: min_barrier {:?}, clearance {:?}, final state {:?}",
@@ -314,8 +638,17 @@ fn evaluate(text: &str, path: &Path) -> Outcome {
                 ))
             } else if !finite && s.non_finite.is_none() {
                 Outcome::Violation("a non-finite number the summary does not name".into())
+            } else if s.safe && (negative_set.is_some() || s.collided || s.disagreement.is_some()) {
+                Outcome::Violation(format!(
+                    "SAFE next to a negative barrier, a collision or a disagreement: min_barrier {:?}, collided {}, disagreement {:?}",
+                    s.min_barrier, s.collided, s.disagreement
+                ))
             } else {
-                Outcome::Ran
+                Outcome::Ran(Ran {
+                    no_verdict: s.disagreement.is_some(),
+                    safe_below_obstacle_margin: s.safe
+                        && s.min_barrier.iter().any(|b| obstacle(&b) && b.value < 0.0),
+                })
             }
         }
     }
@@ -327,6 +660,8 @@ struct Tally {
     inputs: usize,
     invalid: usize,
     ran: usize,
+    no_verdict: usize,
+    safe_below_obstacle_margin: usize,
     panics: Vec<String>,
     hangs: Vec<String>,
     violations: Vec<String>,
@@ -344,8 +679,15 @@ fn one_input(
     let (path, text) = &worlds[rng.random_range(0..worlds.len())];
     let mut doc: DocumentMut = text.parse().expect("catalogue worlds parse");
     let mut what = vec![format!("{}", path.display())];
+    let stl = scratch.join(format!("input_{seed}_{k}.stl"));
     for _ in 0..rng.random_range(1..=3) {
-        what.push(mutate(&mut doc, &mut rng));
+        // Half the mutations aim at the keys added since #29 (#46).
+        let m = if rng.random_bool(0.5) {
+            mutate_new_keys(&mut doc, &mut rng, &stl)
+        } else {
+            mutate(&mut doc, &mut rng)
+        };
+        what.push(m);
     }
     let urdf = doc
         .get("robot")
@@ -442,17 +784,23 @@ fn mutated_worlds_and_robots_never_panic_hang_or_certify_a_non_finite_number() {
         match r {
             Err(p) => t.panics.push(format!("{label}: panic: {p}")),
             Ok(Outcome::Invalid) => t.invalid += 1,
-            Ok(Outcome::Ran) => t.ran += 1,
+            Ok(Outcome::Ran(r)) => {
+                t.ran += 1;
+                t.no_verdict += usize::from(r.no_verdict);
+                t.safe_below_obstacle_margin += usize::from(r.safe_below_obstacle_margin);
+            }
             Ok(Outcome::Violation(v)) if v == "HANG" => t.hangs.push(label),
             Ok(Outcome::Violation(v)) => t.violations.push(format!("{label}: {v}")),
         }
     }
     println!(
-        "fuzz (seed {seed}): {} inputs in {:.1} s — {} refused with an error, {} ran; {} panics, {} hangs (> {} s), {} property violations; slowest input {:.2} s ({})",
+        "fuzz (seed {seed}): {} inputs in {:.1} s — {} refused with an error, {} ran ({} without a verdict: barrier and physics disagreed; {} SAFE with an obstacle barrier below 0 inside its margin, no contact); {} panics, {} hangs (> {} s), {} property violations (check/run disagreements, SAFE next to a negative safe-set barrier, a collision, a disagreement, NaN or ∞); slowest input {:.2} s ({})",
         t.inputs,
         started.elapsed().as_secs_f64(),
         t.invalid,
         t.ran,
+        t.no_verdict,
+        t.safe_below_obstacle_margin,
         t.panics.len(),
         t.hangs.len(),
         TIME_BOUND.as_secs(),

@@ -584,6 +584,13 @@ fn check_kind(attack: &str, spec: &AttackSpec) -> Result<(), AttackError> {
             length,
         } => {
             finite("record_start", *record_start)?;
+            if *record_start < 0.0 {
+                return Err(invalid(
+                    "record_start",
+                    *record_start,
+                    "a time in [0, start - length] s: the recording is made during the run, which starts at t = 0",
+                ));
+            }
             if !(length.is_finite() && *length > 0.0) {
                 return Err(invalid("length", *length, "a finite duration > 0 s"));
             }

@@ -509,6 +509,9 @@ fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
         context.push(d.clone());
     }
     context_plant(world, &mut context);
+    for note in world.obstacles.iter().filter_map(|o| o.note.as_ref()) {
+        context.push(format!("warning: {note}"));
+    }
     context.push(format!(
         "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
         f.control.controller.name(),

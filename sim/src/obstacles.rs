@@ -15,8 +15,11 @@
 //!   with outward `normal` (obstacle frame); the normal points into free space.
 //! - `convex_hull { points }`, `tri_mesh { vertices, indices }` are in the obstacle frame;
 //!   `tri_mesh { file = "x.stl", scale = 1.0 }` reads a mesh file — STL, Collada `.dae` or OBJ,
-//!   see [`crate::robot::read_mesh`] — relative to the world file's directory. A closed, consistently oriented mesh has an inside (signed distance); an open
-//!   mesh is a surface and its distance is never negative.
+//!   see [`crate::robot::read_mesh`] — relative to the world file's directory. A closed mesh
+//!   (every edge on two triangles) has an inside (signed distance) whatever the winding of its
+//!   triangles: [`orient_mesh`] winds them outward before parry computes its pseudo-normals (an
+//!   inward-wound file once put the robot "inside" a box 0.6 m away). An open mesh is a surface:
+//!   its distance is never negative, and [`Obstacle::note`] says so, naming it.
 //!
 //! # Barriers
 //! Over the planar state x = (p_x, p_y, v_x, v_y), with the robot a disc of radius r (its
@@ -240,6 +243,9 @@ pub struct Obstacle {
     /// Pose of the parry shape in the world (includes the z→y axis change of round shapes).
     shape_pose: Pose,
     closed: Option<Closed>,
+    /// What the user should know about the shape: a `tri_mesh` that is not closed is a surface
+    /// (unsigned distance), named here with why.
+    pub note: Option<String>,
 }
 
 fn iso(position: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
@@ -326,13 +332,18 @@ fn check_placement(spec: &ObstacleSpec) -> Result<(), ObstacleError> {
     Ok(())
 }
 
+/// A built shape: the parry shape, its pose in the world, its closed-form distance when it has
+/// one, and a note for the user (a mesh that is a surface only).
+type Built = (SharedShape, Isometry3<f64>, Option<Closed>, Option<String>);
+
 /// The spec's shape checked and built: the parry shape, its pose in the world (parry's round
-/// shapes stand on y, the spec's on z) and the closed-form distance when the shape has one.
+/// shapes stand on y, the spec's on z), the closed-form distance when the shape has one, and
+/// the note of an open mesh.
 fn shape_of(
     spec: &ObstacleSpec,
     world: Isometry3<f64>,
     base_dir: Option<&Path>,
-) -> Result<(SharedShape, Isometry3<f64>, Option<Closed>), ObstacleError> {
+) -> Result<Built, ObstacleError> {
     let name = spec.name.as_str();
     // Rotation taking parry's y axis to the obstacle frame's z axis.
     let y_to_z = Isometry3::from_parts(
@@ -342,7 +353,7 @@ fn shape_of(
     let axis_world = world.rotation * Vector3::z();
     let vertical = axis_world.z.abs() > 1.0 - 1e-9;
     let centre = world.translation.vector;
-    Ok(match &spec.shape {
+    let (shape, pose, closed) = match &spec.shape {
         ShapeSpec::Cuboid { half_extents: h } => {
             for (i, v) in h.iter().enumerate() {
                 positive(name, &format!("half_extents[{i}]"), *v)?;
@@ -422,9 +433,11 @@ fn shape_of(
         } => {
             let (verts, idx) =
                 mesh_data(name, vertices, indices, file.as_deref(), *scale, base_dir)?;
-            (tri_mesh(name, verts, idx)?, world, None)
+            let (shape, note) = tri_mesh(name, verts, idx)?;
+            return Ok((shape, world, None, note));
         }
-    })
+    };
+    Ok((shape, pose, closed, None))
 }
 
 /// A half-space below the plane through the obstacle's origin with outward `normal` (in the
@@ -523,12 +536,15 @@ fn mesh_data(
     }
 }
 
-/// A triangle mesh from checked vertices and triangles (oriented where parry can orient it).
+/// A triangle mesh from checked vertices and triangles. A closed mesh is wound outward first
+/// ([`orient_mesh`]: inside and outside do not depend on the file's winding) and gets parry's
+/// pseudo-normals (a signed distance); an open one is a surface (unsigned distance), with a note
+/// that names it.
 fn tri_mesh(
     name: &str,
     verts: Vec<[f64; 3]>,
     idx: Vec<[u32; 3]>,
-) -> Result<SharedShape, ObstacleError> {
+) -> Result<(SharedShape, Option<String>), ObstacleError> {
     if idx.is_empty() {
         return Err(mesh_err(name, "no triangles".into()));
     }
@@ -541,11 +557,166 @@ fn tri_mesh(
             format!("index {bad} out of range ({} vertices)", verts.len()),
         ));
     }
-    let pts: Vec<Vector> = verts.iter().map(|p| v3(*p)).collect();
-    let oriented = TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES;
-    SharedShape::trimesh_with_flags(pts.clone(), idx.clone(), oriented)
-        .or_else(|_| SharedShape::trimesh(pts, idx))
+    let mesh = orient_mesh(&verts, &idx);
+    if mesh.triangles.is_empty() {
+        return Err(mesh_err(
+            name,
+            "every triangle repeats a vertex: no triangles".into(),
+        ));
+    }
+    let pts: Vec<Vector> = mesh.vertices.iter().map(|p| v3(*p)).collect();
+    let (flags, note) = match &mesh.open {
+        None => (TriMeshFlags::ORIENTED, None),
+        Some(why) => (
+            TriMeshFlags::empty(),
+            Some(format!(
+                "obstacle `{name}`: tri_mesh is not a closed surface ({why}): it has no inside, \
+                 so its distance is unsigned and a robot inside it is not seen as inside"
+            )),
+        ),
+    };
+    SharedShape::trimesh_with_flags(pts, mesh.triangles, flags)
+        .map(|s| (s, note))
         .map_err(|e| mesh_err(name, format!("{e:?}")))
+}
+
+/// A triangle mesh as [`orient_mesh`] leaves it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrientedMesh {
+    /// The distinct vertices \[m\].
+    pub vertices: Vec<[f64; 3]>,
+    /// The triangles, wound outward when the mesh is closed.
+    pub triangles: Vec<[u32; 3]>,
+    /// Why the mesh is not a closed, orientable surface enclosing a volume (`None` when it is).
+    pub open: Option<String>,
+}
+
+/// The key of an edge (its vertices in increasing order) and whether triangle `t` runs it
+/// forward (from the smaller to the larger vertex).
+fn edges_of(t: [u32; 3]) -> [((u32, u32), bool); 3] {
+    let e = |a: u32, b: u32| ((a.min(b), a.max(b)), a < b);
+    [e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0])]
+}
+
+/// Edge → the triangles on it, with whether each runs it forward.
+type EdgeMap = std::collections::HashMap<(u32, u32), Vec<(usize, bool)>>;
+
+/// Merges vertices with equal coordinates (as the f32 parry stores), drops triangles that repeat
+/// a vertex, and, when the mesh is closed (every edge on exactly two triangles) and orientable,
+/// winds every triangle outward: within each connected piece each pair of neighbours runs their
+/// shared edge in opposite directions, and each piece encloses a positive volume. Linear in the
+/// number of triangles (hash maps, one breadth-first pass).
+pub fn orient_mesh(verts: &[[f64; 3]], idx: &[[u32; 3]]) -> OrientedMesh {
+    let mut id: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
+    // `+ 0.0` makes −0 and +0 one vertex.
+    let remap: Vec<u32> = verts
+        .iter()
+        .map(|p| {
+            let key = p.map(|c| (c as f32 + 0.0).to_bits());
+            *id.entry(key).or_insert_with(|| {
+                vertices.push(*p);
+                (vertices.len() - 1) as u32
+            })
+        })
+        .collect();
+    let mut triangles: Vec<[u32; 3]> = idx
+        .iter()
+        .map(|t| t.map(|i| remap[i as usize]))
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
+        .collect();
+    let mut edges = EdgeMap::new();
+    for (ti, t) in triangles.iter().enumerate() {
+        for (key, forward) in edges_of(*t) {
+            edges.entry(key).or_default().push((ti, forward));
+        }
+    }
+    let boundary = edges.values().filter(|v| v.len() == 1).count();
+    let shared = edges.values().filter(|v| v.len() > 2).count();
+    let open = |why: String, triangles: Vec<[u32; 3]>, vertices: Vec<[f64; 3]>| OrientedMesh {
+        vertices,
+        triangles,
+        open: Some(why),
+    };
+    if boundary > 0 || shared > 0 {
+        let why =
+            format!("{boundary} edge(s) on one triangle only, {shared} edge(s) on more than two");
+        return open(why, triangles, vertices);
+    }
+    let Some(flip) = consistent_flips(&triangles, &edges) else {
+        let why = "its triangles cannot be wound consistently: a one-sided surface".to_string();
+        return open(why, triangles, vertices);
+    };
+    for (t, (f, _)) in triangles.iter_mut().zip(&flip) {
+        if *f {
+            t.swap(1, 2);
+        }
+    }
+    // Each piece's enclosed volume, by the divergence theorem: Σ a·(b × c) / 6.
+    let pieces = flip.iter().map(|(_, c)| c + 1).max().unwrap_or(0);
+    let mut volume = vec![0.0f64; pieces];
+    let v = |i: u32| Vector3::from(vertices[i as usize]);
+    for (t, (_, c)) in triangles.iter().zip(&flip) {
+        volume[*c] += v(t[0]).dot(&v(t[1]).cross(&v(t[2]))) / 6.0;
+    }
+    let extent = vertices
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, c| m.max(c.abs()))
+        .max(f64::MIN_POSITIVE);
+    if volume.iter().any(|w| w.abs() <= 1e-9 * extent.powi(3)) {
+        let why = "a closed piece of it encloses no volume".to_string();
+        return open(why, triangles, vertices);
+    }
+    for (t, (_, c)) in triangles.iter_mut().zip(&flip) {
+        if volume[*c] < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    OrientedMesh {
+        vertices,
+        triangles,
+        open: None,
+    }
+}
+
+/// For a closed mesh: per triangle, whether to reverse it so that neighbours run each shared
+/// edge in opposite directions, and its connected piece; `None` when no such choice exists.
+fn consistent_flips(triangles: &[[u32; 3]], edges: &EdgeMap) -> Option<Vec<(bool, usize)>> {
+    let mut flip: Vec<Option<(bool, usize)>> = vec![None; triangles.len()];
+    let mut queue = std::collections::VecDeque::new();
+    let mut pieces = 0;
+    for seed in 0..triangles.len() {
+        if flip[seed].is_some() {
+            continue;
+        }
+        flip[seed] = Some((false, pieces));
+        queue.push_back(seed);
+        while let Some(t) = queue.pop_front() {
+            let (ft, _) = flip[t]?;
+            for (key, forward) in edges_of(triangles[t]) {
+                // Whether t, as it will be wound, runs the edge forward.
+                let runs = forward != ft;
+                for &(u, fu) in &edges[&key] {
+                    if u == t {
+                        continue;
+                    }
+                    // u must run it the other way: (fu XOR flip_u) = !runs.
+                    let want = fu == runs;
+                    match flip[u] {
+                        None => {
+                            flip[u] = Some((want, pieces));
+                            queue.push_back(u);
+                        }
+                        Some((got, _)) if got != want => return None,
+                        Some(_) => {}
+                    }
+                }
+            }
+        }
+        pieces += 1;
+    }
+    flip.into_iter().collect()
 }
 
 impl Obstacle {
@@ -555,13 +726,14 @@ impl Obstacle {
     pub fn from_spec(spec: &ObstacleSpec, base_dir: Option<&Path>) -> Result<Self, ObstacleError> {
         check_placement(spec)?;
         let world = iso(spec.position, spec.rpy);
-        let (shape, pose, closed) = shape_of(spec, world, base_dir)?;
+        let (shape, pose, closed, note) = shape_of(spec, world, base_dir)?;
         Ok(Self {
             name: spec.name.clone(),
             spec: spec.clone(),
             shape,
             shape_pose: to_pose(&pose),
             closed,
+            note,
         })
     }
 

@@ -217,6 +217,7 @@ mod tests {
             duration: 20.0,
             safe: !collided,
             non_finite: None,
+            disagreement: None,
             collided,
             first_collision: collided.then(|| CollisionEvent {
                 t: 3.0,

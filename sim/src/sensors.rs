@@ -191,7 +191,11 @@ pub struct ChannelSpec {
     /// taken as received, so an attack on an encoder reaches the odometry. The channel's own
     /// `noise_std`, `bias` and `bias_walk_std` are added on top (0 for a pure derivation); it is
     /// fresh whenever a wheel reading is.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        deserialize_with = "wheel_pair",
+        skip_serializing_if = "Option::is_none"
+    )]
     pub from_wheels: Option<[String; 2]>,
     /// For the `heading` channel: fuse it with this `yaw_rate` channel (the IMU gyro) in a
     /// Kalman filter on (θ, gyro bias) (`ftcbf_controller::odometry::HeadingFilter`); the drive
@@ -204,6 +208,21 @@ pub struct ChannelSpec {
 /// Serde default of a required number that may be left out in some cases (checked later).
 fn absent() -> f64 {
     f64::NAN
+}
+
+/// `from_wheels`: exactly two channel names, `[left, right]`. Serde's own `[String; 2]` reads the
+/// first two entries of a longer array and ignores the rest (`["l", "r", "l"]` was accepted).
+fn wheel_pair<'de, D>(d: D) -> Result<Option<[String; 2]>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    let names = Vec::<String>::deserialize(d)?;
+    let n = names.len();
+    <[String; 2]>::try_from(names).map(Some).map_err(|names| {
+        serde::de::Error::custom(format!(
+            "expected exactly two wheel channel names, [left, right]; got {n}: {names:?}"
+        ))
+    })
 }
 
 impl ChannelSpec {

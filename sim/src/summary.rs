@@ -195,6 +195,67 @@ impl EstimationError {
     }
 }
 
+/// How far the barrier's distance and the physics' clearance may disagree in sign before a run
+/// has no verdict \[m\]: above the contact solver's allowed penetration (rapier's default,
+/// 1 mm) and parry's f32 distance error (~1e-6 m), below any clearance a margin asks for.
+pub const DISAGREEMENT_TOLERANCE: f64 = 0.005;
+
+/// An obstacle where the run's barrier and physics contradicted each other.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Disagreement {
+    /// Simulation time \[s\].
+    pub t: f64,
+    /// Obstacle name.
+    pub obstacle: String,
+    /// Signed distance from the robot's centre to the obstacle, as its barrier computes it (no
+    /// margin, no velocity lift; negative inside) \[m\].
+    pub centre_distance: f64,
+    /// The robot disc's clearance, as its barrier computes it: `centre_distance` − the footprint
+    /// radius \[m\].
+    pub barrier_clearance: f64,
+    /// The physics' clearance between the robot's colliders and the obstacle (negative:
+    /// penetration) \[m\].
+    pub physics_clearance: f64,
+}
+
+impl std::fmt::Display for Disagreement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let where_ = if self.centre_distance < 0.0 {
+            format!(
+                "puts the robot's centre {:.4} m inside obstacle `{}`",
+                -self.centre_distance, self.obstacle
+            )
+        } else {
+            format!(
+                "puts the robot's disc {:.4} m clear of obstacle `{}`",
+                self.barrier_clearance, self.obstacle
+            )
+        };
+        let physics = if self.physics_clearance < 0.0 {
+            format!("{:.4} m of penetration", -self.physics_clearance)
+        } else {
+            format!("{:.4} m of clearance", self.physics_clearance)
+        };
+        write!(
+            f,
+            "at t = {:.3} s the barrier {where_} while the physics measures {physics}",
+            self.t
+        )
+    }
+}
+
+/// The consistency rule between a barrier and the physics, for one obstacle at one instant:
+/// they disagree when the robot's centre is inside the obstacle by more than
+/// [`DISAGREEMENT_TOLERANCE`] by the barrier's distance while the physics has the robot's
+/// colliders clear of it by more than that, or when the barrier's disc (which holds the robot's
+/// footprint) is clear by more than it while the physics has them penetrating by more than it.
+/// Arguments: the barrier's centre distance and disc clearance, the physics' clearance \[m\].
+pub fn disagree(centre_distance: f64, barrier_clearance: f64, physics_clearance: f64) -> bool {
+    let tol = DISAGREEMENT_TOLERANCE;
+    (centre_distance < -tol && physics_clearance > tol)
+        || (barrier_clearance > tol && physics_clearance < -tol)
+}
+
 /// Length of the final stretch of a run over which "settled in the goal" is judged \[s\].
 pub const SETTLE_WINDOW: f64 = 2.0;
 
@@ -218,6 +279,12 @@ pub struct RunSummary {
     /// verdict on NaN or ∞ would be no verdict at all. Absent when all were finite.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub non_finite: Option<String>,
+    /// The first time the run's own geometry contradicted itself (see [`disagree`]): the
+    /// barrier's distance and the physics' clearance to one obstacle had opposite signs beyond
+    /// [`DISAGREEMENT_TOLERANCE`]. The run then has no verdict: `safe` is false and `ftcbf run`
+    /// ends with an error. Absent when they agreed throughout.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub disagreement: Option<Disagreement>,
     /// The robot touched an obstacle.
     pub collided: bool,
     /// First contact, if any.
@@ -303,8 +370,15 @@ impl RunSummary {
             "{} · {} · seed {} · {:.1} s simulated, {} control steps",
             s.world, s.controller, s.seed, s.duration, s.control_steps
         )?;
-        let verdict = if s.safe { "SAFE" } else { "UNSAFE" };
+        let verdict = match (&s.disagreement, s.safe) {
+            (Some(_), _) => "NO VERDICT (the run's barrier and physics disagree)",
+            (None, true) => "SAFE",
+            (None, false) => "UNSAFE",
+        };
         writeln!(f, "  safety:    {verdict}")?;
+        if let Some(d) = &s.disagreement {
+            writeln!(f, "    disagreement: {d}")?;
+        }
         if let Some(n) = &s.non_finite {
             writeln!(
                 f,

@@ -140,6 +140,7 @@ pub(crate) mod testutil {
                 duration: 20.0,
                 safe,
                 non_finite: None,
+                disagreement: None,
                 collided,
                 first_collision: collided.then(|| CollisionEvent {
                     t: 3.0 + unit(seed, 4),

@@ -22,6 +22,8 @@
 //!   loader, which names the joint and its line.
 //! - Elements nested deeper than [`MAX_DEPTH`] are refused before anything else is read.
 
+use std::collections::HashMap;
+
 use roxmltree::{Document, Node, ParsingOptions};
 
 use super::RobotError;
@@ -314,13 +316,18 @@ impl<'a, 'input> Reader<'a, 'input> {
         let (mut link_lines, mut joint_lines) = (vec![], vec![]);
         let mut fixed_axes: Vec<Option<[f64; 3]>> = Vec::new();
         let mut material_lines: Vec<usize> = Vec::new();
+        // Name → index of the first definition: duplicates are found in linear time (a list
+        // search made 50,000 links quadratic).
+        let mut link_at: HashMap<String, usize> = HashMap::new();
+        let mut joint_at: HashMap<String, usize> = HashMap::new();
+        let mut material_at: HashMap<String, usize> = HashMap::new();
         for c in root.children().filter(Node::is_element) {
             let tag = c.tag_name().name();
             let plain = c.tag_name().namespace().is_none();
             match tag {
                 "link" if plain => {
                     let link = self.link(c)?;
-                    if let Some(k) = robot.links.iter().position(|l| l.name == link.name) {
+                    if let Some(&k) = link_at.get(&link.name) {
                         return Err(self.err(
                             c,
                             format!(
@@ -329,12 +336,13 @@ impl<'a, 'input> Reader<'a, 'input> {
                             ),
                         ));
                     }
+                    link_at.insert(link.name.clone(), robot.links.len());
                     robot.links.push(link);
                     link_lines.push(self.line(c));
                 }
                 "joint" if plain => {
                     let (joint, fixed_axis) = self.joint(c)?;
-                    if let Some(k) = robot.joints.iter().position(|j| j.name == joint.name) {
+                    if let Some(&k) = joint_at.get(&joint.name) {
                         return Err(self.err(
                             c,
                             format!(
@@ -343,13 +351,14 @@ impl<'a, 'input> Reader<'a, 'input> {
                             ),
                         ));
                     }
+                    joint_at.insert(joint.name.clone(), robot.joints.len());
                     robot.joints.push(joint);
                     joint_lines.push(self.line(c));
                     fixed_axes.push(fixed_axis);
                 }
                 "material" if plain => {
                     let m = self.material(c, "<robot>", false)?;
-                    if let Some(k) = robot.materials.iter().position(|x| x.name == m.name) {
+                    if let Some(&k) = material_at.get(&m.name) {
                         return Err(self.err(
                             c,
                             format!(
@@ -358,6 +367,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                             ),
                         ));
                     }
+                    material_at.insert(m.name.clone(), robot.materials.len());
                     robot.materials.push(m);
                     material_lines.push(self.line(c));
                 }

@@ -532,8 +532,12 @@ impl<'w> Simulation<'w> {
             seed: self.seed,
             controller: self.law.name().to_string(),
             duration: self.k as f64 * self.control_dt,
-            safe: !collided && m.first_violation.is_none() && non_finite.is_none(),
+            safe: !collided
+                && m.first_violation.is_none()
+                && non_finite.is_none()
+                && m.disagreement.is_none(),
             non_finite,
+            disagreement: m.disagreement.clone(),
             collided,
             first_collision: m.first_collision.clone(),
             first_violation: m.first_violation.clone(),

@@ -6,8 +6,9 @@ use std::sync::Arc;
 use ftcbf_controller::lyapunov::QuadraticClf;
 use ftcbf_controller::{Barrier, State};
 
+use crate::obstacles::ObstacleBarrier;
 use crate::state::TruthState;
-use crate::summary::{CollisionEvent, NamedValue, ViolationEvent};
+use crate::summary::{disagree, CollisionEvent, Disagreement, NamedValue, ViolationEvent};
 use crate::world::{GoalMetric, World};
 
 use super::plant::Plant;
@@ -23,6 +24,12 @@ pub(super) struct Monitor {
     in_contact: Vec<bool>,
     clearances: Vec<f64>,
     pub(super) min_clearance: Option<f64>,
+    /// Each obstacle's barrier geometry (distance without margin or lift), to hold the
+    /// physics' clearances against.
+    geometry: Vec<ObstacleBarrier>,
+    /// The first instant the barrier geometry and the physics disagreed (see
+    /// [`crate::summary::disagree`]).
+    pub(super) disagreement: Option<Disagreement>,
     pub(super) first_collision: Option<CollisionEvent>,
     pub(super) first_violation: Option<ViolationEvent>,
     /// The first non-finite quantity seen during the run (a barrier value, the true state, a
@@ -46,6 +53,11 @@ impl Monitor {
             in_contact: vec![false; world.obstacles.len()],
             clearances: Vec::new(),
             min_clearance: None,
+            geometry: {
+                let bcfg = super::setup::obstacle_barrier_config(world);
+                world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
+            },
+            disagreement: None,
             first_collision: None,
             first_violation: None,
             non_finite: None,
@@ -157,7 +169,33 @@ impl Monitor {
                 }
             }
             self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
+            self.hold_against_physics(world, [x[0], x[1]], truth.t);
         }
+    }
+
+    /// Holds each obstacle's barrier geometry at position `p` against the physics' clearance
+    /// just measured; keeps the first disagreement.
+    fn hold_against_physics(&mut self, world: &World, p: [f64; 2], t: f64) {
+        if self.disagreement.is_some() {
+            return;
+        }
+        let at = nalgebra::Vector2::new(p[0], p[1]);
+        self.disagreement = self
+            .geometry
+            .iter()
+            .zip(&self.clearances)
+            .zip(&world.obstacles)
+            .find_map(|((g, &c), o)| {
+                let d = g.clearance(at);
+                let centre = d + g.config().robot_radius;
+                disagree(centre, d, c).then(|| Disagreement {
+                    t,
+                    obstacle: o.name.clone(),
+                    centre_distance: centre,
+                    barrier_clearance: d,
+                    physics_clearance: c,
+                })
+            });
     }
 
     /// Number of barriers (safe sets, then obstacles).

@@ -697,6 +697,7 @@ fn problem_form(
     gain: &GainChoice,
 ) -> Result<ProblemForm, RunError> {
     let file = &world.file;
+    waypoints_inside(world, safe_set_barriers)?;
     if file.control.form == FormSpec::Paper {
         return Ok(ProblemForm::Paper);
     }
@@ -731,7 +732,7 @@ fn problem_form(
         GainSource::Auto { .. } => gain.hold_clearance,
         GainSource::Declared => HOLD_BAND,
     };
-    t.waypoints = planned_path(world, bcfg, [start[0], start[1]], hold);
+    t.waypoints = planned_path(world, bcfg, [start[0], start[1]], hold)?;
     // the tracker appends the goal itself
     t.waypoints.pop();
     let rest = rest_targets(world, model, patterns, gamma, safe_set_barriers, gain.kappa);
@@ -748,6 +749,31 @@ fn problem_form(
     })
 }
 
+/// Refuses a waypoint outside a safe set (h < 0 there at rest): the robot is to pass it, and the
+/// safety filter keeps the robot out of that set, so it never could. (The tracker used to move
+/// such a waypoint to the set's boundary without a word.)
+fn waypoints_inside(world: &World, safe_sets: &[Arc<dyn Barrier>]) -> Result<(), RunError> {
+    for (i, w) in world.file.goal.waypoints.iter().enumerate() {
+        let at_rest = State::new(w[0], w[1], 0.0, 0.0);
+        for b in safe_sets {
+            let h = b.eval(&at_rest).value;
+            if h.is_nan() || h < 0.0 {
+                return Err(setup_err(
+                    world,
+                    &format!("goal.waypoints[{i}]"),
+                    format!(
+                        "({}, {}) is outside safe set `{}` (h = {h:.6} at rest there); expected a waypoint inside every safe set (h ≥ 0): the safety filter keeps the robot out, so it could never pass it",
+                        w[0],
+                        w[1],
+                        b.name()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The points from the start to the goal (the goal last): `[goal] waypoints`, with legs
 /// planned around the obstacles when `[goal] plan`, keeping [`HOLD_BAND`] beyond the margin, or
 /// `hold` where the rows need more to hold the robot at rest (see [`GainChoice`]) and such a
@@ -757,12 +783,12 @@ pub fn planned_path(
     bcfg: &BarrierConfig,
     start: [f64; 2],
     hold: f64,
-) -> Vec<[f64; 2]> {
+) -> Result<Vec<[f64; 2]>, RunError> {
     let goal = &world.file.goal;
     if !goal.plan || world.obstacles.is_empty() {
         let mut pts = goal.waypoints.clone();
         pts.push(goal.center);
-        return pts;
+        return Ok(pts);
     }
     let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(bcfg)).collect();
     let clear = |p: [f64; 2]| {
@@ -771,14 +797,34 @@ pub fn planned_path(
             .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
             .fold(f64::INFINITY, f64::min)
     };
+    // Each evaluation queries every obstacle: the budget is in obstacle queries.
+    let max_evaluations =
+        (PLANNER_QUERIES / barriers.len() as u64).clamp(1, crate::planner::DEFAULT_MAX_EVALUATIONS);
     let with = |band: f64| PlannerConfig {
         inflate: bcfg.margin + band,
+        max_evaluations,
         ..PlannerConfig::default()
     };
+    let over_budget = |e: crate::planner::BudgetExceeded| {
+        let key = match goal.waypoints.get(e.leg) {
+            Some(_) => format!("goal.waypoints[{}]", e.leg),
+            None => "goal.center".to_string(),
+        };
+        setup_err(
+            world,
+            &key,
+            format!(
+                "{e} (each evaluation queries all {} obstacle(s); the limit is min({}, {PLANNER_QUERIES} / obstacles)); expected a leg the planner can search: put waypoints closer together (in free space a leg only needs line of sight), or set `[goal] plan = false`",
+                barriers.len(),
+                crate::planner::DEFAULT_MAX_EVALUATIONS
+            ),
+        )
+    };
     if hold > HOLD_BAND {
-        let p = plan(start, &goal.waypoints, goal.center, &clear, &with(hold));
+        let p =
+            plan(start, &goal.waypoints, goal.center, &clear, &with(hold)).map_err(over_budget)?;
         if p.unplanned_legs == 0 {
-            return p.points;
+            return Ok(p.points);
         }
     }
     plan(
@@ -788,8 +834,13 @@ pub fn planned_path(
         &clear,
         &with(HOLD_BAND),
     )
-    .points
+    .map(|p| p.points)
+    .map_err(over_budget)
 }
+
+/// The planner's work limit, in obstacle distance queries (one clearance evaluation queries
+/// every obstacle): 2·10⁶, a few seconds of work at most whatever the obstacle count.
+pub const PLANNER_QUERIES: u64 = 2_000_000;
 
 /// Which channels a filter that drops the fault patterns `drop` keeps.
 pub fn channel_mask(q: usize, patterns: &[Vec<usize>], drop: &[usize]) -> Vec<bool> {

@@ -382,7 +382,9 @@ pub fn reach_among(
         inflate: spare + defaults.resolution * std::f64::consts::FRAC_1_SQRT_2,
         ..defaults
     };
-    let p = plan(start, &[], goal, &clear, &cfg);
+    let Ok(p) = plan(start, &[], goal, &clear, &cfg) else {
+        return Err(Blocked::Path(None));
+    };
     if p.unplanned_legs > 0 {
         return Err(Blocked::Path(None));
     }
