@@ -432,7 +432,7 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
 /// `ftcbf gen`: the library generates (`ftcbf_sim::worldgen`); this writes and lists.
 /// `ftcbf report`: load, render, then write or compare (the logic is `ftcbf::report`).
 fn cmd_report(a: &ReportArgs) -> anyhow::Result<()> {
-    let inputs = report::load(Path::new("."), &a.results)?;
+    let inputs = report::load(&a.results)?;
     let pages = report::render(&inputs)?;
     if a.check {
         let differ = report::differences(&pages, &a.out)?;
