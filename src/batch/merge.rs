@@ -207,7 +207,7 @@ fn merge_point(
         for r in own.records.iter().step_by(part.plan.controllers.len()) {
             if let Some(&j) = owner.get(&r.trial) {
                 return Err(anyhow!(
-                    "trial {} is in both `{}` ({}) and `{name}` ({}): the files overlap",
+                    "trial {} is in both `{}` ({}) and `{name}` ({}): the files overlap; expected each trial in exactly one file",
                     r.trial,
                     parts[j].0,
                     shard_label(parts[j].1.plan.shard),

@@ -26,7 +26,7 @@ use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 pub enum WorldError {
     /// The file cannot be read. (The cause is in the message, not also a `source`, so that
     /// a chain printed with `{:#}` says it once.)
-    #[error("{path}: cannot read the world file: {error}")]
+    #[error("{path}: cannot read the world file (expected a readable TOML file): {error}")]
     Io {
         /// File.
         path: PathBuf,
