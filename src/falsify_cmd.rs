@@ -340,7 +340,14 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         PathBuf::from("runs").join(format!("{}-worst-{}.toml", report.world, report.controller))
     });
     let recording = (!args.no_record).then(|| out.with_extension("rrd"));
-    let replay = write_worst(&template, &report, &out, recording.as_deref())?;
+    let replay =
+        write_worst(&template, &report, &out, recording.as_deref()).with_context(|| {
+            format!(
+                "--out `{}`: expected a file path whose folder exists or can be created, for the \
+             worst attack's world",
+                out.display()
+            )
+        })?;
     println!();
     println!(
         "worst run ({} search) written to {}; `ftcbf run {}` replays it: ρ = {} (identical)",

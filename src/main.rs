@@ -449,7 +449,7 @@ fn cmd_check(a: &CheckArgs) -> Result<(), Failure> {
 /// `ftcbf gen`: the library generates (`ftcbf_sim::worldgen`); this writes and lists.
 /// `ftcbf report`: load, render, then write or compare (the logic is `ftcbf::report`).
 fn cmd_report(a: &ReportArgs) -> anyhow::Result<()> {
-    let inputs = report::load(Path::new("."), &a.results)?;
+    let inputs = report::load(&a.results)?;
     let pages = report::render(&inputs)?;
     if a.check {
         let differ = report::differences(&pages, &a.out)?;
@@ -501,6 +501,19 @@ fn cmd_gen(a: &GenArgs) -> anyhow::Result<()> {
         SuiteArg::ReceiverVelocity => Some(Suite::ReceiverVelocity),
         SuiteArg::Any => None,
     };
+    if a.out.exists() && !a.out.is_dir() {
+        anyhow::bail!(
+            "--out `{}` is not a directory; expected a directory to write the generated worlds \
+             into (it is created when missing)",
+            a.out.display()
+        );
+    }
+    let out_flag = || {
+        format!(
+            "--out `{}`: expected a directory the generated worlds can be written into",
+            a.out.display()
+        )
+    };
     let generator = Generator::new(GenConfig {
         seed: a.seed,
         kind,
@@ -508,10 +521,14 @@ fn cmd_gen(a: &GenArgs) -> anyhow::Result<()> {
         suite,
         robots_dir: a.robots.clone(),
         out_dir: a.out.clone(),
+    })
+    .map_err(|e| match e {
+        ftcbf_sim::worldgen::GenError::Io { .. } => anyhow::Error::new(e).context(out_flag()),
+        e => anyhow::Error::new(e),
     })?;
     let count = usize::try_from(a.count).context("--count")?;
     let worlds = generator.worlds(count)?;
-    let paths = write_worlds(&a.out, &worlds)?;
+    let paths = write_worlds(&a.out, &worlds).with_context(out_flag)?;
     let rows: Vec<Vec<String>> = worlds
         .iter()
         .zip(&paths)

@@ -50,7 +50,9 @@ pub struct Stamp {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StampedRun {
-    /// The JSON file it wrote, relative to the repository root.
+    /// The JSON file it wrote, as `scripts/results.sh` names it from the repository root
+    /// (`results/batch/x.json`); read from the results folder it is listed in (see
+    /// [`listed_file`]).
     pub json: String,
     /// The command line, with `ftcbf` for the binary.
     pub command: String,
@@ -194,10 +196,24 @@ pub struct Page {
     pub text: String,
 }
 
-/// Reads `RESULTS/stamp.toml` and every JSON file it lists (paths relative to `root`, the
-/// repository root). A file whose format is neither a batch nor a falsify result is an error
-/// naming it.
-pub fn load(root: &Path, results: &Path) -> anyhow::Result<Inputs> {
+/// Where a file the stamp lists is, given the results folder the stamp is in: the stamp names
+/// files as `scripts/results.sh` wrote them from the repository root (`results/batch/x.json`),
+/// so a leading `results/` stands for the results folder itself, wherever it was copied to and
+/// whatever the working directory; any other relative path is inside the results folder, and an
+/// absolute path is taken as it is.
+pub fn listed_file(results: &Path, json: &str) -> PathBuf {
+    let listed = Path::new(json);
+    if listed.is_absolute() {
+        return listed.to_path_buf();
+    }
+    let inside = listed.strip_prefix("results").unwrap_or(listed);
+    results.join(inside)
+}
+
+/// Reads `RESULTS/stamp.toml` and every JSON file it lists (see [`listed_file`]: they are
+/// found through the results folder, not the working directory). A file whose format is
+/// neither a batch nor a falsify result is an error naming it.
+pub fn load(results: &Path) -> anyhow::Result<Inputs> {
     let stamp_path = results.join(STAMP);
     let text = std::fs::read_to_string(&stamp_path)
         .with_context(|| format!("could not read `{}`", stamp_path.display()))?;
@@ -212,7 +228,7 @@ pub fn load(root: &Path, results: &Path) -> anyhow::Result<Inputs> {
     let mut batches = Vec::new();
     let mut falsify = Vec::new();
     for run in &stamp.run {
-        let path = root.join(&run.json);
+        let path = listed_file(results, &run.json);
         let text = std::fs::read_to_string(&path).with_context(|| {
             format!(
                 "could not read `{}` (listed in `{}`)",

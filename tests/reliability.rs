@@ -476,7 +476,7 @@ fn a_noiseless_linear_plant_needs_the_filters_own_process_noise() {
     assert!(
         r.context
             .iter()
-            .any(|l| l.contains("(all converged: true)")),
+            .any(|l| l.contains("reach a steady state, which the bounds use")),
         "{r}"
     );
     assert!(

@@ -102,3 +102,44 @@ fn a_json_file_the_stamp_lists_but_that_is_missing_is_an_error_naming_it() {
         "{err}"
     );
 }
+
+/// Issue #46 item 3: `--results` an absolute copy of `results/`, run from a directory that has
+/// no `results/` of its own: the files the stamp lists are read from the copy.
+#[test]
+fn an_absolute_copy_of_the_results_is_read_from_another_directory() {
+    let dir = scratch("report-elsewhere");
+    let copy = dir.join("copied/results-copy");
+    copy_dir(&dir.join("results"), &copy);
+    std::fs::remove_dir_all(dir.join("results")).expect("remove the original");
+    let elsewhere = dir.join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).expect("mkdir");
+    let pages = dir.join("book/src/results");
+    let out = report(
+        &elsewhere,
+        &[
+            "--check",
+            "--results",
+            copy.to_str().expect("utf-8"),
+            "--out",
+            pages.to_str().expect("utf-8"),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // a missing listed file is named by where it was looked for: inside the copy
+    std::fs::remove_file(copy.join("batch/paper_linear.json")).expect("remove");
+    let out = report(
+        &elsewhere,
+        &["--check", "--results", copy.to_str().expect("utf-8")],
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    let missing = copy.join("batch/paper_linear.json");
+    assert!(
+        err.contains(&missing.display().to_string()),
+        "names the file inside the copy: {err}"
+    );
+}

@@ -733,6 +733,11 @@ pub struct FtParameters {
     /// Whether every Riccati recursion converged (false: a pair filter without a steady state,
     /// whose γ_ij then comes from its covariance over the horizon).
     pub all_converged: bool,
+    /// Whether each Riccati recursion reached a steady state, in the order of
+    /// `riccati_iterations`.
+    pub riccati_converged: Vec<bool>,
+    /// Number of fault patterns (the single filters; the pairs follow them, then the baseline).
+    pub patterns: usize,
     /// The method used.
     pub method: BoundMethod,
 }
@@ -1021,12 +1026,14 @@ impl FtParameters {
         };
         let lmax = |p: &StateMatrix| ((p + p.transpose()) * 0.5).symmetric_eigenvalues().max();
         let mut iterations = Vec::new();
+        let mut converged = Vec::new();
         let mut all_converged = true;
         // γ of one channel set: steady state (paper) or the worst of steady state and horizon.
         let mut gamma_of = |uses: &[bool], iterations: &mut Vec<usize>| -> f64 {
             let phases = updates.phases(uses);
             let s = periodic_riccati(model, &phases, dt);
             iterations.push(s.iterations);
+            converged.push(s.converged);
             all_converged &= s.converged;
             let horizon = || horizon_riccati_from(model, &phases, 0, dt, p0, n);
             match (method, s.converged) {
@@ -1119,6 +1126,8 @@ impl FtParameters {
             eps_per_sample: eps1,
             riccati_iterations: iterations,
             all_converged,
+            riccati_converged: converged,
+            patterns: patterns.len(),
             method,
         }
     }
@@ -1149,10 +1158,53 @@ impl fmt::Display for FtParameters {
                 )?,
             }
         }
-        write!(
-            f,
-            "Riccati iterations {:?} (all converged: {})",
-            self.riccati_iterations, self.all_converged
+        write!(f, "{}", self.riccati_line())
+    }
+}
+
+impl FtParameters {
+    /// The filter a Riccati recursion belongs to, by its index in `riccati_iterations`:
+    /// `filter 2` (pattern 2 dropped), `pair (1, 2)`, `baseline`.
+    fn filter_name(&self, k: usize) -> String {
+        let m = self.patterns;
+        if k < m {
+            return format!("filter {}", k + 1);
+        }
+        let mut idx = m;
+        for i in 0..m {
+            for j in (i + 1)..m {
+                if idx == k {
+                    return format!("pair ({}, {})", i + 1, j + 1);
+                }
+                idx += 1;
+            }
+        }
+        "baseline".to_string()
+    }
+
+    /// The Riccati recursions in words: how many reach a steady state, which do not, and why
+    /// that is expected (their bounds come from the covariance over the horizon).
+    pub fn riccati_line(&self) -> String {
+        let n = self.riccati_iterations.len();
+        let steady = self.riccati_converged.iter().filter(|c| **c).count();
+        let head = format!(
+            "Riccati recursions (one per filter: singles, pairs, baseline; iterations {:?})",
+            self.riccati_iterations
+        );
+        if steady == n {
+            return format!("{head}: all {n} reach a steady state, which the bounds use");
+        }
+        let without: Vec<String> = (0..n)
+            .filter(|k| !self.riccati_converged.get(*k).copied().unwrap_or(true))
+            .map(|k| self.filter_name(k))
+            .collect();
+        format!(
+            "{head}: {steady} of {n} reach a steady state; no steady state for {} (the channels \
+             that filter keeps do not observe the whole state, e.g. a pair filter left with \
+             odometry only). Expected, not a fault: such a filter's bounds come from the largest \
+             covariance it reaches over the run's horizon instead, finite and valid for the \
+             run's length",
+            without.join(", "),
         )
     }
 }

@@ -129,8 +129,9 @@ impl NonFiniteValue {
     }
 }
 
-/// Direction of a stealthy bias.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+/// Direction of a stealthy bias; read from `"positive"` or `"negative"` (anything else, an
+/// array included, is refused with both values named).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Direction {
     /// Readings pushed up.
@@ -138,6 +139,26 @@ pub enum Direction {
     Positive,
     /// Readings pushed down.
     Negative,
+}
+
+impl<'de> Deserialize<'de> for Direction {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Direction;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("\"positive\" or \"negative\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Direction, E> {
+                match v {
+                    "positive" => Ok(Direction::Positive),
+                    "negative" => Ok(Direction::Negative),
+                    other => Err(E::invalid_value(serde::de::Unexpected::Str(other), &self)),
+                }
+            }
+        }
+        d.deserialize_str(Visitor)
+    }
 }
 
 impl Direction {

@@ -486,19 +486,40 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
 /// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not
 /// continuously.
 fn check_departures(world: &World, found: &mut Findings) {
-    let half_planes = world
-        .file
-        .safe_sets
-        .iter()
-        .filter(|s| matches!(s, SafeSetSpec::HalfPlane { .. }))
-        .count();
+    let (flat, cornered, curved) = barrier_boundaries(world);
     let barriers = world.file.safe_sets.len() + world.obstacles.len();
-    if barriers > 1 || half_planes < barriers {
+    if barriers > 1 || flat < barriers {
         found.assumptions.push(format!(
-            "Step 3's saturation rule (keep a unit whose rows the box cannot meet) does not pull the fallback against an honest row ({barriers} barrier(s), {} curved): outside the theorem",
-            barriers - half_planes
+            "Step 3's saturation rule (keep a unit whose rows the box cannot meet) does not pull the fallback against an honest row ({barriers} barrier(s): {flat} flat, {cornered} flat-sided with corners rounded by the footprint, {curved} curved): outside the theorem",
         ));
     }
+}
+
+/// The barriers by the shape of their boundary in the plane: flat (half-planes, half-space
+/// obstacles), flat-sided (cuboids, convex hulls, meshes: the footprint rounds their corners)
+/// and curved (ellipses, balls, cylinders, capsules, cones).
+fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
+    use crate::obstacles::ShapeSpec;
+    let (mut flat, mut cornered, mut curved) = (0, 0, 0);
+    for s in &world.file.safe_sets {
+        match s {
+            SafeSetSpec::HalfPlane { .. } => flat += 1,
+            _ => curved += 1,
+        }
+    }
+    for ob in &world.obstacles {
+        match ob.spec.shape {
+            ShapeSpec::HalfSpace { .. } => flat += 1,
+            ShapeSpec::Cuboid { .. } | ShapeSpec::ConvexHull { .. } | ShapeSpec::TriMesh { .. } => {
+                cornered += 1
+            }
+            ShapeSpec::Ball { .. }
+            | ShapeSpec::Cylinder { .. }
+            | ShapeSpec::Capsule { .. }
+            | ShapeSpec::Cone { .. } => curved += 1,
+        }
+    }
+    (flat, cornered, curved)
 }
 
 /// The description lines: plant, control, channels and patterns, filters, parameters.
@@ -672,7 +693,11 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         fmt_list(&p.ft.gamma),
         p.ft.gamma_baseline,
         fmt_list(&p.ft.theta),
-        p.delta,
+        if p.delta == f64::INFINITY {
+            "none (the barrier rows are imposed at every step)".to_string()
+        } else {
+            p.delta.to_string()
+        },
         if p.delta_auto {
             " (auto: half the largest δ Prop. 1 allows for the arena)"
         } else {
@@ -1124,7 +1149,18 @@ fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, foun
             } else {
                 format!("timed by {}: ", s.name)
             };
-            let lost = if c.dropout > 0.0 {
+            let lost = if c.dropout >= 1.0 {
+                format!(
+                    ", a sample every {} ticks, dropout {}: every sample is lost",
+                    c.period, c.dropout
+                )
+            } else if c.missed == usize::MAX {
+                format!(
+                    ", a sample every {} ticks, dropout {}: losses in a row as long as the run \
+                     are too likely to bound",
+                    c.period, c.dropout
+                )
+            } else if c.dropout > 0.0 {
                 format!(
                     ", a sample every {} ticks, dropout {}: up to {} lost in a row",
                     c.period, c.dropout, c.missed

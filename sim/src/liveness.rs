@@ -56,6 +56,14 @@ use rand_distr::{Distribution, StandardNormal};
 /// Spacing of the path samples \[m\].
 pub const SAMPLE_STEP: f64 = 0.05;
 
+/// The box [m/s²] that stands for "no `input_limit`" in the search for the best acceleration
+/// along the path.
+const NO_LIMIT_BOX: f64 = 1e6;
+
+/// A least acceleration along the path at or above this [m/s²] is the stand-in box of a world
+/// without `input_limit`, not a bound of the rows: reported as unbounded, not as a number.
+const UNBOUNDED_PROGRESS: f64 = NO_LIMIT_BOX / 10.0;
+
 /// The least acceleration along the path [m/s²] the rows must leave for the robot to be
 /// predicted to move on (below it, the tracker's u_nom is projected to a standstill).
 pub const MIN_PROGRESS: f64 = 0.02;
@@ -312,8 +320,14 @@ impl fmt::Display for LivenessReport {
             };
             let body = match &c.stall {
                 Some(st) => stall_text(st),
+                None if c.least_progress.0 >= UNBOUNDED_PROGRESS => format!(
+                    "a forward input at every point (no input_limit, and the rows bound the \
+                     forward acceleration nowhere on the path; tightest at ({:.2}, {:.2}))",
+                    c.least_progress.1[0], c.least_progress.1[1]
+                ),
                 None => format!(
-                    "a forward input at every point (least {:.3} m/s² at ({:.2}, {:.2}))",
+                    "a forward input at every point (the rows leave at least {:.3} m/s² of \
+                     acceleration along the path, least at ({:.2}, {:.2}))",
                     c.least_progress.0, c.least_progress.1[0], c.least_progress.1[1]
                 ),
             };
@@ -1157,7 +1171,7 @@ fn best_along(
     limit: Option<Input>,
     dir: [f64; 2],
 ) -> Option<f64> {
-    let l = limit.map_or([1e6, 1e6], |l| [l[0], l[1]]);
+    let l = limit.map_or([NO_LIMIT_BOX, NO_LIMIT_BOX], |l| [l[0], l[1]]);
     let mut lines: Vec<([f64; 2], f64)> = Vec::with_capacity(rows.len() + 4);
     for (h, _, _) in rows {
         let n = h.normal.norm();

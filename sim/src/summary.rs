@@ -407,12 +407,10 @@ impl RunSummary {
         }
         writeln!(
             f,
-            "  settled:   {} (inside the goal over the last {} s); final distance {:.4} m, V(x) = {}",
+            "  settled:   {} (inside the goal over the last {} s); final distance to the goal's centre {:.4} m",
             if s.goal_settled { "yes" } else { "no" },
             SETTLE_WINDOW,
             s.final_goal_distance,
-            s.final_clf_value
-                .map_or("n/a".to_string(), |v| format!("{v:.5}"))
         )?;
         Ok(())
     }

@@ -336,8 +336,12 @@ pub fn from_csv(text: &str, name: &str) -> anyhow::Result<Vec<CsvTrial>> {
 /// FNV-1a (64 bit) of a file's bytes, as `fnv1a64:<16 hex digits>`: the "same world" check
 /// of a merge (not a cryptographic hash).
 pub fn digest_file(path: &Path) -> anyhow::Result<String> {
-    let bytes = std::fs::read(path)
-        .with_context(|| format!("could not read the world file `{}`", path.display()))?;
+    let bytes = std::fs::read(path).with_context(|| {
+        format!(
+            "could not read the world file `{}` (expected a readable TOML file)",
+            path.display()
+        )
+    })?;
     Ok(digest_bytes(&bytes))
 }
 

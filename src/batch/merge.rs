@@ -207,7 +207,7 @@ fn merge_point(
         for r in own.records.iter().step_by(part.plan.controllers.len()) {
             if let Some(&j) = owner.get(&r.trial) {
                 return Err(anyhow!(
-                    "trial {} is in both `{}` ({}) and `{name}` ({}): the files overlap",
+                    "trial {} is in both `{}` ({}) and `{name}` ({}): the files overlap; expected each trial in exactly one file",
                     r.trial,
                     parts[j].0,
                     shard_label(parts[j].1.plan.shard),
@@ -224,8 +224,11 @@ fn merge_point(
     if covered < total {
         let msg = incomplete_cover_message(parts, &owner, total);
         if !allow_incomplete {
+            let files: Vec<String> = parts.iter().map(|(n, _)| format!("`{n}`")).collect();
             return Err(anyhow!(
-                "{msg} (pass --allow-incomplete to summarise the trials present)"
+                "{msg} in the files merged ({}); expected every trial of the batch (pass \
+                 --allow-incomplete to summarise the trials present)",
+                files.join(", ")
             ));
         }
         warnings.push(msg);
@@ -327,8 +330,10 @@ mod tests {
         let gap = vec![texts[0].clone(), texts[1].clone(), texts[3].clone()];
         let e = merge_texts(&gap, false).expect_err("gap").to_string();
         assert!(
-            e.contains("10 of 40 trials missing") && e.contains("missing shard(s): 3/4"),
-            "{e}"
+            e.contains("10 of 40 trials missing")
+                && e.contains("missing shard(s): 3/4")
+                && e.contains("`shard1.json`, `shard2.json`, `shard4.json`"),
+            "names the files: {e}"
         );
         let partial = merge_texts(&gap, true).expect("allowed");
         assert_eq!(partial[0].trials_covered, 30);

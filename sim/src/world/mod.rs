@@ -7,6 +7,7 @@ mod parse_error;
 pub mod ranges;
 pub mod schema;
 pub(crate) mod tagged;
+mod toml_limits;
 
 use std::path::{Path, PathBuf};
 
@@ -25,7 +26,7 @@ use crate::sensors::{resolve_patterns, validate_channels, Quantity};
 pub enum WorldError {
     /// The file cannot be read. (The cause is in the message, not also a `source`, so that
     /// a chain printed with `{:#}` says it once.)
-    #[error("{path}: cannot read the world file: {error}")]
+    #[error("{path}: cannot read the world file (expected a readable TOML file): {error}")]
     Io {
         /// File.
         path: PathBuf,
@@ -80,7 +81,7 @@ pub enum WorldError {
         message: String,
     },
     /// An override (`--sweep`, `--set`) does not fit the file.
-    #[error("{path}: override {message}")]
+    #[error("{path}: override (--set or --sweep) {message}")]
     Override {
         /// File.
         path: PathBuf,
@@ -676,11 +677,17 @@ impl Validator<'_> {
     /// radius, separation and footprint within [`ranges::ROBOT_SIZE`], limits within theirs.
     fn check_robot(&self, robot: &RobotDescription) -> Result<(), WorldError> {
         use ranges as r;
+        // The URDF's own path too: the value out of range is in that file, not the world file.
+        let urdf = if robot.origin == "<string>" {
+            String::new()
+        } else {
+            format!("URDF {}: ", robot.origin)
+        };
         let bad = |what: String| {
             self.err(
                 "robot.urdf",
                 format!(
-                    "robot `{}`: {what} (see the world-file reference, book/src/reference/world-file.md, for the ranges)",
+                    "{urdf}robot `{}`: {what} (see the world-file reference, book/src/reference/world-file.md, for the ranges)",
                     robot.name
                 ),
             )
@@ -1032,8 +1039,11 @@ impl Validator<'_> {
         if file.dynamics == Dynamics::Rapier && !measures(Quantity::Heading) {
             return Err(self.err(
                 "sensors",
-                "the rapier robot needs a channel with measures = \"heading\": the compensator (6.3)-(6.4) \
-                 linearises about the measured heading",
+                "the rapier robot needs a heading channel, and none of the [[sensors]] has one: \
+                 add a channel with measures = \"heading\" (the only key that provides one; a \
+                 yaw_rate channel, wheel encoders or from_wheels odometry do not, though the \
+                 heading channel may fuse a yaw_rate gyro with `gyro = \"NAME\"`): the \
+                 compensator (6.3)-(6.4) linearises about the measured heading",
             ));
         }
         for (q, label) in [(Quantity::X, "x"), (Quantity::Y, "y")] {

@@ -37,9 +37,23 @@ impl Override {
 
 impl fmt::Display for Override {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}={}", self.key, self.value)
+        write!(f, "{}={}", self.key, short_number(self.value))
     }
 }
+
+/// `v` as Rust writes it, except very large or very small magnitudes in exponent form
+/// (`-1e308`, not its 309 digits).
+pub fn short_number(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-5..1e16).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// The largest whole number an override carries exactly (2⁵³: `value` is an f64).
+const MAX_EXACT_WHOLE: f64 = 9_007_199_254_740_992.0;
 
 #[derive(Debug, Clone, PartialEq)]
 enum Segment {
@@ -97,7 +111,7 @@ pub(crate) fn apply(doc: &mut toml::Value, ov: &Override) -> Result<(), String> 
                     .as_table_mut()
                     .ok_or_else(|| format!("`{}`: `{k}` is not inside a table", ov.key))?;
                 if i == last {
-                    let new = number_like(table.get(k), ov.value);
+                    let new = number_like(table.get(k), ov)?;
                     table.insert(k.clone(), new);
                     return Ok(());
                 }
@@ -120,7 +134,7 @@ pub(crate) fn apply(doc: &mut toml::Value, ov: &Override) -> Result<(), String> 
                     )
                 })?;
                 if i == last {
-                    *slot = number_like(Some(slot), ov.value);
+                    *slot = number_like(Some(slot), ov)?;
                     return Ok(());
                 }
                 cur = slot;
@@ -130,12 +144,26 @@ pub(crate) fn apply(doc: &mut toml::Value, ov: &Override) -> Result<(), String> 
     Ok(())
 }
 
-fn number_like(existing: Option<&toml::Value>, v: f64) -> toml::Value {
+/// The override's value as the TOML value it replaces: a whole number where the file holds an
+/// integer (the seed, counts) and the value is whole, refused when it is whole but beyond 2⁵³
+/// (an f64 no longer carries it exactly); a float otherwise (the schema then says whether the
+/// key takes one).
+fn number_like(existing: Option<&toml::Value>, ov: &Override) -> Result<toml::Value, String> {
+    let v = ov.value;
     match existing {
-        Some(toml::Value::Integer(_)) if v.fract() == 0.0 && v.abs() < 9.0e15 => {
-            toml::Value::Integer(v as i64)
+        Some(toml::Value::Integer(_)) if v.fract() == 0.0 => {
+            if v.abs() <= MAX_EXACT_WHOLE {
+                Ok(toml::Value::Integer(v as i64))
+            } else {
+                Err(format!(
+                    "`{}`: the file holds a whole number there; expected a whole number within \
+                     ±{MAX_EXACT_WHOLE:.0}, found {}",
+                    ov.key,
+                    short_number(v)
+                ))
+            }
         }
-        _ => toml::Value::Float(v),
+        _ => Ok(toml::Value::Float(v)),
     }
 }
 
@@ -156,6 +184,26 @@ mod tests {
         assert_eq!(d["attacks"][0]["value"].as_float(), Some(0.25));
         assert_eq!(d["seed"].as_integer(), Some(7));
         assert_eq!(d["control"]["gamma"].as_float(), Some(0.5));
+    }
+
+    /// Issue #46: `--set seed=-1e308` was echoed with 309 digits; a whole number beyond what
+    /// an f64 carries exactly is refused where the file holds an integer, and numbers print
+    /// short.
+    #[test]
+    fn a_huge_whole_number_for_an_integer_key_is_refused_and_printed_short() {
+        let mut d = doc();
+        let ov = Override::parse("seed=-1e308").unwrap();
+        assert_eq!(ov.to_string(), "seed=-1e308");
+        let e = apply(&mut d, &ov).unwrap_err();
+        assert!(
+            e.contains("`seed`") && e.contains("expected a whole number within ±9007199254740992"),
+            "{e}"
+        );
+        assert!(e.contains("found -1e308") && e.len() < 200, "{e}");
+        apply(&mut d, &Override::parse("seed=9007199254740992").unwrap()).unwrap();
+        assert_eq!(Override::parse("x=0.5").unwrap().to_string(), "x=0.5");
+        assert_eq!(Override::parse("x=3").unwrap().to_string(), "x=3");
+        assert_eq!(Override::parse("x=1e-9").unwrap().to_string(), "x=1e-9");
     }
 
     #[test]

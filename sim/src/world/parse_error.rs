@@ -20,12 +20,32 @@ use super::WorldError;
 /// Parses `text` (the file at `path`) as `T`: a syntax error as toml reports it (line, column
 /// and the line itself), a schema error as [`WorldError::Schema`].
 pub(super) fn from_text<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T, WorldError> {
-    let de = toml::Deserializer::parse(text).map_err(|e| WorldError::Parse {
-        path: path.to_path_buf(),
-        message: e.to_string(),
+    let de = toml::Deserializer::parse(text).map_err(|e| {
+        // toml names no place for its key-depth limit and no limit for its nesting one: find
+        // the line and say the limit.
+        let recursion = e.message().contains("recursion");
+        let message = match super::toml_limits::first_excess(text) {
+            Some((line, what)) if recursion || e.span().is_none() => {
+                format!("line {line}: {what}")
+            }
+            _ => e.to_string(),
+        };
+        WorldError::Parse {
+            path: path.to_path_buf(),
+            message,
+        }
     })?;
     serde_path_to_error::deserialize(de).map_err(|e| {
-        let (key, message) = key_and_message(e.path(), e.inner().message());
+        let (key, mut message) = key_and_message(e.path(), e.inner().message());
+        if message == "wanted string or table" {
+            message = enum_values::<T>(text, &key).map_or_else(
+                || {
+                    "expected a string naming one of its values (see the world-file reference)"
+                        .into()
+                },
+                |values| format!("expected a string, {values}"),
+            );
+        }
         let span = DeTable::parse(text)
             .ok()
             .and_then(|doc| span_of(&doc, &key))
@@ -39,6 +59,26 @@ pub(super) fn from_text<T: DeserializeOwned>(text: &str, path: &Path) -> Result<
             message,
         }
     })
+}
+
+/// The values a named-value key (`measures`, `controller`, …) takes, as serde lists them
+/// ("one of `x`, `y`, …"): toml's own message for a number or an array there is "wanted string
+/// or table". Found by reading the file again with a string no key takes at `key`.
+fn enum_values<T: DeserializeOwned>(text: &str, key: &str) -> Option<String> {
+    let mut doc: toml::Value = toml::from_str(text).ok()?;
+    let mut cur = &mut doc;
+    for step in steps(key) {
+        cur = match step {
+            Step::Key(k) => cur.as_table_mut()?.get_mut(k)?,
+            Step::Index(i) => cur.as_array_mut()?.get_mut(i)?,
+        };
+    }
+    *cur = toml::Value::String("\u{1}".into());
+    let Err(e) = serde_path_to_error::deserialize::<_, T>(doc) else {
+        return None;
+    };
+    let m = e.inner().message().to_string();
+    m.find("one of ").map(|i| m[i..].to_string())
 }
 
 /// Deserializes `T` from a TOML value (a file after `--set` overrides: no places left), naming
