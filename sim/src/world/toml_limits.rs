@@ -75,13 +75,14 @@ fn nesting_excess() -> String {
     )
 }
 
-/// The nesting depth of arrays and inline tables after `s`, starting at `depth`; `None` once
-/// it passes [`MAX_NESTING`].
-fn nest(s: &str, mut depth: usize) -> Option<usize> {
+/// The characters of `s` outside quoted strings (basic `"…"` with `\\` escapes, literal
+/// `'…'`), with their byte offsets, up to a comment (`#` outside quotes). The quotes themselves
+/// are not yielded.
+fn unquoted(s: &str) -> impl Iterator<Item = (usize, char)> + '_ {
     let mut quote: Option<char> = None;
     let mut escaped = false;
-    for c in s.chars() {
-        match quote {
+    s.char_indices()
+        .map_while(move |(i, c)| match quote {
             Some(q) => {
                 if escaped {
                     escaped = false;
@@ -90,14 +91,26 @@ fn nest(s: &str, mut depth: usize) -> Option<usize> {
                 } else if c == q {
                     quote = None;
                 }
+                Some(None)
             }
-            None => match c {
-                '"' | '\'' => quote = Some(c),
-                '#' => break,
-                '[' | '{' => depth += 1,
-                ']' | '}' => depth = depth.saturating_sub(1),
-                _ => {}
-            },
+            None if c == '"' || c == '\'' => {
+                quote = Some(c);
+                Some(None)
+            }
+            None if c == '#' => None,
+            None => Some(Some((i, c))),
+        })
+        .flatten()
+}
+
+/// The nesting depth of arrays and inline tables after `s`, starting at `depth`; `None` once
+/// it passes [`MAX_NESTING`].
+fn nest(s: &str, mut depth: usize) -> Option<usize> {
+    for (_, c) in unquoted(s) {
+        match c {
+            '[' | '{' => depth += 1,
+            ']' | '}' => depth = depth.saturating_sub(1),
+            _ => {}
         }
         if depth > MAX_NESTING {
             return None;
@@ -108,26 +121,7 @@ fn nest(s: &str, mut depth: usize) -> Option<usize> {
 
 /// The byte offset of the first character outside quotes that `pred` accepts.
 fn unquoted_find(s: &str, pred: impl Fn(char) -> bool) -> Option<usize> {
-    let mut quote: Option<char> = None;
-    let mut escaped = false;
-    for (i, c) in s.char_indices() {
-        match quote {
-            Some(q) => {
-                if escaped {
-                    escaped = false;
-                } else if c == '\\' && q == '"' {
-                    escaped = true;
-                } else if c == q {
-                    quote = None;
-                }
-            }
-            None if c == '"' || c == '\'' => quote = Some(c),
-            None if c == '#' => return None,
-            None if pred(c) => return Some(i),
-            None => {}
-        }
-    }
-    None
+    unquoted(s).find(|&(_, c)| pred(c)).map(|(i, _)| i)
 }
 
 /// The number of dotted parts of a key (dots inside quotes do not count).
@@ -155,6 +149,16 @@ fn opens_multiline(value: &str) -> Option<&'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quoted_text_and_comments_are_skipped() {
+        let seen: String = unquoted(r#"a."b.#c\"[".'d[e'.f # g.h"#)
+            .map(|(_, c)| c)
+            .collect();
+        assert_eq!(seen, "a...f ");
+        assert_eq!(unquoted_find(r#""x.y".z"#, |c| c == '.'), Some(5));
+        assert_eq!(nest(r#"[ "[[[" , { a = '{' } ] # [[["#, 0), Some(0));
+    }
 
     fn key(parts: usize) -> String {
         vec!["a"; parts].join(".")
