@@ -126,8 +126,11 @@ fn accepted(message: &str, probe: &str) -> Vec<String> {
         }
         panic!("the error names no accepted keys: {message}");
     };
-    message[at..]
-        .split('`')
+    // serde names the accepted values in backticks; a hand-written message (a stealthy
+    // attack's `direction`) in double quotes, as a TOML string is written.
+    let tail = message[at..].lines().next().unwrap_or_default();
+    let quote = if tail.contains('`') { '`' } else { '"' };
+    tail.split(quote)
         .skip(1)
         .step_by(2)
         .map(str::to_string)
