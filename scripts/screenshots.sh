@@ -3,7 +3,7 @@
 # (issue #48/#49): each world is run, its recording opened once in the real rerun viewer (as
 # scripts/viewer_check.py does: fresh home, designed layout checked) and the window saved
 # WAIT seconds after it showed. The viewer plays the run from its start, at real speed at most
-# (slower on a loaded machine: 8.7 s of the quick start after 20 s of waiting, 2026-11-27): the
+# (slower on a loaded machine: 8.7 to 11.9 s of the quick start after 20 s of waiting, 2026-11-27): the
 # time shown is in the picture's time panel, and the captions in book/src/guide/viewing.md and
 # the README must be checked against the new pictures.
 #
@@ -33,4 +33,5 @@ worlds/stealthy_gnss.toml viewer-stealthy_gnss.png 12
 worlds/doorway_clutter.toml viewer-doorway_clutter.png 12
 worlds/turtlebot_realistic.toml viewer-turtlebot_realistic.png 8
 tests/worlds_viewer/hex_arena.toml viewer-hex_arena.png 20
+tests/worlds_user/user_living_room.toml viewer-user_living_room-estimation_error.png 20
 LIST

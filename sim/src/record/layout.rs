@@ -3,7 +3,8 @@
 //! Left: the 3D scene (robot, estimates with trails, safe sets, goal) above the event log.
 //! Right, top to bottom: h on the truth and on each estimate per barrier (tabs, safe sets
 //! first); clean vs received per channel (tabs, attacked channels first, attack windows drawn);
-//! the Step-3 residues, detector statistics and V/V₀ (tabs); v, ω, u and the attack windows (tabs).
+//! each filter's estimation error against γ, the Step-3 residues, detector statistics and V/V₀
+//! (tabs); v, ω, u and the attack windows (tabs).
 //!
 //! The 3D view's eye is set in the blueprint ([`eye`]): above the ground's −y side, looking down
 //! at its centre at [`EYE_ELEVATION`], far enough to frame the whole ground. rerun 0.36.3's Rust
@@ -183,7 +184,14 @@ fn blueprint(scene: &Scene, start: [f32; 2]) -> (Blueprint, Option<EntityPath>) 
             format!("/sensors/{}", seg(c)),
         )
     }));
+    // The estimation error first: whether each filter kept the γ its rows assume (Theorem 1's
+    // hypothesis, measured against the truth) is what a recording can show that a run's
+    // summary line cannot.
     let stats = Tabs::new([
+        plot(
+            "estimation error ‖x − x̂‖/γ against the truth (above 1: γ does not hold)".into(),
+            "/estimation_error".into(),
+        ),
         plot(
             "Step-3 residue per estimator, log10".into(),
             "/residues".into(),
@@ -193,10 +201,6 @@ fn blueprint(scene: &Scene, start: [f32; 2]) -> (Blueprint, Option<EntityPath>) 
             "/detector".into(),
         ),
         plot("CLF V/V₀ per estimator".into(), "/clf".into()),
-        plot(
-            "estimation error ‖x − x̂‖/γ against the truth (above 1: γ does not hold)".into(),
-            "/estimation_error".into(),
-        ),
     ]);
     let control = Tabs::new([
         TimeSeriesView::new("command to the drive: v [m/s], ω [rad/s]")
