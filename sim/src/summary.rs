@@ -396,7 +396,19 @@ impl RunSummary {
             )?;
         }
         for b in &s.min_barrier {
-            writeln!(f, "    min h({}) over the run = {:.4}", b.name, b.value)?;
+            // An obstacle's h keeps `obstacle_margin` (and the velocity lift) clear of it: below
+            // 0 without a collision is inside that margin, not in contact — said, so a SAFE
+            // next to a negative h does not read as a contradiction.
+            let note = if s.safe && b.value < 0.0 && b.name.starts_with("obstacle:") {
+                " (inside the barrier's margin around the obstacle, not in contact)"
+            } else {
+                ""
+            };
+            writeln!(
+                f,
+                "    min h({}) over the run = {:.4}{note}",
+                b.name, b.value
+            )?;
         }
         if let Some(c) = s.min_clearance {
             writeln!(f, "    min clearance to obstacles = {c:.4} m")?;
