@@ -38,12 +38,15 @@ import time
 
 from rerun.experimental import RrdReader
 
+# The rerun CLI and viewer of the installed rerun-sdk, whatever is on PATH.
+RERUN = [sys.executable, "-m", "rerun"]
+
 
 def message_order(path):
     """(index of the activation command, index of the recording's first store info) in the
     file's message list; None where there is none."""
     out = subprocess.run(
-        ["rerun", "rrd", "print", path], capture_output=True, text=True, timeout=300, check=True
+        [*RERUN, "rrd", "print", path], capture_output=True, text=True, timeout=300, check=True
     ).stdout.splitlines()
     activation, recording, msg = None, None, -1
     for i, line in enumerate(out):
@@ -123,7 +126,7 @@ def open_once(path, view3d, shot, timeout, wait=0.0, starts=3):
                    XDG_CONFIG_HOME=os.path.join(home, ".config"), WGPU_BACKEND="vulkan")
         log_path = os.path.join(home, "viewer.log")
         log = open(log_path, "w")
-        proc = subprocess.Popen(["rerun", "--bind", "127.0.0.1", "--port", str(port), path],
+        proc = subprocess.Popen([*RERUN, "--bind", "127.0.0.1", "--port", str(port), path],
                                 env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         try:
             url = f"rerun+http://127.0.0.1:{port}/proxy"
