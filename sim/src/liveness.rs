@@ -9,7 +9,7 @@
 //!
 //! - **the path**: the safety-filter tracker's points (start, the planned path, the goal where
 //!   the rows can hold the robot; `runner::setup`), or start → waypoints → goal for the paper
-//!   form; sampled every [`SAMPLE_STEP`] m;
+//!   form; sampled every [`SAMPLE_STEP`] m (at most [`MAX_SAMPLES`] points: coarser on a path over 1 km);
 //! - **the rows**: eq. (4.3) of every unit the controller imposes (the single-drop filters x̂_i
 //!   for FT-CBF-CLF, the all-channel filter for the baseline), with γ_i, h̄_γ, κ and the filters'
 //!   steady-state gain terms M = K c̄ and N = K ν̄ν̄ᵀKᵀ (finite-horizon worst posterior for a
@@ -53,8 +53,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha20Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-/// Spacing of the path samples \[m\].
+/// Spacing of the path samples \[m\], on paths up to [`MAX_SAMPLES`] · this long (1 km).
 pub const SAMPLE_STEP: f64 = 0.05;
+
+/// The most path samples: a longer path is sampled every length / this (a 28 km path of far
+/// waypoints took 7 s of one core per pass at 5 cm, and `check` makes several). The header line
+/// gives the path's length and the number of points, so the spacing is always stated.
+pub const MAX_SAMPLES: usize = 20_000;
 
 /// The box [m/s²] that stands for "no `input_limit`" in the search for the best acceleration
 /// along the path.
@@ -1217,19 +1222,22 @@ fn best_along(
     best
 }
 
-/// The path sampled every [`SAMPLE_STEP`] m: (point, unit tangent, distance along), the goal
-/// itself excluded (it is judged by holding).
+/// The path sampled every [`SAMPLE_STEP`] m (every length / [`MAX_SAMPLES`] on a longer path):
+/// (point, unit tangent, distance along), the goal itself excluded (it is judged by holding).
 fn samples(path: &[[f64; 2]]) -> Vec<([f64; 2], [f64; 2], f64)> {
+    let length = |w: &[[f64; 2]]| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+    let total: f64 = path.windows(2).map(length).filter(|l| l.is_finite()).sum();
+    let step = SAMPLE_STEP.max(total / MAX_SAMPLES as f64);
     let mut out = Vec::new();
     let mut along = 0.0;
     for w in path.windows(2) {
         let (a, b) = (w[0], w[1]);
-        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let len = length(w);
         if len < 1e-9 {
             continue;
         }
         let t = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
-        let n = (len / SAMPLE_STEP).ceil() as usize;
+        let n = (len / step).ceil() as usize;
         for k in 0..n {
             let s = k as f64 * len / n as f64;
             out.push(([a[0] + t[0] * s, a[1] + t[1] * s], t, along + s));
@@ -1694,6 +1702,15 @@ mod tests {
 
     #[test]
     fn samples_cover_the_path_every_step() {
+        let far = samples(&[[0.0, 0.0], [20_000.0, 0.0], [20_000.0, 8_000.0]]);
+        assert!(far.len() <= MAX_SAMPLES + 2, "{} samples", far.len());
+        // Every length / MAX_SAMPLES = 1.4 m at most (each leg split evenly).
+        let step = 28_000.0 / MAX_SAMPLES as f64;
+        assert!(
+            far[1].2 <= step + 1e-9 && far[1].2 > 0.99 * step,
+            "{}",
+            far[1].2
+        );
         let s = samples(&[[0.0, 0.0], [1.0, 0.0], [1.0, 0.5]]);
         assert_eq!(s.len(), 20 + 10);
         assert!((s[25].2 - 1.25).abs() < 1e-12);
