@@ -108,7 +108,7 @@ pub const BARRIER_TABS: usize = 8;
 /// The barriers with a plot tab of their own — every safe set, then the obstacles nearest the
 /// straight line from `start` to the goal, up to [`BARRIER_TABS`] in all — and the obstacles'
 /// barriers that share one plot (their h on the truth), nearest first.
-fn barrier_tabs<'s>(scene: &'s Scene, start: [f32; 2]) -> (Vec<&'s String>, Vec<&'s String>) {
+fn barrier_tabs(scene: &Scene, start: [f32; 2]) -> (Vec<&String>, Vec<&String>) {
     let obstacle = |b: &str| {
         b.strip_prefix("obstacle:")
             .and_then(|n| scene.obstacles.iter().find(|o| o.name == n))
