@@ -510,9 +510,10 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
     for ob in &world.obstacles {
         match ob.spec.shape {
             ShapeSpec::HalfSpace { .. } => flat += 1,
-            ShapeSpec::Cuboid { .. } | ShapeSpec::ConvexHull { .. } | ShapeSpec::TriMesh { .. } => {
-                cornered += 1
-            }
+            ShapeSpec::Cuboid { .. }
+            | ShapeSpec::ConvexHull { .. }
+            | ShapeSpec::TriMesh { .. }
+            | ShapeSpec::OccupancyMap { .. } => cornered += 1,
             ShapeSpec::Ball { .. }
             | ShapeSpec::Cylinder { .. }
             | ShapeSpec::Capsule { .. }
