@@ -921,10 +921,19 @@ impl Obstacle {
 
     /// A barrier for this obstacle (see the module docs).
     pub fn barrier(&self, cfg: &BarrierConfig) -> ObstacleBarrier {
+        let map_band = self.grid.as_ref().map(|g| {
+            // Where H = d − margin + k∇d·v can be 0: sd within k·G·v_max of r + margin; the
+            // h̄_γ segment reaches MAP_BAND_SLACK further.
+            let at = cfg.robot_radius + cfg.margin;
+            let lift = cfg.k * g.gradient_bound() * cfg.v_max;
+            let (gb, kappa) = g.bounds_in(at - lift - MAP_BAND_SLACK, at + lift + MAP_BAND_SLACK);
+            MapBand { gb, kappa }
+        });
         ObstacleBarrier {
             name: format!("obstacle:{}", self.name),
             obstacle: Arc::new(self.clone()),
             cfg: *cfg,
+            map_band,
         }
     }
 }
@@ -999,6 +1008,21 @@ pub struct ObstacleBarrier {
     name: String,
     obstacle: Arc<Obstacle>,
     cfg: BarrierConfig,
+    /// An occupancy map's gradient and curvature bounds over the band of its field around
+    /// this barrier's zero level.
+    map_band: Option<MapBand>,
+}
+
+/// How far beyond the band where an occupancy map's lifted barrier can be zero its bounds G
+/// and κ are taken \[m\]: an h̄_γ segment that moves sd by more (γ·G above it) uses the bounds
+/// over the whole free space instead.
+pub const MAP_BAND_SLACK: f64 = 0.1;
+
+/// G and κ of an occupancy map over a band of its field.
+#[derive(Debug, Clone, Copy)]
+struct MapBand {
+    gb: f64,
+    kappa: f64,
 }
 
 impl ObstacleBarrier {
@@ -1014,8 +1038,8 @@ impl ObstacleBarrier {
     /// shape). `None` for a point robot and any other shape: the distance to an edge or vertex
     /// has unbounded curvature, so no h̄_γ bound exists for the lifted barrier.
     pub fn curvature_bound(&self) -> Option<f64> {
-        if let Some(g) = &self.obstacle.grid {
-            return Some(g.curvature_bound());
+        if let Some(b) = &self.map_band {
+            return Some(b.kappa);
         }
         if self.obstacle.is_half_space() {
             return Some(0.0);
@@ -1152,9 +1176,14 @@ impl Barrier for ObstacleBarrier {
     /// (k > 0) and no curvature bound is known (the runner refuses such worlds first).
     fn h_bar(&self, gamma: f64) -> f64 {
         let k = self.cfg.k;
-        let l = if let Some(g) = &self.obstacle.grid {
-            // The map's ‖∇d‖ ≤ G (not 1): L = √((G + k·v_max·κ)² + (k·G)²).
-            let (gb, kappa) = (g.gradient_bound(), g.curvature_bound());
+        let l = if let (Some(g), Some(band)) = (&self.obstacle.grid, &self.map_band) {
+            // The map's ‖∇d‖ ≤ G (not 1): L = √((G + k·v_max·κ)² + (k·G)²), with G and κ of
+            // the band around the zero level when the segment stays in it.
+            let (gb, kappa) = if gamma.max(0.0) * g.gradient_bound() <= MAP_BAND_SLACK {
+                (band.gb, band.kappa)
+            } else {
+                (g.gradient_bound(), g.curvature_bound())
+            };
             ((gb + k * self.cfg.v_max * kappa).powi(2) + (k * gb).powi(2)).sqrt()
         } else if k == 0.0 {
             1.0

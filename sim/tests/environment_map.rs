@@ -347,3 +347,79 @@ fn environment_keys_are_checked() {
     assert!(first.contains("unknown variant `occupancy_map`"), "{e}");
     assert!(!first.contains("`tri_mesh`, `occupancy_map`"), "{e}");
 }
+
+/// The map's barrier: h = sd_map − r − margin at rest, its gradient the field's, a finite
+/// h̄_γ from the band's bounds (never above the whole map's), and O(1) lookups.
+#[test]
+fn the_map_barrier_reads_the_field() {
+    use ftcbf_sim::ftcbf_controller::{Barrier, State};
+    use ftcbf_sim::obstacles::BarrierConfig;
+    let dir = fixture("");
+    let text = format!(
+        "{}\n[environment]\nmap = \"room.yaml\"\n",
+        include_str!("../../tests/worlds_map/room_world_base.toml")
+    );
+    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
+    let field = map.map_field().unwrap();
+    let cfg = BarrierConfig {
+        robot_radius: 0.1,
+        centre_height: 0.1,
+        margin: 0.02,
+        k: 0.5,
+        v_max: 0.22,
+        fd_step: 2e-3,
+    };
+    let b = map.barrier(&cfg);
+    let p = [0.9, -1.086];
+    let (sd, g) = field.signed_distance(p);
+    let at_rest = b.eval(&State::new(p[0], p[1], 0.0, 0.0));
+    assert!((at_rest.value - (sd - 0.1 - 0.02)).abs() < 1e-12);
+    assert!((at_rest.gradient[2] - 0.5 * g.x).abs() < 1e-12);
+    let v = State::new(p[0], p[1], 0.1, -0.05);
+    let moving = b.eval(&v);
+    assert!((moving.value - (sd - 0.12 + 0.5 * (g.x * 0.1 - g.y * 0.05))).abs() < 1e-12);
+    let kappa = b.curvature_bound().unwrap();
+    assert!(kappa.is_finite() && kappa <= field.curvature_bound() + 1e-12);
+    let small = b.h_bar(0.05);
+    let l_all = ((field.gradient_bound() + 0.5 * 0.22 * field.curvature_bound()).powi(2)
+        + (0.5 * field.gradient_bound()).powi(2))
+    .sqrt();
+    assert!(small.is_finite() && small > 0.0 && small <= 0.05 * l_all + 1e-12);
+    // A γ whose segment leaves the band uses the whole map's bounds.
+    assert!((b.h_bar(1.0) - l_all).abs() < 1e-9);
+}
+
+/// The nearest blocked cell, as `check` reports it, against a search of every cell.
+#[test]
+fn the_nearest_blocked_cell_is_found() {
+    let g = OccupancyGrid::load(&fixture("room.yaml")).unwrap();
+    let field = MapField::new(&g, UnknownCells::Obstacle);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for _ in 0..50 {
+        let q = [rng.random_range(-3.0..23.0), rng.random_range(-3.0..19.0)];
+        let p = g.to_world(q[0], q[1]);
+        let n = field.nearest_blocked(p).unwrap();
+        let mut best = f64::INFINITY;
+        for j in -1..=16i64 {
+            for i in -1..=20i64 {
+                let inside = (0..20).contains(&i) && (0..16).contains(&j);
+                if inside
+                    && !g
+                        .cell(i as usize, j as usize)
+                        .blocked(UnknownCells::Obstacle)
+                {
+                    continue;
+                }
+                let c = g.to_world(i as f64 + 0.5, j as f64 + 0.5);
+                best = best.min(((c[0] - p[0]).powi(2) + (c[1] - p[1]).powi(2)).sqrt());
+            }
+        }
+        assert!((n.distance - best).abs() < 1e-9, "{n:?} vs {best} at {q:?}");
+        let c = g.to_world(n.cell.0 as f64 + 0.5, n.cell.1 as f64 + 0.5);
+        assert!((c[0] - n.centre[0]).abs() < 1e-9 && (c[1] - n.centre[1]).abs() < 1e-9);
+    }
+    // (6, 5) is the lone occupied cell: a point on it finds it.
+    let n = field.nearest_blocked(g.cell_centre(6, 5)).unwrap();
+    assert_eq!(n.cell, (6, 5));
+}

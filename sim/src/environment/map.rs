@@ -753,8 +753,21 @@ pub struct MapField {
     cos: f64,
     sin: f64,
     values: Vec<f64>,
+    blocked: Vec<bool>,
     gradient_bound: f64,
     curvature_bound: f64,
+}
+
+/// The blocked cell nearest a point ([`MapField::nearest_blocked`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NearestCell {
+    /// Column and row from the bottom, in the map's cells; −1 or the width/height for the
+    /// blocked rim beyond the map's edge.
+    pub cell: (i64, i64),
+    /// Its centre in the world \[m\].
+    pub centre: [f64; 2],
+    /// From the point to the centre \[m\].
+    pub distance: f64,
 }
 
 impl std::fmt::Debug for MapField {
@@ -805,6 +818,7 @@ impl MapField {
             cos,
             sin,
             values,
+            blocked,
             gradient_bound: 0.0,
             curvature_bound: 0.0,
         };
@@ -816,11 +830,22 @@ impl MapField {
     /// convex function of the bilinear weights, each Hessian entry affine along the cell, so
     /// their maxima over a cell are at its corners.
     fn bounds(&mut self) {
+        let (g, k) = self.bounds_in(0.0, f64::INFINITY);
+        self.gradient_bound = g;
+        self.curvature_bound = k;
+    }
+
+    /// (G, κ) over the cells whose node values reach into [lo, hi] \[m\]: the band of the
+    /// field where a barrier's zero level and its neighbourhood lie. O(cells).
+    pub fn bounds_in(&self, lo: f64, hi: f64) -> (f64, f64) {
         let (mut g_max, mut k_max) = (0.0f64, 0.0f64);
         for j in 0..self.ny - 1 {
             for i in 0..self.nx - 1 {
                 let nodes = [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)];
-                if nodes.iter().all(|&(a, b)| self.value(a, b) < 0.0) {
+                let vals = nodes.map(|(a, b)| self.value(a, b));
+                let top = vals.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v));
+                let bottom = vals.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+                if top < lo || bottom > hi {
                     continue;
                 }
                 let g = nodes.map(|(a, b)| self.node_gradient(a, b));
@@ -832,8 +857,7 @@ impl MapField {
                 }
             }
         }
-        self.gradient_bound = g_max;
-        self.curvature_bound = k_max;
+        (g_max, k_max)
     }
 
     fn value(&self, i: usize, j: usize) -> f64 {
@@ -926,5 +950,49 @@ impl MapField {
     /// The cell size \[m\].
     pub fn resolution(&self) -> f64 {
         self.res
+    }
+
+    /// The blocked cell whose centre is nearest `p` (world frame), searched ring by ring
+    /// outwards from p's cell; `None` when no cell is blocked. For reports (`check`), not for
+    /// the control loop: O(distance²) in cells.
+    pub fn nearest_blocked(&self, p: [f64; 2]) -> Option<NearestCell> {
+        let (u, v) = self.node_coords(p);
+        let (ci, cj) = (u.round() as i64, v.round() as i64);
+        let (nx, ny) = (self.nx as i64, self.ny as i64);
+        let mut best: Option<(f64, i64, i64)> = None;
+        for ring in 0..=(nx + ny + ci.abs() + cj.abs()) {
+            // A cell of a later ring is at least (ring − 1) cells away.
+            if best.is_some_and(|(d, _, _)| d < (ring as f64 - 1.0).max(0.0)) {
+                break;
+            }
+            for a in -ring..=ring {
+                for b in -ring..=ring {
+                    if a.abs() != ring && b.abs() != ring {
+                        continue;
+                    }
+                    let (i, j) = (ci + a, cj + b);
+                    if i < 0 || j < 0 || i >= nx || j >= ny {
+                        continue;
+                    }
+                    if self.blocked[(j * nx + i) as usize] {
+                        let d = ((i as f64 - u).powi(2) + (j as f64 - v).powi(2)).sqrt();
+                        if best.is_none_or(|(bd, _, _)| d < bd) {
+                            best = Some((d, i, j));
+                        }
+                    }
+                }
+            }
+        }
+        best.map(|(d, i, j)| {
+            let (lx, ly) = ((i as f64 - 0.5) * self.res, (j as f64 - 0.5) * self.res);
+            NearestCell {
+                cell: (i - 1, j - 1),
+                centre: [
+                    self.origin[0] + self.cos * lx - self.sin * ly,
+                    self.origin[1] + self.sin * lx + self.cos * ly,
+                ],
+                distance: d * self.res,
+            }
+        })
     }
 }
