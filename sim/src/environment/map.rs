@@ -505,7 +505,7 @@ fn decode_png(bytes: &[u8], classify: &dyn Fn(f64, bool) -> Cell) -> Result<Imag
     size_ok(w, h)?;
     let size = reader
         .output_buffer_size()
-        .ok_or_else(|| ImageError::TooLarge(w, h))?;
+        .ok_or(ImageError::TooLarge(w, h))?;
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(bad)?;
     let channels = info.color_type.samples();
