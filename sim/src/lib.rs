@@ -12,6 +12,7 @@
 pub mod attacks;
 pub mod check;
 pub mod drive;
+pub mod expectations;
 pub mod liveness;
 pub mod observe;
 pub mod obstacles;
@@ -19,7 +20,6 @@ pub mod physics;
 pub mod planner;
 #[cfg(feature = "record")]
 pub mod record;
-pub mod regress;
 pub mod robot;
 pub mod runner;
 pub mod safe_sets;
