@@ -14,6 +14,7 @@ pub mod check;
 pub mod drive;
 pub mod expectations;
 pub mod liveness;
+pub mod movers;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;
