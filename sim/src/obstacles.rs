@@ -196,7 +196,7 @@ pub enum ShapeSpec via ShapeByKind {
         /// map_server's YAML file, relative to the world file's directory.
         file: PathBuf,
         /// Whether unknown cells are obstacles.
-        unknown: crate::world::UnknownCells,
+        unknown: crate::environment::UnknownCells,
     },
     /// Triangle mesh given inline or as an STL file.
     TriMesh {
@@ -784,7 +784,7 @@ impl Obstacle {
     fn from_map(
         spec: &ObstacleSpec,
         grid: &OccupancyGrid,
-        unknown: crate::world::UnknownCells,
+        unknown: crate::environment::UnknownCells,
         path: &Path,
     ) -> Result<Self, ObstacleError> {
         let shape = grid

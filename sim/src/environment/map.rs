@@ -53,7 +53,16 @@ use nalgebra::{Isometry3, Matrix2, Translation3, UnitQuaternion, Vector2};
 use parry3d::shape::SharedShape;
 use yaml_rust2::{Yaml, YamlLoader};
 
-use crate::world::UnknownCells;
+/// `environment.unknown`: how a map's unknown cells (neither free nor occupied) are treated.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnknownCells {
+    /// Unknown cells are obstacles (the robot does not drive where the map has not seen).
+    #[default]
+    Obstacle,
+    /// Unknown cells are free space.
+    Free,
+}
 
 /// The most cells a map may have: 16·10⁶ (4,000 × 4,000, 200 m square at 5 cm; about 0.3 GB
 /// while the distance field is built).
@@ -667,7 +676,7 @@ impl OccupancyGrid {
                     WALL_HALF_HEIGHT,
                 );
                 (
-                    crate::obstacles::to_pose(&c),
+                    parry3d::math::Pose::from(c.cast::<f32>()),
                     SharedShape::cuboid(hx as f32, hy as f32, WALL_HALF_HEIGHT as f32),
                 )
             })

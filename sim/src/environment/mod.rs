@@ -3,4 +3,4 @@
 
 pub mod map;
 
-pub use map::{MapError, MapField, OccupancyGrid};
+pub use map::{MapError, MapField, OccupancyGrid, UnknownCells};

@@ -76,16 +76,7 @@ pub struct EnvironmentSpec {
     pub unknown: Option<UnknownCells>,
 }
 
-/// `environment.unknown`: how a map's unknown cells (neither free nor occupied) are treated.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum UnknownCells {
-    /// Unknown cells are obstacles (the robot does not drive where the map has not seen).
-    #[default]
-    Obstacle,
-    /// Unknown cells are free space.
-    Free,
-}
+pub use crate::environment::UnknownCells;
 
 /// `[falsify]`: how far `ftcbf falsify --scenario` may move the world. Every key is optional
 /// (the defaults suit a ground robot) and ≥ 0; relative ranges are below 1.
