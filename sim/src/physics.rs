@@ -569,23 +569,75 @@ impl PhysicsWorld {
     /// the current poses); negative = penetration depth. `out` is resized to the obstacle count.
     pub fn clearances(&self, out: &mut Vec<f64>) {
         out.clear();
-        for &oc in &self.obstacle_colliders {
-            let o = &self.world.colliders[oc];
-            let mut best = f64::INFINITY;
-            for &rc in &self.robot_colliders {
-                let r = &self.world.colliders[rc];
-                let d = match parry3d::query::distance(
-                    r.position(),
-                    r.shape(),
-                    o.position(),
-                    o.shape(),
-                ) {
-                    Ok(d) if d.distance > 0.0 => d.distance as f64,
-                    _ => penetration(r, o),
-                };
-                best = best.min(d);
+        out.extend((0..self.obstacle_colliders.len()).map(|i| self.clearance(i)));
+    }
+
+    /// The true clearance to obstacle `i` (as in [`PhysicsWorld::clearances`]); +∞ for an
+    /// index out of range.
+    pub fn clearance(&self, i: usize) -> f64 {
+        let Some(o) = self
+            .obstacle_colliders
+            .get(i)
+            .map(|&h| &self.world.colliders[h])
+        else {
+            return f64::INFINITY;
+        };
+        let mut best = f64::INFINITY;
+        for &rc in &self.robot_colliders {
+            let r = &self.world.colliders[rc];
+            let d = match parry3d::query::distance(r.position(), r.shape(), o.position(), o.shape())
+            {
+                Ok(d) if d.distance > 0.0 => d.distance as f64,
+                _ => penetration(r, o),
+            };
+            best = best.min(d);
+        }
+        best
+    }
+
+    /// The clearances where they can matter, found through bounding boxes: `out[i]` is
+    /// obstacle i's true clearance (as [`PhysicsWorld::clearances`] computes it) and `exact[i]`
+    /// is true, unless the distance between the robot's bounding box and the obstacle's is
+    /// above both `within` and the smallest true clearance; then `out[i]` is that distance, a
+    /// lower bound of the clearance. So the minimum over `out` is the true minimum, and every
+    /// clearance at or below `within` is exact. A non-finite pose gives non-finite boxes and
+    /// is always queried exactly (its clearance is then not finite either).
+    pub fn clearances_near(&self, within: f64, out: &mut Vec<f64>, exact: &mut Vec<bool>) {
+        out.clear();
+        exact.clear();
+        let mut robot: Option<parry3d::bounding_volume::Aabb> = None;
+        for &rc in &self.robot_colliders {
+            let b = self.world.colliders[rc].compute_aabb();
+            if !finite_aabb(&b) {
+                robot = None;
+                break;
             }
-            out.push(best);
+            robot = Some(match robot {
+                Some(a) => merged_aabb(&a, &b),
+                None => b,
+            });
+        }
+        let mut least = f64::INFINITY;
+        for &oc in &self.obstacle_colliders {
+            let lb = robot.map_or(f64::NAN, |r| {
+                aabb_gap(&r, &self.world.colliders[oc].compute_aabb())
+            });
+            let near = !(lb > within);
+            out.push(lb);
+            exact.push(near);
+        }
+        for i in 0..out.len() {
+            if exact[i] {
+                out[i] = self.clearance(i);
+                least = least.min(out[i]);
+            }
+        }
+        for i in 0..out.len() {
+            if !exact[i] && !(out[i] > least) {
+                out[i] = self.clearance(i);
+                exact[i] = true;
+                least = least.min(out[i]);
+            }
         }
     }
 
@@ -628,6 +680,47 @@ impl PhysicsWorld {
 /// relative pose the wrong way round (it passes `pos12` where `pos12⁻¹` is needed; its
 /// `distance` does not), which reported −0.47 m for a robot pressed centimetres into a
 /// half-space wall. A half-space is therefore always queried as the first shape.
+/// Every corner of the box is a finite number.
+fn finite_aabb(a: &parry3d::bounding_volume::Aabb) -> bool {
+    [a.mins.x, a.mins.y, a.mins.z, a.maxs.x, a.maxs.y, a.maxs.z]
+        .iter()
+        .all(|v| v.is_finite())
+}
+
+/// The smallest box holding both.
+fn merged_aabb(
+    a: &parry3d::bounding_volume::Aabb,
+    b: &parry3d::bounding_volume::Aabb,
+) -> parry3d::bounding_volume::Aabb {
+    let mut m = *a;
+    m.mins.x = a.mins.x.min(b.mins.x);
+    m.mins.y = a.mins.y.min(b.mins.y);
+    m.mins.z = a.mins.z.min(b.mins.z);
+    m.maxs.x = a.maxs.x.max(b.maxs.x);
+    m.maxs.y = a.maxs.y.max(b.maxs.y);
+    m.maxs.z = a.maxs.z.max(b.maxs.z);
+    m
+}
+
+/// A lower bound of the distance between anything inside box `a` and anything inside box `b`
+/// \[m\]: the boxes' gap, computed in f64 from their f32 corners, less 1 mm (far above the
+/// rounding of the boxes and of parry's f32 distance). NaN when a corner is not finite (the
+/// caller then queries exactly).
+fn aabb_gap(a: &parry3d::bounding_volume::Aabb, b: &parry3d::bounding_volume::Aabb) -> f64 {
+    if !(finite_aabb(a) && finite_aabb(b)) {
+        return f64::NAN;
+    }
+    let axis = |amin: f32, amax: f32, bmin: f32, bmax: f32| {
+        (f64::from(bmin) - f64::from(amax))
+            .max(f64::from(amin) - f64::from(bmax))
+            .max(0.0)
+    };
+    let gx = axis(a.mins.x, a.maxs.x, b.mins.x, b.maxs.x);
+    let gy = axis(a.mins.y, a.maxs.y, b.mins.y, b.maxs.y);
+    let gz = axis(a.mins.z, a.maxs.z, b.mins.z, b.maxs.z);
+    (gx * gx + gy * gy + gz * gz).sqrt() - 1e-3
+}
+
 fn penetration(robot: &rp::Collider, obstacle: &rp::Collider) -> f64 {
     let (a, b) = if obstacle.shape().as_halfspace().is_some() {
         (obstacle, robot)
