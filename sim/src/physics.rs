@@ -126,6 +126,8 @@ pub struct PhysicsWorld {
     link_names: Vec<String>,
     robot_colliders: Vec<ColliderHandle>,
     obstacle_colliders: Vec<ColliderHandle>,
+    /// The obstacles' bounding boxes (they never move), for [`PhysicsWorld::clearances_near`].
+    obstacle_aabbs: Vec<parry3d::bounding_volume::Aabb>,
     obstacles: Vec<Obstacle>,
     /// Motors of the left wheels (one, or several for a skid-steer robot).
     left: Vec<WheelMotor>,
@@ -448,6 +450,10 @@ impl PhysicsWorld {
         let right = robot.wheels.right.iter().map(motor).collect();
         let obstacle_colliders = add_obstacles(&mut world, obstacles, cfg);
         let link_names = robot.bodies.iter().map(|b| b.name.clone()).collect();
+        let obstacle_aabbs = obstacle_colliders
+            .iter()
+            .map(|&h| world.colliders[h].compute_aabb())
+            .collect();
         let mut out = Self {
             world,
             cfg: *cfg,
@@ -455,6 +461,7 @@ impl PhysicsWorld {
             link_names,
             robot_colliders,
             obstacle_colliders,
+            obstacle_aabbs,
             obstacles: obstacles.to_vec(),
             left,
             right,
@@ -618,10 +625,8 @@ impl PhysicsWorld {
             });
         }
         let mut least = f64::INFINITY;
-        for &oc in &self.obstacle_colliders {
-            let lb = robot.map_or(f64::NAN, |r| {
-                aabb_gap(&r, &self.world.colliders[oc].compute_aabb())
-            });
+        for b in &self.obstacle_aabbs {
+            let lb = robot.map_or(f64::NAN, |r| aabb_gap(&r, b));
             let near = !(lb > within);
             out.push(lb);
             exact.push(near);
