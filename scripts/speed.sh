@@ -159,6 +159,18 @@ L.append("`target/release/deps/step-* --bench clutter` (controller/benches/step.
 L.append("```text")
 L.append(bench.strip() or "(no bench executable found: build with --all-targets)")
 L.append("```\n")
+L.append("## Other benches\n")
+L.append("Not run by this script (run them for figures; the page keeps no hand-written numbers): "
+         "`target/release/deps/step-* --bench` (every control-step bench: m = 2 and 3, static, "
+         "closed loop, safety-filter form, the feasibility test), `target/release/deps/physics-* "
+         "--bench` (one physics tick), `target/release/deps/run-* --bench` (a whole "
+         "`paper_turtlebot` run, recording off and on), `target/release/deps/setup-* --bench` "
+         "(starting trials from one `CompiledWorld`), after `cargo build --release --workspace "
+         "--all-targets --locked`.\n")
+L.append("A control step allocates nothing outside clarabel (checked by a counting allocator in "
+         "`controller/tests/allocation.rs`); a QP that must grow for more binding rows than it "
+         "holds (a world with more than 32 barrier rows, see `controller/src/qp.rs`) is rebuilt "
+         "once, then reused.\n")
 open(out, "w").write("\n".join(L))
 EOF
 echo "wrote $out"

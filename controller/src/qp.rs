@@ -13,8 +13,8 @@
 //! * 4 input-box rows (`±u_k ≤ limit_k`, or the inactive `0·z ≤ 1` when unbounded),
 //! * `−s ≤ 0`.
 //!
-//! **Compaction.** The solver is built for at most [`COMPACT_CBF_ROWS`] CBF rows (or all of
-//! them, when fewer can occur), so a world with hundreds of obstacles does not make every
+//! **Compaction.** When more than [`COMPACT_CBF_ROWS`] CBF rows can occur, the solver is first
+//! built for [`COMPACT_START_ROWS`] of them, so a world with hundreds of obstacles does not make every
 //! interior-point iteration factor a KKT system with a row per (filter, obstacle). When more
 //! CBF rows are passed than the solver holds, the rows whose half-space contains the whole
 //! input box (`|n₁|L₁ + |n₂|L₂ < o`: every admissible input, and any slack s ≥ 0, satisfies
@@ -51,9 +51,12 @@ use crate::types::Input;
 /// Number of variables (u₁, u₂, s).
 const NV: usize = 3;
 
-/// CBF rows a solver is first built for (when more can occur): above this many imposed rows,
-/// the rows the input box satisfies are left out (see the module documentation).
+/// The most CBF rows a solver is built to hold all of: with more possible rows, the rows the
+/// input box satisfies are left out (see the module documentation).
 pub const COMPACT_CBF_ROWS: usize = 32;
+
+/// CBF rows a solver is first built for when more than [`COMPACT_CBF_ROWS`] are possible.
+pub const COMPACT_START_ROWS: usize = 8;
 
 /// The outcome of one QP solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -156,7 +159,13 @@ impl QpSolver {
         input_limit: Option<Input>,
     ) -> Self {
         let cbf_limit = cbf_capacity;
-        let cbf_capacity = cbf_limit.min(COMPACT_CBF_ROWS);
+        // Up to COMPACT_CBF_ROWS rows: room for all of them, as before. Beyond, rows are left
+        // out anyway: start small, grow to what binds.
+        let cbf_capacity = if cbf_limit <= COMPACT_CBF_ROWS {
+            cbf_limit
+        } else {
+            COMPACT_START_ROWS
+        };
         let rows = cbf_capacity + clf_capacity + 5;
         // P upper triangle, CSC: col0 (0,0); col1 (0,1),(1,1); col2 (2,2).
         let p_values = [

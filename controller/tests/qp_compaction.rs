@@ -3,7 +3,7 @@
 //! those do not fit.
 
 use ftcbf_controller::constraints::HalfSpace;
-use ftcbf_controller::qp::{QpResult, QpSolver, RowMode, COMPACT_CBF_ROWS};
+use ftcbf_controller::qp::{QpResult, QpSolver, RowMode, COMPACT_CBF_ROWS, COMPACT_START_ROWS};
 use ftcbf_controller::Input;
 use nalgebra::Matrix2;
 
@@ -57,9 +57,9 @@ fn far_rows_are_left_out_and_change_nothing() {
     assert!(rows[2..].iter().all(|h| big.box_satisfies(h)));
     assert!(!big.box_satisfies(&rows[0]) && !big.box_satisfies(&rows[1]));
     let u = u_of(big.solve(&rows, RowMode::Hard, &[], RowMode::Soft));
-    // built once, for COMPACT_CBF_ROWS rows, not for n
+    // built once, for COMPACT_START_ROWS rows, not for n
     assert_eq!(big.counters(), (1, 1));
-    assert_eq!(big.rows(), COMPACT_CBF_ROWS + 1 + 5);
+    assert_eq!(big.rows(), COMPACT_START_ROWS + 1 + 5);
     let mut small = solver(2);
     small.set_reference(Input::new(2.0, 0.5));
     let v = u_of(small.solve(&binding(), RowMode::Hard, &[], RowMode::Soft));

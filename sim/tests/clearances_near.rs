@@ -84,7 +84,12 @@ fn pruned_clearances_keep_the_minimum_and_every_near_value_exact() {
             if exact[i] {
                 assert_eq!(full[i].to_bits(), near[i].to_bits(), "obstacle {i}");
             } else {
-                assert!(near[i] <= full[i], "obstacle {i}: bound {} > {}", near[i], full[i]);
+                assert!(
+                    near[i] <= full[i],
+                    "obstacle {i}: bound {} > {}",
+                    near[i],
+                    full[i]
+                );
                 assert!(near[i] > within && near[i] > min_full, "obstacle {i}");
             }
             if full[i] <= within {
