@@ -169,7 +169,7 @@ L.append("Not run by this script (run them for figures; the page keeps no hand-w
          "--all-targets --locked`.\n")
 L.append("A control step allocates nothing outside clarabel (checked by a counting allocator in "
          "`controller/tests/allocation.rs`); a QP that must grow for more binding rows than it "
-         "holds (a world with more than 32 barrier rows, see `controller/src/qp.rs`) is rebuilt "
+         "holds (a world with more than 12 barrier rows, see `controller/src/qp.rs`) is rebuilt "
          "once, then reused.\n")
 open(out, "w").write("\n".join(L))
 EOF

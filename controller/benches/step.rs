@@ -138,6 +138,9 @@ fn clutter(patterns: Vec<Vec<usize>>, n: usize) -> Controller {
     .expect("config")
 }
 
+/// Builds a controller for fault patterns.
+type Make = fn(Vec<Vec<usize>>) -> Controller;
+
 fn clutter_2(patterns: Vec<Vec<usize>>) -> Controller {
     clutter(patterns, 2)
 }
@@ -147,8 +150,7 @@ fn clutter_200(patterns: Vec<Vec<usize>>) -> Controller {
 }
 
 fn bench_clutter(c: &mut Criterion) {
-    let make: [(usize, fn(Vec<Vec<usize>>) -> Controller); 2] =
-        [(2, clutter_2), (200, clutter_200)];
+    let make: [(usize, Make); 2] = [(2, clutter_2), (200, clutter_200)];
     for (n, make) in make {
         let mut cl = ClosedLoop::new(vec![vec![1], vec![3]], make);
         for _ in 0..300 {

@@ -53,7 +53,7 @@ const NV: usize = 3;
 
 /// The most CBF rows a solver is built to hold all of: with more possible rows, the rows the
 /// input box satisfies are left out (see the module documentation).
-pub const COMPACT_CBF_ROWS: usize = 32;
+pub const COMPACT_CBF_ROWS: usize = 12;
 
 /// CBF rows a solver is first built for when more than [`COMPACT_CBF_ROWS`] are possible.
 pub const COMPACT_START_ROWS: usize = 8;

@@ -124,3 +124,14 @@ fn a_row_is_never_left_out_without_a_box_or_when_not_finite() {
     };
     assert!(!boxed.box_satisfies(&corner));
 }
+
+#[test]
+fn a_solver_for_few_rows_holds_them_all() {
+    // up to COMPACT_CBF_ROWS possible rows (every catalogue world): built for all of them, so
+    // those worlds solve row for row as before compaction existed
+    assert_eq!(solver(COMPACT_CBF_ROWS).rows(), COMPACT_CBF_ROWS + 1 + 5);
+    assert_eq!(
+        solver(COMPACT_CBF_ROWS + 1).rows(),
+        COMPACT_START_ROWS + 1 + 5
+    );
+}

@@ -17,6 +17,8 @@
 //! - A *collision* is a contact pair between a robot collider and an obstacle collider that
 //!   has an active contact whose distance is ≤ [`PhysicsConfig::contact_distance`].
 
+use std::cmp::Ordering;
+
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude as rp;
 use rapier3d::prelude::{
@@ -627,9 +629,9 @@ impl PhysicsWorld {
         let mut least = f64::INFINITY;
         for b in &self.obstacle_aabbs {
             let lb = robot.map_or(f64::NAN, |r| aabb_gap(&r, b));
-            let near = !(lb > within);
+            // NaN (a non-finite pose) is not provably far: queried exactly
             out.push(lb);
-            exact.push(near);
+            exact.push(lb.partial_cmp(&within) != Some(Ordering::Greater));
         }
         for i in 0..out.len() {
             if exact[i] {
@@ -638,7 +640,7 @@ impl PhysicsWorld {
             }
         }
         for i in 0..out.len() {
-            if !exact[i] && !(out[i] > least) {
+            if !exact[i] && out[i].partial_cmp(&least) != Some(Ordering::Greater) {
                 out[i] = self.clearance(i);
                 exact[i] = true;
                 least = least.min(out[i]);
