@@ -733,6 +733,18 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         }
     ));
     context.push(format!("CBF gain: {}", setup.gain));
+    let rows = world.patterns.len().max(1) * setup.config.barriers.len();
+    if rows > ftcbf_controller::qp::COMPACT_CBF_ROWS {
+        context.push(match setup.config.input_limit {
+            Some(_) => format!(
+                "active rows: up to {rows} barrier rows (filters × barriers), more than the {} a QP holds all of: a step's QP leaves out each row whose half-space holds the whole input box (|Λ₁|L₁ + |Λ₂|L₂ ≤ −ω̄, i.e. κĥ exceeds what the box can reach plus the row's drift, robustness and Itô terms: a far obstacle's ĥ is far above the band where its row could bind). Every admissible input satisfies such a row, so the feasible set, the QP's solution and Steps 1–3 (which still test every row) are unchanged: the guarantee is the same",
+                ftcbf_controller::qp::COMPACT_CBF_ROWS
+            ),
+            None => format!(
+                "active rows: up to {rows} barrier rows and no input box: no row can be shown not to bind, every row enters every QP"
+            ),
+        });
+    }
     for b in &setup.config.barriers {
         let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
