@@ -97,3 +97,54 @@ fn paper_worlds_default_to_the_papers_step3_and_a_bad_value_names_the_key() {
         .to_string();
     assert!(err.contains("fallback") && err.contains("brake"), "{err}");
 }
+
+/// `check`'s second verdict: Theorem 3 does not apply (the pair filter keeps no channel, and no
+/// input meets both units' rows under the ramp), the safe stop does, spending N·m·α of the bound,
+/// and the liveness walk predicts where the robot may stop; with `fallback = "paper"` it is not
+/// in force.
+#[test]
+fn check_gives_the_safe_stop_its_own_verdict() {
+    let r = ftcbf_sim::check::check_world(&world(None)).expect("check");
+    assert!(!r.verdict.applies);
+    let s = &r.safe_stop;
+    assert!(s.in_force && s.applies, "{}", s.line());
+    // ε = 0.05 (default), N = 4500 steps, m = 2, α = 1e-6.
+    assert!(
+        (s.bound - (1.0 - 0.05 - 4500.0 * 2.0 * 1e-6)).abs() < 1e-12,
+        "{}",
+        s.bound
+    );
+    let line = s.line();
+    assert!(line.starts_with("safe-stop applies"), "{line}");
+    assert!(
+        line.contains("the robot may stop short of its goal"),
+        "{line}"
+    );
+    assert!(
+        s.predicted_stop
+            .as_deref()
+            .is_some_and(|p| p.contains("it may stop near")),
+        "{line}"
+    );
+    let braking = s
+        .hypotheses
+        .iter()
+        .find(|h| h.name.starts_with("braking distance"))
+        .expect("braking hypothesis");
+    assert_eq!(
+        braking.status,
+        ftcbf_sim::check::Status::Holds,
+        "{}",
+        braking.detail
+    );
+    let printed = r.to_string();
+    let last = printed.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("verdict: Theorem 3"),
+        "the last line stays Theorem 3's: {last}"
+    );
+
+    let paper = ftcbf_sim::check::check_world(&world(Some("paper"))).expect("check");
+    assert!(!paper.safe_stop.in_force && !paper.safe_stop.applies);
+    assert!(paper.safe_stop.line().contains("not in force"));
+}

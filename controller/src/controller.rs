@@ -551,6 +551,16 @@ fn initial_problem(
     problem.increment_metric = PairTable::from_fn(units, |i, j| {
         FtParams::per_pair(&ft.increment_metric, m, i, j).unwrap_or_else(StateMatrix::identity)
     });
+    problem.gamma = (0..units)
+        .map(|i| {
+            let g = if units == m {
+                ft.gamma.get(i).copied()
+            } else {
+                Some(ft.gamma_baseline)
+            };
+            g.unwrap_or(f64::INFINITY)
+        })
+        .collect();
     problem
 }
 

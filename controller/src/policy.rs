@@ -448,6 +448,9 @@ pub struct PolicyProblem {
     pub step3_keeps_saturated: bool,
     /// What Step 3 does without evidence ([`Fallback::Paper`] in [`PolicyProblem::new`]).
     pub fallback: Fallback,
+    /// γ_i per unit (the error bound its rows assume; +∞ in [`PolicyProblem::new`]): two kept
+    /// units further apart than γ_a + γ_b cannot both be honest (see [`Fallback::Brake`]).
+    pub gamma: Vec<f64>,
     /// Estimates x̂_i per unit.
     pub estimates: Vec<State>,
     /// Pair estimates x̂_ij per pair of units.
@@ -499,6 +502,7 @@ impl PolicyProblem {
             step2_every_step: false,
             step3_keeps_saturated: false,
             fallback: Fallback::Paper,
+            gamma: vec![f64::INFINITY; units],
             estimates: vec![State::zeros(); units],
             pair_estimates: PairTable::from_fn(units, |_, _| State::zeros()),
             theta: PairTable::from_fn(units, |_, _| f64::INFINITY),
@@ -953,8 +957,8 @@ fn relax_clf(
 
 /// Step 3: drop the unit with the largest residue key among those with CBF rows and resolve
 /// (soft CLF rows), until feasible or one such unit is left. With [`Fallback::Brake`], a unit
-/// is dropped only on evidence ([`no_evidence`]); otherwise Step 3 stops and returns why, and
-/// the policy brakes.
+/// is dropped only on evidence ([`has_evidence`]); otherwise, unless a kept unit is saturated,
+/// Step 3 stops and returns why ([`stop_reason`]), and the policy brakes.
 fn step3(
     p: &PolicyProblem,
     qp: &mut QpSolver,
@@ -968,18 +972,24 @@ fn step3(
         if candidates <= 1 {
             break;
         }
-        // With `Fallback::Brake` the evidence test replaces the saturated rule: without
-        // evidence nothing is dropped and the robot brakes (the soft problem of the saturated
-        // rule weighs a lying unit's rows too); with evidence the unit goes even when a kept unit
-        // is saturated (gen3_066: the saturated unit was the attacked one, its key far above z_α,
-        // and weighing its rows drove the robot into the wall).
-        if let Some(reason) = no_evidence(p, s, w) {
-            return Some(reason);
-        }
-        if p.step3_keeps_saturated && p.fallback == Fallback::Paper {
+        // With `Fallback::Brake` a unit goes on evidence even when a kept unit is saturated
+        // (gen3_066: the saturated unit was the attacked one, its key far above z_α, and the
+        // saturated rule's soft problem weighed its rows into the wall). Without evidence, when
+        // the kept units are close enough to all be honest (no pair further apart than
+        // γ_a + γ_b), the box, not a lie, keeps the rows apart: the saturated rule's fallback
+        // decides as before (braking there only slows the catalogue's box-limited worlds).
+        // Otherwise one of them lies and the robot brakes.
+        let evidence = has_evidence(p, w);
+        let box_not_lie = p.fallback == Fallback::Paper || (!evidence && !disagree(p, s));
+        if p.step3_keeps_saturated && box_not_lie {
             if let Some(sat) = saturated_unit(p, qp.input_limit(), s) {
                 record.step3_saturated = Some(sat);
                 break;
+            }
+        }
+        if !evidence {
+            if let Some(reason) = stop_reason(p, s, w) {
+                return Some(reason);
             }
         }
         at.stage = Stage::Step3;
@@ -1003,21 +1013,40 @@ fn step3(
     None
 }
 
-/// The evidence test of [`Fallback::Brake`] before Step 3 drops unit `w` (the largest residue
-/// key among the kept units with CBF rows): `None` (drop it) when its reading was rejected this
-/// step (flagged) or its key exceeds z_α — an honest filter's windowed χ² score exceeds z_α
-/// with probability α, so under a single fault pattern the unit dropped on this evidence is
-/// the honest one with probability at most α; `Some(reason)` (stop) otherwise. With
-/// [`Fallback::Paper`] always `None`.
-fn no_evidence(p: &PolicyProblem, s: &PolicyScratch, w: usize) -> Option<StopReason> {
+/// The evidence test before Step 3 drops unit `w` (the largest residue key among the kept units
+/// with CBF rows): true with [`Fallback::Paper`] (the thesis drops without asking); with
+/// [`Fallback::Brake`] true when a reading of `w` was rejected this step (flagged) or its key
+/// exceeds z_α — an honest filter's windowed χ² score exceeds z_α with probability ≈ α in a step,
+/// so under a single fault pattern a unit dropped on this evidence is the honest one with
+/// probability at most α. A NaN key is no evidence.
+fn has_evidence(p: &PolicyProblem, w: usize) -> bool {
+    match p.fallback {
+        Fallback::Paper => true,
+        Fallback::Brake { evidence_z } => p.flagged[w] || p.residue_key[w] > evidence_z,
+    }
+}
+
+/// Some two kept units with CBF rows are further apart than γ_a + γ_b: under Theorem 1's event
+/// both cannot be honest, so the conflict is a lie, not only the input box.
+fn disagree(p: &PolicyProblem, s: &PolicyScratch) -> bool {
+    let kept: Vec<usize> = (0..p.units)
+        .filter(|&i| s.alive[i] && unit_has_cbf(p, i))
+        .collect();
+    kept.iter().enumerate().any(|(k, &a)| {
+        kept[k + 1..].iter().any(|&b| {
+            let bound = p.gamma.get(a).copied().unwrap_or(f64::INFINITY)
+                + p.gamma.get(b).copied().unwrap_or(f64::INFINITY);
+            (p.estimates[a] - p.estimates[b]).norm() > bound
+        })
+    })
+}
+
+/// Why the policy stops instead of dropping `w` (`None` with [`Fallback::Paper`]): `w`, the
+/// kept unit with CBF rows with the next largest key, their keys and distance.
+fn stop_reason(p: &PolicyProblem, s: &PolicyScratch, w: usize) -> Option<StopReason> {
     let Fallback::Brake { evidence_z } = p.fallback else {
         return None;
     };
-    let key = p.residue_key[w];
-    // NaN keys are not evidence (`>` is false for NaN).
-    if p.flagged[w] || key > evidence_z {
-        return None;
-    }
     let other = (0..p.units)
         .filter(|&i| i != w && s.alive[i] && unit_has_cbf(p, i))
         .max_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]))
@@ -1028,15 +1057,13 @@ fn no_evidence(p: &PolicyProblem, s: &PolicyScratch, w: usize) -> Option<StopRea
     } else {
         p.theta[(lo, hi)]
     };
+    let d = p.estimates[w] - p.estimates[other];
     Some(StopReason {
         would_drop: w,
-        would_drop_key: key,
+        would_drop_key: p.residue_key[w],
         other,
         other_key: p.residue_key[other],
-        separation: {
-            let d = p.estimates[w] - p.estimates[other];
-            d[0].hypot(d[1])
-        },
+        separation: d[0].hypot(d[1]),
         theta,
         evidence_z,
         step2_isolated: s

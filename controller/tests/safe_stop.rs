@@ -4,7 +4,7 @@
 //! (a flagged unit, or a key above z_α) it drops as Step 3 does; `Fallback::Paper` is Step 3.
 
 use ftcbf_controller::policy::{
-    BrakeVelocity, ConstraintKind, DropReason, Fallback, QpOutcome, Stage, Verdict,
+    BrakeVelocity, ConstraintKind, DropReason, Fallback, QpOutcome, SafeAction, Stage, Verdict,
     DEFAULT_EVIDENCE_ALPHA, SAFE_STOP_TIME_CONSTANT,
 };
 use ftcbf_controller::{Controller, Input, State};
@@ -22,6 +22,8 @@ fn conflicting(keys: [f64; 2]) -> ftcbf_controller::policy::PolicyProblem {
     ];
     p.residue_key = keys.to_vec();
     p.fallback = Fallback::brake(DEFAULT_EVIDENCE_ALPHA).expect("α in (0, 0.5)");
+    // γ = 0.1 each: the estimates (1.3 m apart in state norm) cannot both be honest.
+    p.gamma = vec![0.1, 0.1];
     p
 }
 
@@ -77,6 +79,36 @@ fn without_evidence_the_policy_brakes_and_keeps_every_units_rows() {
     assert_eq!(velocity, BrakeVelocity::Remaining { unit: 0 });
     let want = Input::new(-0.1, 0.2) / SAFE_STOP_TIME_CONSTANT;
     assert!((u - want).norm() < 1e-12, "u = {u}, want {want}");
+}
+
+#[test]
+fn without_evidence_a_unit_the_box_cannot_satisfy_keeps_the_saturated_rule_when_both_may_be_honest()
+{
+    // Unit 0 needs u_y ≥ 1.5 with |u_y| ≤ 1: saturated, no evidence against either unit.
+    let mut p = conflicting([1.0, 2.5]);
+    p.cbf[0] = cbf(0.0, 1.0, 1.5);
+    p.step3_keeps_saturated = true;
+    // Further apart than γ_0 + γ_1: one lies, the robot brakes.
+    let (_, o, _) = run(&p, Some(Input::new(1.0, 1.0)));
+    assert!(matches!(o, QpOutcome::SafeStop { .. }), "{o:?}");
+    // Within γ_0 + γ_1 both may be honest: the box, not a lie, keeps the rows apart.
+    p.gamma = vec![1.0, 1.0];
+    let (_, o, rec) = run(&p, Some(Input::new(1.0, 1.0)));
+    assert!(
+        matches!(
+            o,
+            QpOutcome::InfeasibleAfterStep3 {
+                action: SafeAction::MinimiseMaxViolation,
+                ..
+            }
+        ),
+        "{o:?}"
+    );
+    assert_eq!(rec.step3_saturated, Some(0));
+    // With evidence against unit 1 it is dropped although unit 0 is saturated.
+    p.residue_key = vec![1.0, evidence_z() + 1.0];
+    let (_, _, rec) = run(&p, Some(Input::new(1.0, 1.0)));
+    assert!(rec.unit_dropped(1) && rec.step3_saturated.is_none());
 }
 
 #[test]

@@ -74,7 +74,8 @@ pub enum Status {
 }
 
 impl Status {
-    fn tag(self) -> &'static str {
+    /// The fixed-width tag `check` prints (`HOLDS  `, `FAILS  `, …).
+    pub fn tag(self) -> &'static str {
         match self {
             Status::Holds => "HOLDS  ",
             Status::Fails => "FAILS  ",
@@ -214,6 +215,9 @@ pub struct CheckReport {
     pub goal: Vec<GoalHold>,
     /// The verdict.
     pub verdict: Verdict,
+    /// The second verdict: the safe stop's guarantee (`[control] fallback = "brake"`;
+    /// [`crate::safe_stop`]).
+    pub safe_stop: crate::safe_stop::SafeStopVerdict,
     /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
     pub liveness: LivenessReport,
     /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
@@ -394,6 +398,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     check_departures(world, &mut found); // 11
 
     let applies = found.reasons.is_empty();
+    let safe_stop = crate::safe_stop::verdict(world, &found.hypotheses, &liveness);
     CheckReport {
         world: world.name.clone(),
         context,
@@ -407,6 +412,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
             assumptions: found.assumptions,
             horizon: (applies && found.finite_horizon).then_some(f.duration),
         },
+        safe_stop,
         liveness,
         barrier_names: setup.barrier_names.clone(),
     }
@@ -1732,6 +1738,13 @@ impl fmt::Display for CheckReport {
             }
         }
         writeln!(f, "{}", self.liveness)?;
+        if self.safe_stop.in_force {
+            writeln!(f, "hypotheses of the safe stop (besides Theorem 3's, less the pair filters' certification and case (i)):")?;
+            for h in &self.safe_stop.hypotheses {
+                writeln!(f, "  [{}] {}: {}", h.status.tag(), h.name, h.detail)?;
+            }
+        }
+        writeln!(f, "{}", self.safe_stop.line())?;
         write!(f, "verdict: {}", self.verdict.line())
     }
 }

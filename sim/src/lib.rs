@@ -23,6 +23,7 @@ pub mod regress;
 pub mod robot;
 pub mod runner;
 pub mod safe_sets;
+pub mod safe_stop;
 pub mod sensors;
 pub mod state;
 pub mod summary;
