@@ -48,7 +48,11 @@
 //!    braking below) and the outcome is [`QpOutcome::SafeStop`] with its [`StopReason`]. The
 //!    next step decides afresh: the robot resumes as soon as the rows agree again, a unit is
 //!    isolated by Step 2, or a residue becomes evidence. Units Step 2 isolated stay dropped;
-//!    any further drop needs evidence too. [`Fallback::Paper`] is Step 3 as written.
+//!    any further drop needs evidence too. With evidence a unit goes even when a kept unit is
+//!    saturated (`step3_keeps_saturated` below); without evidence the saturated rule still
+//!    decides when no two kept units are further apart than γ_a + γ_b ([`PolicyProblem::gamma`]:
+//!    all may be honest, the box keeps the rows apart), and the robot brakes otherwise.
+//!    [`Fallback::Paper`] is Step 3 as written (with the saturated rule).
 //! 5. **Fallback** (typed, reported, never silent) — if the CBF rows are still infeasible
 //!    (possible with an input box), the input minimises the largest violation of the
 //!    remaining CBF rows inside the box (soft CBF rows; CLF ignored). If even that fails
