@@ -249,14 +249,8 @@ impl<'w> Simulation<'w> {
         let file = &world.file;
         let seed = opts.seed.unwrap_or(file.seed);
         let kind = opts.controller.unwrap_or(file.control.controller);
-        let duration = opts.duration.unwrap_or(file.duration);
-        let r = crate::world::ranges::DURATION;
-        if !r.contains(duration) {
-            return Err(RunError::Option(format!(
-                "--duration: expected a number of seconds in {}, found {duration}",
-                r.describe()
-            )));
-        }
+        let duration = crate::world::ranges::check_duration(opts.duration.unwrap_or(file.duration))
+            .map_err(RunError::Option)?;
         if duration > file.duration {
             // γ, θ, η (and the dead-reckoning bounds) are computed for the world's duration:
             // their union bound is over its samples, so a longer run is past their horizon.
@@ -334,7 +328,7 @@ impl<'w> Simulation<'w> {
             world,
             seed,
             control_dt,
-            n_steps: (duration / control_dt).round().max(1.0) as u64,
+            n_steps: world.control_steps(duration),
             k: 0,
             setup,
             suite,

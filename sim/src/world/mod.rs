@@ -220,6 +220,12 @@ impl World {
         1.0 / self.file.control.rate_hz
     }
 
+    /// Control steps in a run of `duration` seconds (at least one): the one count the runner
+    /// steps and the CLI's progress bar shows.
+    pub fn control_steps(&self, duration: f64) -> u64 {
+        (duration / self.control_dt()).round().max(1.0) as u64
+    }
+
     /// Plant step \[s\] (physics or linear integration).
     pub fn plant_dt(&self) -> f64 {
         match self.file.dynamics {

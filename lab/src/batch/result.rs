@@ -884,7 +884,7 @@ mod tests {
             &plan(60, None),
             Execution {
                 jobs: Some(2),
-                progress: false,
+                progress: &crate::progress::Silent,
             },
         )
         .expect("batch");
