@@ -133,7 +133,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
         .expect("braking hypothesis");
     assert_eq!(
         braking.status,
-        ftcbf_sim::check::Status::Holds,
+        ftcbf_sim::safe_stop::Status::Holds,
         "{}",
         braking.detail
     );

@@ -74,8 +74,7 @@ pub enum Status {
 }
 
 impl Status {
-    /// The fixed-width tag `check` prints (`HOLDS  `, `FAILS  `, …).
-    pub fn tag(self) -> &'static str {
+    fn tag(self) -> &'static str {
         match self {
             Status::Holds => "HOLDS  ",
             Status::Fails => "FAILS  ",
@@ -398,7 +397,16 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     check_departures(world, &mut found); // 11
 
     let applies = found.reasons.is_empty();
-    let safe_stop = crate::safe_stop::verdict(world, &found.hypotheses, &liveness);
+    let failed: Vec<crate::safe_stop::Failed<'_>> = found
+        .hypotheses
+        .iter()
+        .filter(|h| h.status == Status::Fails)
+        .map(|h| crate::safe_stop::Failed {
+            name: &h.name,
+            detail: &h.detail,
+        })
+        .collect();
+    let safe_stop = crate::safe_stop::verdict(world, &failed, &liveness);
     CheckReport {
         world: world.name.clone(),
         context,
@@ -1741,7 +1749,12 @@ impl fmt::Display for CheckReport {
         if self.safe_stop.in_force {
             writeln!(f, "hypotheses of the safe stop (besides Theorem 3's, less the pair filters' certification and case (i)):")?;
             for h in &self.safe_stop.hypotheses {
-                writeln!(f, "  [{}] {}: {}", h.status.tag(), h.name, h.detail)?;
+                let status = match h.status {
+                    crate::safe_stop::Status::Holds => Status::Holds,
+                    crate::safe_stop::Status::Fails => Status::Fails,
+                    crate::safe_stop::Status::Assumed => Status::Assumed,
+                };
+                writeln!(f, "  [{}] {}: {}", status.tag(), h.name, h.detail)?;
             }
         }
         writeln!(f, "{}", self.safe_stop.line())?;

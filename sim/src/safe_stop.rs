@@ -8,11 +8,41 @@
 //! met by one input, case (i)), plus its own: braking inside the lift's margin, the honest unit
 //! kept by Step 2, and static obstacles.
 
-use crate::check::{Hypothesis, Status};
 use crate::liveness::LivenessReport;
 use crate::runner::DEFAULT_BRAKE_DECELERATION;
 use crate::world::{Dynamics, FallbackSpec, World};
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
+
+/// Outcome of one of the safe stop's hypotheses (as `check`'s statuses).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// Verified from the world.
+    Holds,
+    /// Verified false: the safe stop's guarantee does not apply.
+    Fails,
+    /// Cannot be decided statically; stated as an assumption of the verdict.
+    Assumed,
+}
+
+/// One hypothesis of the safe stop, with its numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hypothesis {
+    /// Short name.
+    pub name: String,
+    /// Outcome.
+    pub status: Status,
+    /// The numbers behind it.
+    pub detail: String,
+}
+
+/// A hypothesis of Theorem 3 that `check` found false, by name and detail.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Failed<'a> {
+    /// Its name.
+    pub name: &'a str,
+    /// Its numbers.
+    pub detail: &'a str,
+}
 
 /// The safe stop's verdict.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,7 +91,7 @@ impl SafeStopVerdict {
 /// Whether a Theorem-3 hypothesis is one the safe stop does not need: the pair filters'
 /// certification (Step 2's θ; the stop does not rely on Step 2 isolating) and case (i) (every
 /// kept unit's rows met by one input: where they are not, the stop brakes).
-fn replaced_by_the_stop(h: &Hypothesis) -> bool {
+fn replaced_by_the_stop(h: &Failed<'_>) -> bool {
     let pair_filter = h.name.contains(" ∪ ");
     (pair_filter && (h.name.starts_with("detectable") || h.name.starts_with("invertible")))
         || h.name.starts_with("case (i)")
@@ -70,7 +100,7 @@ fn replaced_by_the_stop(h: &Hypothesis) -> bool {
 /// The safe stop's verdict for `world`, from Theorem 3's hypotheses and the liveness walk.
 pub fn verdict(
     world: &World,
-    theorem3: &[Hypothesis],
+    theorem3: &[Failed<'_>],
     liveness: &LivenessReport,
 ) -> SafeStopVerdict {
     let f = &world.file;
@@ -90,7 +120,7 @@ pub fn verdict(
         return v;
     }
     for h in theorem3 {
-        if h.status == Status::Fails && !replaced_by_the_stop(h) {
+        if !replaced_by_the_stop(h) {
             v.reasons.push(format!("{}: {}", h.name, h.detail));
         }
     }
@@ -98,7 +128,7 @@ pub fn verdict(
         match status {
             Status::Fails => v.reasons.push(format!("{name}: {detail}")),
             Status::Assumed => v.assumptions.push(name.to_string()),
-            _ => {}
+            Status::Holds => {}
         }
         v.hypotheses.push(Hypothesis {
             name: name.to_string(),
@@ -109,8 +139,8 @@ pub fn verdict(
     braking(world, &mut record);
     let open_pairs: Vec<&str> = theorem3
         .iter()
-        .filter(|h| h.status == Status::Fails && replaced_by_the_stop(h) && h.name.contains(" ∪ "))
-        .map(|h| h.name.as_str())
+        .filter(|h| replaced_by_the_stop(h) && h.name.contains(" ∪ "))
+        .map(|h| h.name)
         .collect();
     if open_pairs.is_empty() {
         record(
@@ -138,7 +168,7 @@ pub fn verdict(
     record(
         "static obstacles",
         Status::Holds,
-        "the world format has no moving obstacles: a robot at rest cannot hit one".into(),
+        "the world declares no moving obstacle (movers are not yet part of the world file): a robot at rest cannot hit one".into(),
     );
     v.applies = v.reasons.is_empty();
     v.predicted_stop = predicted_stop(liveness);
