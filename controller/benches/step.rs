@@ -236,7 +236,7 @@ fn bench_step(c: &mut Criterion) {
             }
             let i = match qp {
                 QpOutcome::Feasible { stage, .. } => stage as usize,
-                QpOutcome::InfeasibleAfterStep3 { .. } => 4,
+                QpOutcome::InfeasibleAfterStep3 { .. } | QpOutcome::SafeStop { .. } => 4,
             };
             mix[i] += 1;
         }

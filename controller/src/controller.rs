@@ -14,7 +14,9 @@ use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
 use crate::nominal::{PathTracker, TrackerConfig, TrackerError};
 use crate::params::{FtParams, PairTable, STEP2_WINDOW};
-use crate::policy::{decide, prepare, DecisionRecord, PolicyProblem, PolicyScratch, QpOutcome};
+use crate::policy::{
+    decide, prepare, DecisionRecord, Fallback, PolicyProblem, PolicyScratch, QpOutcome,
+};
 use crate::qp::QpSolver;
 use crate::types::{Input, State, StateMatrix};
 
@@ -89,6 +91,9 @@ pub struct ControllerConfig {
     pub max_abs_reading: f64,
     /// Which problem the QP solves.
     pub form: ProblemForm,
+    /// What Step 3 does when it has no evidence which unit lies ([`Fallback::Paper`]: the
+    /// thesis' Step 3, the builder's default; [`Fallback::Brake`]: the safe stop).
+    pub fallback: Fallback,
 }
 
 /// Readings with |y| above this are rejected by default \[m or m/s\] ([`ControllerConfig::max_abs_reading`]).
@@ -120,6 +125,7 @@ impl ControllerConfig {
             p0: StateMatrix::zeros(),
             max_abs_reading: DEFAULT_MAX_ABS_READING,
             form: ProblemForm::Paper,
+            fallback: Fallback::Paper,
         })
     }
 }
@@ -207,6 +213,13 @@ impl ControllerConfigBuilder {
     /// Which problem the QP solves. Default: [`ProblemForm::Paper`], problem (5.3).
     pub fn form(mut self, form: ProblemForm) -> Self {
         self.0.form = form;
+        self
+    }
+
+    /// What Step 3 does without evidence (see [`crate::policy`]). Default:
+    /// [`Fallback::Paper`], the thesis' Step 3.
+    pub fn fallback(mut self, fallback: Fallback) -> Self {
+        self.0.fallback = fallback;
         self
     }
 
@@ -475,6 +488,15 @@ fn validate_numbers(cfg: &ControllerConfig) -> Result<(), ConfigError> {
     }
     positive("cbf_gain", cfg.cbf_gain)?;
     positive("max_abs_reading", cfg.max_abs_reading)?;
+    if let Fallback::Brake { evidence_z } = cfg.fallback {
+        if !(evidence_z.is_finite() && evidence_z > 0.0) {
+            return Err(ConfigError::BadValue {
+                key: "fallback.evidence_z",
+                value: evidence_z,
+                expected: "a finite normal score > 0 (Fallback::brake(α) with 0 < α < 0.5)",
+            });
+        }
+    }
     if let Some(l) = cfg.input_limit {
         positive("input_limit[0]", l[0])?;
         positive("input_limit[1]", l[1])?;
@@ -529,6 +551,16 @@ fn initial_problem(
     problem.increment_metric = PairTable::from_fn(units, |i, j| {
         FtParams::per_pair(&ft.increment_metric, m, i, j).unwrap_or_else(StateMatrix::identity)
     });
+    problem.gamma = (0..units)
+        .map(|i| {
+            let g = if units == m {
+                ft.gamma.get(i).copied()
+            } else {
+                Some(ft.gamma_baseline)
+            };
+            g.unwrap_or(f64::INFINITY)
+        })
+        .collect();
     problem
 }
 
@@ -641,6 +673,7 @@ impl Controller {
         // A departure from the paper's Step 3 (book/src/theory/controller.md): it
         // turned the stealthy counterexample of `falsify` from 58/200 safe into 200/200.
         problem.step3_keeps_saturated = true;
+        problem.fallback = cfg.fallback;
         Ok(Self {
             kind: cfg.kind,
             scratch: PolicyScratch::new(units, barriers_used),

@@ -137,6 +137,24 @@ pub fn realized_acceleration(
     ))
 }
 
+/// The safe stop's braking input on a platform that measures its own forward speed (wheel
+/// encoders, not a sensor channel of the attack surface): the world-frame acceleration along
+/// the heading `theta` \[rad\] that takes the forward speed `v_body` \[m/s\] to zero in one period
+/// `dt` \[s\] if `decel` \[m/s²\] allows, else decelerates at `decel`; no lateral component, so
+/// the compensator (6.4) commands ω = 0 and the robot brakes along its path. Because it is
+/// projected on the same heading the compensator uses, its forward part is exactly the braking
+/// asked for even when that heading is wrong. Zero for a non-finite argument or `dt ≤ 0`,
+/// `decel ≤ 0`.
+pub fn brake_input(v_body: f64, theta: f64, decel: f64, dt: f64) -> Input {
+    let finite = [v_body, theta, decel, dt].iter().all(|x| x.is_finite());
+    if !finite || dt <= 0.0 || decel <= 0.0 {
+        return Input::zeros();
+    }
+    let a = (-v_body / dt).clamp(-decel, decel);
+    let (s, c) = theta.sin_cos();
+    Input::new(a * c, a * s)
+}
+
 /// The compensator state: the integrator of (6.3) and the last ω (for the rate limit).
 #[derive(Debug, Clone)]
 pub struct Compensator {
@@ -425,5 +443,47 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    #[test]
+    fn brake_input_stops_the_body_speed_within_the_deceleration_and_never_turns() {
+        let cfg = CompensatorConfig {
+            v_max: 0.22,
+            omega_max: 2.84,
+            dv_max: None,
+            domega_max: None,
+            low_speed: LowSpeedLaw::Floor { v_floor: 0.05 },
+            speed_gain: 0.0,
+            omega_resolution: 0.0,
+        };
+        let mut comp = Compensator::new(cfg).unwrap();
+        comp.reset(0.2);
+        let theta = 2.0;
+        let dt = 0.02;
+        let mut steps = 0;
+        // 1e-9: 0.2 − 10 × 0.02 rounds to a few 1e-17, not to 0.
+        while comp.current().v > 1e-9 {
+            let u = brake_input(comp.current().v, theta, 1.0, dt);
+            assert!(
+                u.norm() <= 1.0 + 1e-12,
+                "the deceleration limit holds: |u| = {}",
+                u.norm()
+            );
+            let cmd = comp.command(u, theta, dt);
+            assert!(
+                cmd.omega.abs() < 1e-12,
+                "braking never turns: ω = {}",
+                cmd.omega
+            );
+            steps += 1;
+            assert!(steps <= 11, "0.2 m/s at 1 m/s² stops in 10 steps of 20 ms");
+        }
+        assert_eq!(steps, 10);
+        assert!(comp.current().v.abs() < 1e-12);
+        // Backwards too, and garbage in gives no acceleration.
+        let u = brake_input(-0.1, 0.0, 1.0, dt);
+        assert!((u[0] - 1.0).abs() < 1e-12 && u[1].abs() < 1e-12);
+        assert_eq!(brake_input(f64::NAN, 0.0, 1.0, dt), Input::zeros());
+        assert_eq!(brake_input(0.1, 0.0, 0.0, dt), Input::zeros());
     }
 }

@@ -145,5 +145,5 @@ pub use lyapunov::{ClfConfig, QuadraticClf};
 pub use model::{LinearModel, ModelError};
 pub use nominal::{PathTracker, TrackerConfig, TrackerError};
 pub use params::{FtParams, PairTable};
-pub use policy::{DecisionRecord, QpOutcome, SafeAction, Stage};
+pub use policy::{DecisionRecord, Fallback, QpOutcome, SafeAction, Stage, StopReason};
 pub use types::{Input, InputMatrix, State, StateMatrix};

@@ -36,6 +36,23 @@
 //!    filter (flagged units, i.e. with a rejected reading, rank as +∞) among those that still have CBF rows, and resolve, until
 //!    feasible. The last unit with CBF rows is never dropped: dropping it would leave no
 //!    barrier at all.
+//!    **Safe stop** ([`Fallback::Brake`], a departure from the thesis; book/src/theory/safe-stop.md):
+//!    before each drop Step 3 asks whether the residues are *evidence*: the unit it would drop
+//!    has a rejected reading this step (flagged), or its key exceeds z_α = Φ⁻¹(1 − α) — an
+//!    honest filter's windowed χ² score exceeds z_α with probability ≈ α in a step, so under a
+//!    single fault pattern a unit dropped on this evidence is the honest one with probability
+//!    at most α. Without evidence (a slow ramp leaves no residue; two sources and nothing else
+//!    leave Step 2 nothing to isolate, as its pair filter keeps no channel) nothing is dropped:
+//!    every kept unit keeps its rows in the record, the input brakes
+//!    (`u = −v̂/τ_s`, [`SAFE_STOP_TIME_CONSTANT`], clipped to the box, v̂ as in the fallback's
+//!    braking below) and the outcome is [`QpOutcome::SafeStop`] with its [`StopReason`]. The
+//!    next step decides afresh: the robot resumes as soon as the rows agree again, a unit is
+//!    isolated by Step 2, or a residue becomes evidence. Units Step 2 isolated stay dropped;
+//!    any further drop needs evidence too. With evidence a unit goes even when a kept unit is
+//!    saturated (`step3_keeps_saturated` below); without evidence the saturated rule still
+//!    decides when no two kept units are further apart than γ_a + γ_b ([`PolicyProblem::gamma`]:
+//!    all may be honest, the box keeps the rows apart), and the robot brakes otherwise.
+//!    [`Fallback::Paper`] is Step 3 as written (with the saturated rule).
 //! 5. **Fallback** (typed, reported, never silent) — if the CBF rows are still infeasible
 //!    (possible with an input box), the input minimises the largest violation of the
 //!    remaining CBF rows inside the box (soft CBF rows; CLF ignored). If even that fails
@@ -78,6 +95,12 @@ use crate::types::{Input, State, StateMatrix};
 /// Braking time constant of the last-resort action (s).
 pub const BRAKE_TIME_CONSTANT: f64 = 0.5;
 
+/// Braking time constant of the safe stop (s): `u = −v̂/τ_s`, clipped to the box. From
+/// 0.22 m/s (a TurtleBot3 burger's top speed) the unclipped law travels v·τ_s = 4.4 cm before
+/// it is at rest; a platform that brakes on its own wheel encoders
+/// ([`crate::drive::brake_input`]) stops in v²/(2a) (2.4 cm at 1 m/s²).
+pub const SAFE_STOP_TIME_CONSTANT: f64 = 0.2;
+
 /// The stage that decided the input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
@@ -91,6 +114,9 @@ pub enum Stage {
     Step3,
     /// No feasible CBF set: safe action.
     Fallback,
+    /// Step 3 would have dropped a unit without evidence that it lies: the robot brakes
+    /// ([`QpOutcome::SafeStop`]).
+    SafeStop,
 }
 
 /// Why a constraint is not imposed at all this step.
@@ -328,6 +354,74 @@ pub enum QpOutcome {
         /// (m/s²) (0 when they all hold).
         max_cbf_violation: f64,
     },
+    /// The safe stop ([`Fallback::Brake`]): no input meets every kept unit's CBF rows, and the
+    /// evidence cannot say which unit lies, so the input brakes instead of dropping a unit
+    /// by residue.
+    SafeStop {
+        /// Why the policy stopped instead of choosing.
+        reason: StopReason,
+        /// Whose velocity estimate the braking input opposes.
+        velocity: BrakeVelocity,
+        /// Largest violation `max(ω̄ − Λu)/‖Λ‖` of the kept units' CBF rows at the braking input
+        /// (m/s²).
+        max_cbf_violation: f64,
+    },
+}
+
+/// What the policy does where Step 3 would drop a unit (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Fallback {
+    /// The thesis' Step 3 as written: drop the unit with the largest residue until feasible.
+    Paper,
+    /// The safe stop: drop the unit with the largest residue only when its residue is evidence
+    /// that it lies (flagged, or its windowed χ² normal score above `evidence_z`); otherwise
+    /// brake ([`QpOutcome::SafeStop`]).
+    Brake {
+        /// z_α: the normal score an honest filter's windowed χ² test exceeds with probability
+        /// α in one step (`Φ⁻¹(1 − α)`; see [`Fallback::brake`]).
+        evidence_z: f64,
+    },
+}
+
+/// Default false-alarm probability α of the evidence test of [`Fallback::Brake`], per unit and
+/// control step: over a 90 s run at 50 Hz with two units the union bound on "an honest unit's
+/// residue ever looks like evidence" is 4500 · 2 · 10⁻⁶ ≈ 0.009.
+pub const DEFAULT_EVIDENCE_ALPHA: f64 = 1e-6;
+
+impl Fallback {
+    /// [`Fallback::Brake`] with the evidence threshold `z_α = Φ⁻¹(1 − α)`; `None` unless
+    /// 0 < α < 0.5.
+    pub fn brake(alpha: f64) -> Option<Self> {
+        use statrs::distribution::{ContinuousCDF, Normal};
+        if !(alpha > 0.0 && alpha < 0.5) {
+            return None;
+        }
+        let z = Normal::standard().inverse_cdf(1.0 - alpha);
+        z.is_finite().then_some(Self::Brake { evidence_z: z })
+    }
+}
+
+/// Why the safe stop was chosen: the two units Step 3 would have chosen between.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StopReason {
+    /// The unit Step 3 would have dropped (largest residue key among the kept units with CBF
+    /// rows).
+    pub would_drop: usize,
+    /// Its residue key.
+    pub would_drop_key: f64,
+    /// The kept unit with CBF rows with the next largest key (the one Step 3 would have
+    /// trusted instead when two remain).
+    pub other: usize,
+    /// Its residue key.
+    pub other_key: f64,
+    /// Distance between the two units' position estimates \[m\].
+    pub separation: f64,
+    /// θ of that pair (Step 2's state-norm threshold: it isolates a unit only beyond it).
+    pub theta: f64,
+    /// The evidence threshold z_α the key did not exceed.
+    pub evidence_z: f64,
+    /// Whether Step 2 dropped any unit this step.
+    pub step2_isolated: bool,
 }
 
 /// The inputs of one policy evaluation (preallocated; the controller refills it each step).
@@ -356,6 +450,11 @@ pub struct PolicyProblem {
     /// by a stealthy attacker. [`crate::Controller`] always sets it; [`PolicyProblem::new`]
     /// leaves it off, which is the paper's Step 3 as written.
     pub step3_keeps_saturated: bool,
+    /// What Step 3 does without evidence ([`Fallback::Paper`] in [`PolicyProblem::new`]).
+    pub fallback: Fallback,
+    /// γ_i per unit (the error bound its rows assume; +∞ in [`PolicyProblem::new`]): two kept
+    /// units further apart than γ_a + γ_b cannot both be honest (see [`Fallback::Brake`]).
+    pub gamma: Vec<f64>,
     /// Estimates x̂_i per unit.
     pub estimates: Vec<State>,
     /// Pair estimates x̂_ij per pair of units.
@@ -406,6 +505,8 @@ impl PolicyProblem {
             use_clf: true,
             step2_every_step: false,
             step3_keeps_saturated: false,
+            fallback: Fallback::Paper,
+            gamma: vec![f64::INFINITY; units],
             estimates: vec![State::zeros(); units],
             pair_estimates: PairTable::from_fn(units, |_, _| State::zeros()),
             theta: PairTable::from_fn(units, |_, _| f64::INFINITY),
@@ -681,8 +782,12 @@ pub fn decide(
     if !at.feasible() && !s.clf_rows.is_empty() {
         relax_clf(qp, s, record, &mut at);
     }
+    let mut stop = None;
     if !at.feasible() && p.units > 1 {
-        step3(p, qp, s, record, &mut at);
+        stop = step3(p, qp, s, record, &mut at);
+    }
+    if let Some(reason) = stop {
+        return safe_stop(p, qp, s, record, reason);
     }
 
     let (u, outcome) = match at.result {
@@ -855,24 +960,40 @@ fn relax_clf(
 }
 
 /// Step 3: drop the unit with the largest residue key among those with CBF rows and resolve
-/// (soft CLF rows), until feasible or one such unit is left.
+/// (soft CLF rows), until feasible or one such unit is left. With [`Fallback::Brake`], a unit
+/// is dropped only on evidence ([`has_evidence`]); otherwise, unless a kept unit is saturated,
+/// Step 3 stops and returns why ([`stop_reason`]), and the policy brakes.
 fn step3(
     p: &PolicyProblem,
     qp: &mut QpSolver,
     s: &mut PolicyScratch,
     record: &mut DecisionRecord,
     at: &mut Progress,
-) {
+) -> Option<StopReason> {
     loop {
         let (candidates, worst) = largest_residue(p, s);
         let Some(w) = worst else { break };
         if candidates <= 1 {
             break;
         }
-        if p.step3_keeps_saturated {
+        // With `Fallback::Brake` a unit goes on evidence even when a kept unit is saturated
+        // (gen3_066: the saturated unit was the attacked one, its key far above z_α, and the
+        // saturated rule's soft problem weighed its rows into the wall). Without evidence, when
+        // the kept units are close enough to all be honest (no pair further apart than
+        // γ_a + γ_b), the box, not a lie, keeps the rows apart: the saturated rule's fallback
+        // decides as before (braking there only slows the catalogue's box-limited worlds).
+        // Otherwise one of them lies and the robot brakes.
+        let evidence = has_evidence(p, w);
+        let box_not_lie = p.fallback == Fallback::Paper || (!evidence && !disagree(p, s));
+        if p.step3_keeps_saturated && box_not_lie {
             if let Some(sat) = saturated_unit(p, qp.input_limit(), s) {
                 record.step3_saturated = Some(sat);
                 break;
+            }
+        }
+        if !evidence {
+            if let Some(reason) = stop_reason(p, s, w) {
+                return Some(reason);
             }
         }
         at.stage = Stage::Step3;
@@ -893,6 +1014,92 @@ fn step3(
             break;
         }
     }
+    None
+}
+
+/// The evidence test before Step 3 drops unit `w` (the largest residue key among the kept units
+/// with CBF rows): true with [`Fallback::Paper`] (the thesis drops without asking); with
+/// [`Fallback::Brake`] true when a reading of `w` was rejected this step (flagged) or its key
+/// exceeds z_α — an honest filter's windowed χ² score exceeds z_α with probability ≈ α in a step,
+/// so under a single fault pattern a unit dropped on this evidence is the honest one with
+/// probability at most α. A NaN key is no evidence.
+fn has_evidence(p: &PolicyProblem, w: usize) -> bool {
+    match p.fallback {
+        Fallback::Paper => true,
+        Fallback::Brake { evidence_z } => p.flagged[w] || p.residue_key[w] > evidence_z,
+    }
+}
+
+/// Some two kept units with CBF rows are further apart than γ_a + γ_b: under Theorem 1's event
+/// both cannot be honest, so the conflict is a lie, not only the input box.
+fn disagree(p: &PolicyProblem, s: &PolicyScratch) -> bool {
+    let kept: Vec<usize> = (0..p.units)
+        .filter(|&i| s.alive[i] && unit_has_cbf(p, i))
+        .collect();
+    kept.iter().enumerate().any(|(k, &a)| {
+        kept[k + 1..].iter().any(|&b| {
+            let bound = p.gamma.get(a).copied().unwrap_or(f64::INFINITY)
+                + p.gamma.get(b).copied().unwrap_or(f64::INFINITY);
+            (p.estimates[a] - p.estimates[b]).norm() > bound
+        })
+    })
+}
+
+/// Why the policy stops instead of dropping `w` (`None` with [`Fallback::Paper`]): `w`, the
+/// kept unit with CBF rows with the next largest key, their keys and distance.
+fn stop_reason(p: &PolicyProblem, s: &PolicyScratch, w: usize) -> Option<StopReason> {
+    let Fallback::Brake { evidence_z } = p.fallback else {
+        return None;
+    };
+    let other = (0..p.units)
+        .filter(|&i| i != w && s.alive[i] && unit_has_cbf(p, i))
+        .max_by(|&a, &b| p.residue_key[a].total_cmp(&p.residue_key[b]))
+        .unwrap_or(w);
+    let (lo, hi) = (w.min(other), w.max(other));
+    let theta = if lo == hi {
+        f64::NAN
+    } else {
+        p.theta[(lo, hi)]
+    };
+    let d = p.estimates[w] - p.estimates[other];
+    Some(StopReason {
+        would_drop: w,
+        would_drop_key: p.residue_key[w],
+        other,
+        other_key: p.residue_key[other],
+        separation: d[0].hypot(d[1]),
+        theta,
+        evidence_z,
+        step2_isolated: s
+            .drop_reason
+            .iter()
+            .any(|d| matches!(d, Some((Stage::Step2, _)))),
+    })
+}
+
+/// The safe stop: every kept unit stays kept (nothing is dropped by residue), the input brakes
+/// (`u = −v̂/τ_b` clipped to the box, v̂ as in the fallback's braking, see [`brake`]), and the
+/// record says why.
+fn safe_stop(
+    p: &PolicyProblem,
+    qp: &QpSolver,
+    s: &mut PolicyScratch,
+    record: &mut DecisionRecord,
+    reason: StopReason,
+) -> (Input, QpOutcome) {
+    collect(p, s);
+    s.clf_rows.clear();
+    let (u, velocity) = brake(p, s, qp.input_limit(), SAFE_STOP_TIME_CONSTANT);
+    record.stage = Stage::SafeStop;
+    record_decisions(p, s, Stage::SafeStop, false, record);
+    (
+        u,
+        QpOutcome::SafeStop {
+            reason,
+            velocity,
+            max_cbf_violation: max_cbf_violation(&s.cbf_rows, &u),
+        },
+    )
 }
 
 /// The first unit still alive whose own CBF rows are infeasible in the input box, if any.
@@ -948,7 +1155,7 @@ fn fallback(
         Some(QpResult::Feasible { u, .. }) => (u, SafeAction::MinimiseMaxViolation),
         other => {
             let reason = brake_reason(other);
-            let (u, velocity) = brake(p, s, qp.input_limit());
+            let (u, velocity) = brake(p, s, qp.input_limit(), BRAKE_TIME_CONSTANT);
             (u, SafeAction::Brake { reason, velocity })
         }
     };
@@ -1026,7 +1233,7 @@ fn cbf_verdict(p: &PolicyProblem, s: &PolicyScratch, stage: Stage, i: usize, b: 
         })
     } else if let Some((st, reason)) = s.drop_reason[i] {
         Verdict::Dropped { stage: st, reason }
-    } else if stage == Stage::Fallback {
+    } else if matches!(stage, Stage::Fallback | Stage::SafeStop) {
         Verdict::Relaxed
     } else {
         Verdict::Kept
@@ -1047,7 +1254,7 @@ fn clf_verdict(
         })
     } else if let Some((st, reason)) = s.drop_reason[i] {
         Verdict::Dropped { stage: st, reason }
-    } else if clf_relaxed || stage == Stage::Fallback {
+    } else if clf_relaxed || matches!(stage, Stage::Fallback | Stage::SafeStop) {
         Verdict::Relaxed
     } else {
         Verdict::Kept
@@ -1062,7 +1269,12 @@ fn is_finite_row(h: &HalfSpace) -> bool {
 
 /// `u = −v̂/τ_b` clipped to the box, with v̂ the best available finite velocity estimate (see
 /// the module docs), and where it came from.
-fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> (Input, BrakeVelocity) {
+fn brake(
+    p: &PolicyProblem,
+    s: &PolicyScratch,
+    limit: Option<Input>,
+    tau: f64,
+) -> (Input, BrakeVelocity) {
     let velocity = |i: usize| Input::new(p.estimates[i][2], p.estimates[i][3]);
     let best = |remaining: bool| {
         (0..p.units)
@@ -1074,7 +1286,7 @@ fn brake(p: &PolicyProblem, s: &PolicyScratch, limit: Option<Input>) -> (Input, 
         (None, Some(i)) => (velocity(i), BrakeVelocity::Dropped { unit: i }),
         (None, None) => (Input::zeros(), BrakeVelocity::NoneFinite),
     };
-    let mut u = -v / BRAKE_TIME_CONSTANT;
+    let mut u = -v / tau;
     if let Some(l) = limit {
         u[0] = u[0].clamp(-l[0], l[0]);
         u[1] = u[1].clamp(-l[1], l[1]);

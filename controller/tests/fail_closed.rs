@@ -302,7 +302,7 @@ fn step3_does_not_drop_an_estimator_the_box_cannot_satisfy() {
     let (u, o, rec) = run(&p, limit);
     let stage = match o {
         QpOutcome::Feasible { stage, .. } => Some(stage),
-        QpOutcome::InfeasibleAfterStep3 { .. } => None,
+        QpOutcome::InfeasibleAfterStep3 { .. } | QpOutcome::SafeStop { .. } => None,
     };
     assert_eq!(stage, Some(Stage::Step3), "{o:?}");
     assert!(u[1] <= 0.2 + 1e-6, "{u}");

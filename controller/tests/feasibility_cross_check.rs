@@ -443,6 +443,7 @@ fn policy_decides_exactly_as_the_clarabel_only_cascade() {
                 assert_eq!(clf_relaxed, relaxed, "case {case}");
             }
             QpOutcome::InfeasibleAfterStep3 { .. } => assert_eq!(stage, Stage::Fallback),
+            QpOutcome::SafeStop { .. } => panic!("case {case}: the paper's Step 3 never stops"),
         }
         // one clarabel solve per step: the deciding stage's (or the fallback's)
         assert!(rec.qp_solves <= solves, "case {case}");

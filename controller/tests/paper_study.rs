@@ -77,7 +77,8 @@ fn stage_index(s: Stage) -> usize {
         Stage::Step2 => 1,
         Stage::ClfRelaxation => 2,
         Stage::Step3 => 3,
-        Stage::Fallback => 4,
+        // The paper's study runs `Fallback::Paper`: a safe stop would be counted as a fallback.
+        Stage::Fallback | Stage::SafeStop => 4,
     }
 }
 
@@ -113,7 +114,7 @@ fn simulate(kind: ControllerKind, p: &FtParams, seed: u64) -> Trial {
         u = out.u;
         let st = match out.qp {
             QpOutcome::Feasible { stage, .. } => stage,
-            QpOutcome::InfeasibleAfterStep3 { .. } => Stage::Fallback,
+            QpOutcome::InfeasibleAfterStep3 { .. } | QpOutcome::SafeStop { .. } => Stage::Fallback,
         };
         stages[stage_index(st)] += 1;
         for (unit, drops) in step2_drops.iter_mut().enumerate() {

@@ -214,6 +214,9 @@ pub struct CheckReport {
     pub goal: Vec<GoalHold>,
     /// The verdict.
     pub verdict: Verdict,
+    /// The second verdict: the safe stop's guarantee (`[control] fallback = "brake"`;
+    /// [`crate::safe_stop`]).
+    pub safe_stop: crate::safe_stop::SafeStopVerdict,
     /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
     pub liveness: LivenessReport,
     /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
@@ -394,6 +397,16 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     check_departures(world, &mut found); // 11
 
     let applies = found.reasons.is_empty();
+    let failed: Vec<crate::safe_stop::Failed<'_>> = found
+        .hypotheses
+        .iter()
+        .filter(|h| h.status == Status::Fails)
+        .map(|h| crate::safe_stop::Failed {
+            name: &h.name,
+            detail: &h.detail,
+        })
+        .collect();
+    let safe_stop = crate::safe_stop::verdict(world, &failed, &liveness);
     CheckReport {
         world: world.name.clone(),
         context,
@@ -407,6 +420,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
             assumptions: found.assumptions,
             horizon: (applies && found.finite_horizon).then_some(f.duration),
         },
+        safe_stop,
         liveness,
         barrier_names: setup.barrier_names.clone(),
     }
@@ -1784,6 +1798,18 @@ impl fmt::Display for CheckReport {
             }
         }
         writeln!(f, "{}", self.liveness)?;
+        if self.safe_stop.in_force {
+            writeln!(f, "hypotheses of the safe stop (besides Theorem 3's, less the pair filters' certification and case (i)):")?;
+            for h in &self.safe_stop.hypotheses {
+                let status = match h.status {
+                    crate::safe_stop::Status::Holds => Status::Holds,
+                    crate::safe_stop::Status::Fails => Status::Fails,
+                    crate::safe_stop::Status::Assumed => Status::Assumed,
+                };
+                writeln!(f, "  [{}] {}: {}", status.tag(), h.name, h.detail)?;
+            }
+        }
+        writeln!(f, "{}", self.safe_stop.line())?;
         write!(f, "verdict: {}", self.verdict.line())
     }
 }

@@ -244,6 +244,7 @@ mod tests {
             final_state: [0.0; 4],
             smoothness: Default::default(),
             estimation_errors: Vec::new(),
+            safe_stop: None,
         }
     }
 

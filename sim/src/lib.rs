@@ -25,6 +25,7 @@ pub mod record;
 pub mod robot;
 pub mod runner;
 pub mod safe_sets;
+pub mod safe_stop;
 pub mod sensors;
 pub mod state;
 pub mod summary;

@@ -45,6 +45,33 @@ pub struct StepCounts {
     pub step3: u64,
     /// Still infeasible after Step 3: the documented safe action was applied.
     pub infeasible: u64,
+    /// The safe stop (`[control] fallback = "brake"`): Step 3 had no evidence which estimator
+    /// lies, so the robot braked instead of dropping one. Left out of the JSON when 0, so a run
+    /// that never stops serialises as before.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub safe_stop: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
+/// The safe stops of a run (`[control] fallback = "brake"`): when the robot first stopped and
+/// why, in words a user can act on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SafeStopReport {
+    /// Start of the first stop \[s\].
+    pub first_t: f64,
+    /// Why it stopped then (which sources it could not tell apart, and what would help).
+    pub reason: String,
+    /// Stops (maximal runs of consecutive braking steps).
+    pub episodes: u64,
+    /// Control steps spent in a stop.
+    pub steps: u64,
+    /// Start of the last stop \[s\].
+    pub last_start: f64,
+    /// The run ended in a stop.
+    pub stopped_at_end: bool,
 }
 
 /// Fail-closed events over a run: each is a step where a safety constraint could have
@@ -318,6 +345,9 @@ pub struct RunSummary {
     /// Fail-closed events (non-finite rows, unusable readings, Step-2 retention, braking).
     #[serde(default)]
     pub fail_closed: FailClosedCounts,
+    /// The safe stops, if the robot stopped (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safe_stop: Option<SafeStopReport>,
     /// The attacks of the world.
     pub attack_windows: Vec<AttackWindow>,
     /// The run is outside the declared fault model: at least one attack lies outside the
@@ -433,9 +463,39 @@ impl RunSummary {
         let st = &s.steps;
         writeln!(
             f,
-            "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}",
-            st.step1, st.clf_relaxed, st.step2, st.step3, st.infeasible
+            "  policy:    step1 {} · clf relaxed {} · step2 {} · step3 {} · infeasible {}{}",
+            st.step1,
+            st.clf_relaxed,
+            st.step2,
+            st.step3,
+            st.infeasible,
+            if st.safe_stop > 0 {
+                format!(" · safe stop {}", st.safe_stop)
+            } else {
+                String::new()
+            }
         )?;
+        if let Some(stop) = &s.safe_stop {
+            writeln!(
+                f,
+                "  stopped:   at t = {:.1} s: {}",
+                stop.first_t, stop.reason
+            )?;
+            writeln!(
+                f,
+                "             {} stop(s), {} braking step(s); {}",
+                stop.episodes,
+                stop.steps,
+                if stop.stopped_at_end {
+                    format!(
+                        "still stopped at the end (since t = {:.1} s)",
+                        stop.last_start
+                    )
+                } else {
+                    "resumed after each".to_string()
+                }
+            )?;
+        }
         let sm = &s.smoothness;
         writeln!(
             f,

@@ -32,8 +32,8 @@ CSV columns (one row per trial and controller): sweep_key, sweep_value, trial, s
 safe, collided, first_collision_t, first_collision_obstacle, first_violation_t,
 first_violation_set, first_violation_value, min_barrier, min_barrier_name, min_clearance,
 goal_reached, time_to_goal, step1, clf_relaxed, step2, step3, infeasible, control_steps,
-rejected_readings, duration, outside_fault_patterns, goal_settled, final_goal_distance
-(empty field = none).
+rejected_readings, duration, outside_fault_patterns, goal_settled, final_goal_distance, …,
+safe_stop (braking steps of the safe stop), first_stop_t, stop_reason (empty field = none).
 
 Exit codes: 0 done (and no verdict matched --fail-on); 4 a verdict matched --fail-on (the report
 and every --out file are still written); 2 invalid world file; 1 any other error.")]

@@ -119,7 +119,7 @@ pub const CSV_HEADER: &str =
 first_collision_obstacle,first_violation_t,first_violation_set,first_violation_value,min_barrier,\
 min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2,step3,infeasible,\
 control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance,\
-omega_sign_change_fraction,mean_abs_domega,stalls,estimation";
+omega_sign_change_fraction,mean_abs_domega,stalls,estimation,safe_stop,first_stop_t,stop_reason";
 
 fn float_text(x: f64) -> String {
     // Debug of f64 is the shortest text that parses back to the same bits ("NaN", "inf").
@@ -163,6 +163,12 @@ struct CsvRow {
     mean_abs_domega: String,
     stalls: u64,
     estimation: String,
+    #[serde(default)]
+    safe_stop: u64,
+    #[serde(default)]
+    first_stop_t: String,
+    #[serde(default)]
+    stop_reason: String,
 }
 
 impl CsvRow {
@@ -192,6 +198,9 @@ impl CsvRow {
             step2: r.steps.step2,
             step3: r.steps.step3,
             infeasible: r.steps.infeasible,
+            safe_stop: r.steps.safe_stop,
+            first_stop_t: opt_f(r.first_stop_t),
+            stop_reason: opt_s(&r.stop_reason),
             control_steps: r.control_steps,
             rejected_readings: r.rejected_readings,
             duration: float_text(r.duration),
@@ -264,6 +273,7 @@ impl CsvRow {
                 step2: self.step2,
                 step3: self.step3,
                 infeasible: self.infeasible,
+                safe_stop: self.safe_stop,
             },
             control_steps: self.control_steps,
             rejected_readings: self.rejected_readings,
@@ -279,6 +289,8 @@ impl CsvRow {
             stalls: self.stalls,
             estimation: serde_json::from_str(&self.estimation)
                 .context("column `estimation`: expected a JSON array of filter rows")?,
+            first_stop_t: opt_f("first_stop_t", &self.first_stop_t)?,
+            stop_reason: opt_s(&self.stop_reason),
         })
     }
 }

@@ -173,6 +173,7 @@ pub(crate) mod testutil {
                     step2: seed % 5,
                     step3: seed % 3,
                     infeasible: u64::from(unit(seed, 8) < 0.1),
+                    safe_stop: 0,
                 },
                 control_steps: 1000,
                 rejected_readings: seed % 4,
@@ -189,6 +190,7 @@ pub(crate) mod testutil {
                     path_length: 3.0,
                     stalls: seed % 2,
                 },
+                safe_stop: None,
                 estimation_errors: vec![ftcbf_sim::summary::EstimationError {
                     filter: "drop_r1".into(),
                     gamma: Some(0.1),

@@ -78,6 +78,16 @@ pub struct TrialRecord {
     /// ‖x − x̂‖/γ and whether it left γ (empty for a law without a bank).
     #[serde(default)]
     pub estimation: Vec<FilterGammaRecord>,
+    /// Start of the first safe stop \[s\] (`[control] fallback = "brake"`; absent: none).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        with = "io::float_or_text::option"
+    )]
+    pub first_stop_t: Option<f64>,
+    /// Why the robot first stopped (absent: it never did).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop_reason: Option<String>,
 }
 
 /// One filter's estimation error against its γ in one trial (see
@@ -211,6 +221,8 @@ impl TrialRecord {
                 .iter()
                 .map(FilterGammaRecord::of)
                 .collect(),
+            first_stop_t: s.safe_stop.as_ref().map(|r| r.first_t),
+            stop_reason: s.safe_stop.as_ref().map(|r| r.reason.clone()),
         }
     }
 }
@@ -657,6 +669,7 @@ fn total_steps(recs: &[&TrialRecord]) -> StepCounts {
         steps.step2 += r.steps.step2;
         steps.step3 += r.steps.step3;
         steps.infeasible += r.steps.infeasible;
+        steps.safe_stop += r.steps.safe_stop;
     }
     steps
 }

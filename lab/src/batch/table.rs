@@ -92,6 +92,7 @@ pub fn summary_text(res: &BatchResult) -> String {
     plan_header(res, &mut out);
     safety_table(res, &mut out);
     steps_table(res, &mut out);
+    stops_table(res, &mut out);
     smoothness_table(res, &mut out);
     gamma_table(res, &mut out);
     worst_table(res, &mut out);
@@ -218,6 +219,36 @@ fn steps_table(res: &BatchResult, out: &mut String) {
         })
         .collect();
     out.push_str(&render(&headers, &align, &rows));
+}
+
+/// The safe stops (`[control] fallback = "brake"`), per controller: how many trials stopped, the
+/// braking steps, and the first stopped trial's reason (nothing when no trial stopped).
+fn stops_table(res: &BatchResult, out: &mut String) {
+    if res.records.iter().all(|r| r.first_stop_t.is_none()) {
+        return;
+    }
+    out.push_str(
+        "\nSafe stops (no evidence which source lies: the robot braked instead of guessing)\n",
+    );
+    for s in &res.summaries {
+        let mine = || res.records.iter().filter(|r| r.controller == s.controller);
+        let n = mine().count();
+        let stopped = mine().filter(|r| r.first_stop_t.is_some()).count();
+        let _ = writeln!(
+            out,
+            "{}: {stopped} of {n} trials stopped, {} braking steps in all",
+            s.controller, s.steps.safe_stop
+        );
+        if let Some(r) = mine().find(|r| r.first_stop_t.is_some()) {
+            let _ = writeln!(
+                out,
+                "  e.g. trial {}: stopped at t = {:.1} s: {}",
+                r.trial,
+                r.first_stop_t.unwrap_or(f64::NAN),
+                r.stop_reason.as_deref().unwrap_or("?")
+            );
+        }
+    }
 }
 
 /// Smoothness of the commanded (v, ω): per-trial fractions and means, averaged and at worst.

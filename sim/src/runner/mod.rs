@@ -40,10 +40,11 @@ mod monitor;
 mod plant;
 mod scene;
 pub mod setup;
+mod stop;
 mod view;
 
 use ftcbf_controller::controller::{Controller, ControllerConfig};
-use ftcbf_controller::drive::{realized_acceleration, BodyCommand};
+use ftcbf_controller::drive::{brake_input, realized_acceleration, BodyCommand};
 use ftcbf_controller::estimator::FilterRole;
 use ftcbf_controller::interface::{ControlLaw, Readings};
 use ftcbf_controller::policy::{QpOutcome, SafeAction, Stage};
@@ -155,8 +156,10 @@ pub(crate) fn stage_name(o: &QpOutcome) -> &'static str {
             Stage::Step2 => "step2",
             Stage::Step3 => "step3",
             Stage::Fallback => "infeasible",
+            Stage::SafeStop => "safe_stop",
         },
         QpOutcome::InfeasibleAfterStep3 { .. } => "infeasible",
+        QpOutcome::SafeStop { .. } => "safe_stop",
     }
 }
 
@@ -168,11 +171,18 @@ fn count_stage(c: &mut StepCounts, o: &QpOutcome) {
             Stage::Step2 => &mut c.step2,
             Stage::Step3 => &mut c.step3,
             Stage::Fallback => &mut c.infeasible,
+            Stage::SafeStop => &mut c.safe_stop,
         },
         QpOutcome::InfeasibleAfterStep3 { .. } => &mut c.infeasible,
+        QpOutcome::SafeStop { .. } => &mut c.safe_stop,
     };
     *counter += 1;
 }
+
+/// Deceleration of the safe stop's braking \[m/s²\] for a world without `[control]
+/// input_limit` (with one, the limit): the braking the stopping distance assumes
+/// (0.22 m/s → 2.4 cm).
+pub const DEFAULT_BRAKE_DECELERATION: f64 = 1.0;
 
 /// One closed-loop run of a world, stepped by the caller: [`Simulation::step`] advances one
 /// control period (sensors → attacks → control law → drive → plant ticks) and returns that
@@ -207,6 +217,11 @@ pub struct Simulation<'w> {
     errors: ErrorMeter,
     /// The acceleration the drive realised over the last period (None for the linear plant).
     applied: Option<Input>,
+    /// The safe stops so far, and whether this step is one.
+    stops: stop::StopMeter,
+    braking: bool,
+    /// Fault-pattern names, for the stop's reason.
+    pattern_names: Vec<String>,
 }
 
 impl<'w> Simulation<'w> {
@@ -336,6 +351,9 @@ impl<'w> Simulation<'w> {
             smooth: SmoothnessMeter::default(),
             errors,
             applied: None,
+            stops: stop::StopMeter::default(),
+            braking: false,
+            pattern_names: file.fault_patterns.iter().map(|p| p.name.clone()).collect(),
         }
     }
 
@@ -434,8 +452,13 @@ impl<'w> Simulation<'w> {
             applied: self.applied,
         };
         let decision = self.law.step(&readings);
+        self.braking = false;
         if let Some(out) = decision.record {
             count_stage(&mut self.steps, &out.qp);
+            self.braking = matches!(out.qp, QpOutcome::SafeStop { .. });
+            if let Some(line) = self.stops.observe(t, &out.qp, &self.pattern_names) {
+                self.view.events.push(line);
+            }
             self.rejected += out.rejected.count as u64;
             let fc = &mut self.fail_closed;
             fc.non_finite_row_steps += u64::from(out.decision.non_finite_rows > 0);
@@ -472,6 +495,21 @@ impl<'w> Simulation<'w> {
     fn actuate(&mut self, u: Input) {
         let before = self.view.body_cmd;
         let yaw = self.heading_source.drive_yaw();
+        // The safe stop brakes on the wheel encoders' speed (not on a sensor channel, the
+        // attack surface): along the heading the compensator uses, at the input box's
+        // acceleration, with no turn (see `ftcbf_controller::drive::brake_input`).
+        let u = match (self.braking, self.plant.encoder_speed()) {
+            (true, Some(v)) => {
+                let decel = self
+                    .world
+                    .file
+                    .control
+                    .input_limit
+                    .unwrap_or(DEFAULT_BRAKE_DECELERATION);
+                brake_input(v, yaw, decel, self.control_dt)
+            }
+            _ => u,
+        };
         self.view.body_cmd = self.plant.apply_input(&u, yaw, self.control_dt);
         // What the drive made of u, for the filters' next prediction (the linear plant
         // realises u exactly: nothing to report).
@@ -565,6 +603,7 @@ impl<'w> Simulation<'w> {
             final_state,
             smoothness: self.smooth.smoothness(),
             estimation_errors: self.errors.rows().to_vec(),
+            safe_stop: self.stops.report(),
         }
     }
 }

@@ -176,6 +176,17 @@ impl Plant {
         }
     }
 
+    /// The forward speed the wheel encoders measure [m/s] (None for the linear plant).
+    pub fn encoder_speed(&self) -> Option<f64> {
+        match self {
+            Plant::Rapier { physics, drive, .. } => {
+                let (wl, wr) = physics.wheel_speeds();
+                Some(drive.body_from_wheels(wl, wr).v)
+            }
+            Plant::Linear { .. } => None,
+        }
+    }
+
     /// One plant step.
     pub fn tick(&mut self) {
         match self {

@@ -11,7 +11,8 @@ use ftcbf_controller::odometry;
 use ftcbf_controller::params::{
     gain_product, steady_state_riccati, BoundMethod, FtParameters, FtParams, UpdateSchedule,
 };
-use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerConfig};
+use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
+use ftcbf_controller::{Barrier, Fallback, Input, ProblemForm, State, StateMatrix, TrackerConfig};
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
@@ -19,7 +20,8 @@ use crate::planner::{plan, PlannerConfig};
 use crate::safe_sets::{LiftedEllipse, LiftedProp1};
 use crate::sensors::{wrap_angle, Quantity};
 use crate::world::{
-    BoundsSpec, ControllerKindSpec, Dynamics, FormSpec, Param, ProcessModel, SafeSetSpec, World,
+    BoundsSpec, ControllerKindSpec, Dynamics, FallbackSpec, FormSpec, Param, ProcessModel,
+    SafeSetSpec, World,
 };
 
 use super::RunError;
@@ -667,6 +669,12 @@ impl ControlSetup {
             .start(initial_estimate(world), initial_covariance(world))
             .max_abs_reading(MAX_ABS_READING)
             .form(form)
+            .fallback(match file.control.fallback {
+                FallbackSpec::Paper => Fallback::Paper,
+                FallbackSpec::Brake => {
+                    Fallback::brake(DEFAULT_EVIDENCE_ALPHA).expect("the default α is in (0, 0.5)")
+                }
+            })
             .build();
         Ok(Self {
             config,

@@ -190,6 +190,13 @@ fn decision_note(note: &mut String, out: &ControlOutput, filters: &[String]) {
             out.rejected.skipped_updates
         );
     }
+    if let QpOutcome::SafeStop { reason, .. } = &out.qp {
+        let _ = write!(
+            note,
+            "safe stop: no evidence which estimator lies (scores {:.2} / {:.2} ≤ z = {:.2}), braking",
+            reason.would_drop_key, reason.other_key, reason.evidence_z
+        );
+    }
     if let QpOutcome::InfeasibleAfterStep3 {
         action,
         max_cbf_violation,

@@ -390,6 +390,17 @@ pub struct ControlSection {
     /// Set by [`WorldFile::resolve_defaults`].
     #[serde(skip)]
     pub form: FormSpec,
+    /// What the policy does where Step 3 would drop an estimator without evidence that it lies,
+    /// as the file declares it: `brake` (the safe stop: brake and keep every estimator's rows,
+    /// book/src/theory/safe-stop.md) or `paper` (the thesis' Step 3: drop the largest residue).
+    /// Absent: see [`ControlSection::fallback`].
+    #[serde(default, rename = "fallback")]
+    pub fallback_declared: Option<FallbackSpec>,
+    /// The fallback in force: as declared, else `paper` for the paper's worlds
+    /// (`dynamics = "linear"` or `form = "paper"`, so the thesis' study is reproduced) and
+    /// `brake` otherwise. Set by [`WorldFile::resolve_defaults`].
+    #[serde(skip)]
+    pub fallback: FallbackSpec,
     /// The nominal tracker of `form = "safety_filter"`.
     #[serde(default)]
     pub nominal: NominalSection,
@@ -421,6 +432,8 @@ impl Default for ControlSection {
             obstacle_lift: default_lift(),
             form_declared: None,
             form: FormSpec::default(),
+            fallback_declared: None,
+            fallback: FallbackSpec::default(),
             nominal: NominalSection::default(),
             drive: DriveSection::default(),
         }
@@ -436,6 +449,12 @@ impl WorldFile {
         self.control.form = self.control.form_declared.unwrap_or(match self.dynamics {
             Dynamics::Rapier => FormSpec::SafetyFilter,
             Dynamics::Linear => FormSpec::Paper,
+        });
+        let paper_world = self.dynamics == Dynamics::Linear || self.control.form == FormSpec::Paper;
+        self.control.fallback = self.control.fallback_declared.unwrap_or(if paper_world {
+            FallbackSpec::Paper
+        } else {
+            FallbackSpec::Brake
         });
         let base = match self.control.form {
             FormSpec::SafetyFilter => SAFETY_FILTER_CBF_GAIN,
@@ -478,6 +497,27 @@ impl FormSpec {
         match self {
             FormSpec::Paper => "paper",
             FormSpec::SafetyFilter => "safety_filter",
+        }
+    }
+}
+
+/// `[control] fallback`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FallbackSpec {
+    /// The thesis' Step 3: drop the estimator with the largest residue until feasible.
+    #[default]
+    Paper,
+    /// The safe stop: drop only on evidence, otherwise brake.
+    Brake,
+}
+
+impl FallbackSpec {
+    /// The name used in world files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FallbackSpec::Paper => "paper",
+            FallbackSpec::Brake => "brake",
         }
     }
 }
