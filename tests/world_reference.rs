@@ -74,6 +74,8 @@ kind = "bias"
 channels = ["x"]
 value = 1.0
 
+[environment]
+
 [expect]
 seeds = 1
 
@@ -224,7 +226,7 @@ impl Reference {
     }
 }
 
-const TABLES: [(&str, &str); 14] = [
+const TABLES: [(&str, &str); 15] = [
     ("", "## Top level"),
     ("robot", "## `[robot]`"),
     ("robot.start", "### `[robot.start]`"),
@@ -239,6 +241,7 @@ const TABLES: [(&str, &str); 14] = [
     ("obstacles.0", "## `[[obstacles]]`"),
     ("sensors.0", "## `[[sensors]]`"),
     ("fault_patterns.0", "## `[[fault_patterns]]`"),
+    ("environment", "## `[environment]`"),
 ];
 
 #[test]

@@ -238,7 +238,7 @@ fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
             f(half_height);
         }
         ShapeSpec::ConvexHull { points } => points.iter_mut().flatten().for_each(f),
-        ShapeSpec::HalfSpace { .. } => {}
+        ShapeSpec::HalfSpace { .. } | ShapeSpec::OccupancyMap { .. } => {}
         ShapeSpec::TriMesh {
             vertices,
             file,

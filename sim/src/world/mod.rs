@@ -639,6 +639,8 @@ impl Validator<'_> {
                     self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
                 }
             }
+            // Never read from a world file (the loader builds it from environment.map).
+            ShapeSpec::OccupancyMap { .. } => {}
         }
         Ok(())
     }
@@ -780,6 +782,48 @@ impl Validator<'_> {
         Ok(())
     }
 
+    /// The obstacle of `environment.map` (named `map`), when the world has one. SDF worlds
+    /// (`environment.sdf`, `model_paths`) are not read by this build and are refused, not
+    /// ignored.
+    fn environment_map(
+        &self,
+        file: &WorldFile,
+        base: &Path,
+    ) -> Result<Option<Obstacle>, WorldError> {
+        let Some(env) = &file.environment else {
+            return Ok(None);
+        };
+        if env.sdf.is_some() || !env.model_paths.is_empty() {
+            let key = if env.sdf.is_some() {
+                "environment.sdf"
+            } else {
+                "environment.model_paths"
+            };
+            return Err(self.err(key, "SDF worlds are not read by this build of ftcbf (issue #47, part A); use environment.map or [[obstacles]]"));
+        }
+        let Some(map) = &env.map else {
+            if env.unknown.is_some() {
+                return Err(self.err(
+                    "environment.unknown",
+                    "applies to a map: set environment.map too",
+                ));
+            }
+            return Ok(None);
+        };
+        let spec = ObstacleSpec {
+            name: "map".into(),
+            position: [0.0; 3],
+            rpy: [0.0; 3],
+            shape: ShapeSpec::OccupancyMap {
+                file: map.clone(),
+                unknown: env.unknown.unwrap_or_default(),
+            },
+        };
+        Obstacle::from_spec(&spec, Some(base))
+            .map(Some)
+            .map_err(|e| self.err("environment.map", e.to_string()))
+    }
+
     /// The parsed file checked, section by section in the file's order, into a [`World`]: the
     /// ranges, the plant, the control rate and parameters, the goal, the safe sets, the robot
     /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
@@ -813,6 +857,10 @@ impl Validator<'_> {
             let ob = Obstacle::from_spec(spec, Some(base))
                 .map_err(|e| self.err(format!("obstacles[{i}]"), e.to_string()))?;
             names.push((spec.name.as_str(), format!("obstacles[{i}]")));
+            obstacles.push(ob);
+        }
+        if let Some(ob) = self.environment_map(&file, base)? {
+            names.push(("map", "environment.map".into()));
             obstacles.push(ob);
         }
         self.check_unique_names(&names)?;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::expect::Expect;
 use crate::attacks::AttackSpec;
@@ -44,6 +44,9 @@ pub struct WorldFile {
     /// Obstacles (parry shapes): colliders in physics and barriers for the controller.
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
+    /// Obstacles loaded from files robots already live in (an occupancy map); they add to
+    /// `obstacles`.
+    pub environment: Option<EnvironmentSpec>,
     /// Sensor channels, in the order of the measurement vector y.
     pub sensors: Vec<ChannelSpec>,
     /// Fault patterns F(r_1..r_m): disjoint sets of channels that may fail together.
@@ -57,6 +60,23 @@ pub struct WorldFile {
     /// The ranges `ftcbf falsify --scenario` varies the world in (no other command reads it).
     pub falsify: Option<FalsifySection>,
 }
+
+/// `[environment]`: obstacles loaded from files robots already live in (issue #47).
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSpec {
+    /// A Gazebo SDF world or model file, relative to the world file.
+    pub sdf: Option<PathBuf>,
+    /// Directories searched for `model://` URIs, relative to the world file.
+    #[serde(default)]
+    pub model_paths: Vec<PathBuf>,
+    /// A ROS map_server map (`map.yaml` naming a PGM or PNG image), relative to the world file.
+    pub map: Option<PathBuf>,
+    /// What the map's unknown cells are: `"obstacle"` (default) or `"free"`.
+    pub unknown: Option<UnknownCells>,
+}
+
+pub use crate::environment::UnknownCells;
 
 /// `[falsify]`: how far `ftcbf falsify --scenario` may move the world. Every key is optional
 /// (the defaults suit a ground robot) and ≥ 0; relative ranges are below 1.
