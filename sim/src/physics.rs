@@ -128,8 +128,9 @@ pub struct PhysicsWorld {
     link_names: Vec<String>,
     robot_colliders: Vec<ColliderHandle>,
     obstacle_colliders: Vec<ColliderHandle>,
-    /// The obstacles' bounding boxes (they never move), for [`PhysicsWorld::clearances_near`].
-    obstacle_aabbs: Vec<parry3d::bounding_volume::Aabb>,
+    /// The obstacles' bounding boxes at construction and the poses they were computed at, for
+    /// [`PhysicsWorld::clearances_near`] (recomputed for an obstacle whose pose has changed).
+    obstacle_aabbs: Vec<(parry3d::math::Pose, parry3d::bounding_volume::Aabb)>,
     obstacles: Vec<Obstacle>,
     /// Motors of the left wheels (one, or several for a skid-steer robot).
     left: Vec<WheelMotor>,
@@ -454,7 +455,10 @@ impl PhysicsWorld {
         let link_names = robot.bodies.iter().map(|b| b.name.clone()).collect();
         let obstacle_aabbs = obstacle_colliders
             .iter()
-            .map(|&h| world.colliders[h].compute_aabb())
+            .map(|&h| {
+                let c = &world.colliders[h];
+                (*c.position(), c.compute_aabb())
+            })
             .collect();
         let mut out = Self {
             world,
@@ -627,8 +631,14 @@ impl PhysicsWorld {
             });
         }
         let mut least = f64::INFINITY;
-        for b in &self.obstacle_aabbs {
-            let lb = robot.map_or(f64::NAN, |r| aabb_gap(&r, b));
+        for (&oc, (pose, cached)) in self.obstacle_colliders.iter().zip(&self.obstacle_aabbs) {
+            let c = &self.world.colliders[oc];
+            let b = if c.position() == pose {
+                *cached
+            } else {
+                c.compute_aabb()
+            };
+            let lb = robot.map_or(f64::NAN, |r| aabb_gap(&r, &b));
             // NaN (a non-finite pose) is not provably far: queried exactly
             out.push(lb);
             exact.push(lb.partial_cmp(&within) != Some(Ordering::Greater));
