@@ -60,6 +60,9 @@ b = -1.0
 name = "box"
 shape = { kind = "cuboid", half_extents = [0.1, 0.1, 0.1] }
 
+[environment]
+sdf = "world.sdf"
+
 [[sensors]]
 name = "x"
 measures = "x"
@@ -224,7 +227,7 @@ impl Reference {
     }
 }
 
-const TABLES: [(&str, &str); 14] = [
+const TABLES: [(&str, &str); 15] = [
     ("", "## Top level"),
     ("robot", "## `[robot]`"),
     ("robot.start", "### `[robot.start]`"),
@@ -239,6 +242,7 @@ const TABLES: [(&str, &str); 14] = [
     ("obstacles.0", "## `[[obstacles]]`"),
     ("sensors.0", "## `[[sensors]]`"),
     ("fault_patterns.0", "## `[[fault_patterns]]`"),
+    ("environment", "## `[environment]`"),
 ];
 
 #[test]

@@ -12,6 +12,7 @@
 pub mod attacks;
 pub mod check;
 pub mod drive;
+pub mod environment;
 pub mod liveness;
 pub mod observe;
 pub mod obstacles;

@@ -43,10 +43,11 @@ pub struct PlannerConfig {
 /// square at 5 cm, searched in full; some 100 MB for the search's maps).
 pub const DEFAULT_MAX_EVALUATIONS: u64 = 1_000_000;
 
-/// A plan that would need more clearance evaluations than its budget.
+/// A plan that would need more clearance work than its budget.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "planning leg {leg} (from ({:.3}, {:.3}) to ({:.3}, {:.3})) around the obstacles needs more than {limit} clearance evaluations, the planner's limit",
+    "planning leg {leg} (from ({:.3}, {:.3}) to ({:.3}, {:.3})) around the obstacles needs more than {limit} {}, the planner's limit",
+    if *.queries { "obstacle distance queries" } else { "clearance evaluations" },
     from[0], from[1], to[0], to[1]
 )]
 pub struct BudgetExceeded {
@@ -58,6 +59,8 @@ pub struct BudgetExceeded {
     pub to: [f64; 2],
     /// The budget.
     pub limit: u64,
+    /// The budget counts obstacle distance queries ([`plan_with_cost`]), not evaluations.
+    pub queries: bool,
 }
 
 impl Default for PlannerConfig {
@@ -283,6 +286,31 @@ pub fn plan(
     clear: &dyn Fn([f64; 2]) -> f64,
     cfg: &PlannerConfig,
 ) -> Result<Plan, BudgetExceeded> {
+    let costed = |p: [f64; 2]| (clear(p), 1);
+    plan_inner(start, waypoints, goal, &costed, cfg, false)
+}
+
+/// [`plan`] with a clearance that reports its own cost (the obstacle distance queries it
+/// made): [`PlannerConfig::max_evaluations`] bounds the total cost instead of the number of
+/// evaluations, so a clearance that skips far obstacles buys a longer search.
+pub fn plan_with_cost(
+    start: [f64; 2],
+    waypoints: &[[f64; 2]],
+    goal: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+) -> Result<Plan, BudgetExceeded> {
+    plan_inner(start, waypoints, goal, clear, cfg, true)
+}
+
+fn plan_inner(
+    start: [f64; 2],
+    waypoints: &[[f64; 2]],
+    goal: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+    queries: bool,
+) -> Result<Plan, BudgetExceeded> {
     let used = Counter::new(0u64);
     let exhausted = Counter::new(false);
     // Past the budget every point is blocked: line of sight fails at its first sample, the
@@ -292,8 +320,9 @@ pub fn plan(
             exhausted.set(true);
             return f64::NEG_INFINITY;
         }
-        used.set(used.get() + 1);
-        clear(p)
+        let (c, cost) = clear(p);
+        used.set(used.get() + cost.max(1));
+        c
     };
     let clear: &dyn Fn([f64; 2]) -> f64 = &counted;
     let mut stops = waypoints.to_vec();
@@ -319,6 +348,7 @@ pub fn plan(
                 from,
                 to,
                 limit: cfg.max_evaluations,
+                queries,
             });
         }
         from = to;

@@ -15,7 +15,7 @@ use ftcbf_controller::{Barrier, Input, ProblemForm, State, StateMatrix, TrackerC
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
-use crate::planner::{plan, PlannerConfig};
+use crate::planner::{plan_with_cost, PlannerConfig};
 use crate::safe_sets::{LiftedEllipse, LiftedProp1};
 use crate::sensors::{wrap_angle, Quantity};
 use crate::world::{
@@ -791,15 +791,10 @@ pub fn planned_path(
         return Ok(pts);
     }
     let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(bcfg)).collect();
-    let clear = |p: [f64; 2]| {
-        barriers
-            .iter()
-            .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
-            .fold(f64::INFINITY, f64::min)
-    };
-    // Each evaluation queries every obstacle: the budget is in obstacle queries.
-    let max_evaluations =
-        (PLANNER_QUERIES / barriers.len() as u64).clamp(1, crate::planner::DEFAULT_MAX_EVALUATIONS);
+    let boxes: Vec<Option<[f64; 4]>> = world.obstacles.iter().map(planar_box).collect();
+    let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
+    // The budget is in obstacle distance queries (far obstacles are not queried).
+    let max_evaluations = PLANNER_QUERIES;
     let with = |band: f64| PlannerConfig {
         inflate: bcfg.margin + band,
         max_evaluations,
@@ -814,20 +809,19 @@ pub fn planned_path(
             world,
             &key,
             format!(
-                "{e} (each evaluation queries all {} obstacle(s); the limit is min({}, {PLANNER_QUERIES} / obstacles)); expected a leg the planner can search: put waypoints closer together (in free space a leg only needs line of sight), or set `[goal] plan = false`",
+                "{e} (an evaluation queries the obstacles whose bounding box could be nearest, of {}); expected a leg the planner can search: put waypoints closer together (in free space a leg only needs line of sight), or set `[goal] plan = false`",
                 barriers.len(),
-                crate::planner::DEFAULT_MAX_EVALUATIONS
             ),
         )
     };
     if hold > HOLD_BAND {
-        let p =
-            plan(start, &goal.waypoints, goal.center, &clear, &with(hold)).map_err(over_budget)?;
+        let p = plan_with_cost(start, &goal.waypoints, goal.center, &clear, &with(hold))
+            .map_err(over_budget)?;
         if p.unplanned_legs == 0 {
             return Ok(p.points);
         }
     }
-    plan(
+    plan_with_cost(
         start,
         &goal.waypoints,
         goal.center,
@@ -838,8 +832,61 @@ pub fn planned_path(
     .map_err(over_budget)
 }
 
+/// An obstacle's bounding rectangle in the plane (x_min, y_min, x_max, y_max) \[m\], world
+/// frame; `None` for a half-space (unbounded).
+fn planar_box(o: &crate::obstacles::Obstacle) -> Option<[f64; 4]> {
+    if o.is_half_space() {
+        return None;
+    }
+    let b = o.shape().compute_aabb(o.shape_pose());
+    let r = [b.mins.x, b.mins.y, b.maxs.x, b.maxs.y].map(f64::from);
+    r.iter().all(|v| v.is_finite()).then_some(r)
+}
+
+/// The least robot-disc clearance over the obstacles at `p`, and how many were queried: an
+/// obstacle whose bounding rectangle is farther (less the disc radius and 1 mm for parry's f32)
+/// than the least clearance found so far cannot be nearer, so the obstacles are queried from the
+/// nearest rectangle out until the next is farther than the best. The result is the minimum
+/// over every obstacle, exactly.
+fn nearest_clearance(
+    barriers: &[crate::obstacles::ObstacleBarrier],
+    boxes: &[Option<[f64; 4]>],
+    robot_radius: f64,
+    p: [f64; 2],
+) -> (f64, u64) {
+    let mut order: Vec<(f64, usize)> = boxes
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let lower = b.map_or(f64::NEG_INFINITY, |b| {
+                let dx = (b[0] - p[0]).max(p[0] - b[2]).max(0.0);
+                let dy = (b[1] - p[1]).max(p[1] - b[3]).max(0.0);
+                let d = dx.hypot(dy);
+                if d > 0.0 {
+                    d - robot_radius - 1e-3
+                } else {
+                    f64::NEG_INFINITY
+                }
+            });
+            (lower, i)
+        })
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best = f64::INFINITY;
+    let mut queries = 0;
+    for (lower, i) in order {
+        if lower >= best {
+            break;
+        }
+        queries += 1;
+        best = best.min(barriers[i].clearance(nalgebra::Vector2::new(p[0], p[1])));
+    }
+    (best, queries)
+}
+
 /// The planner's work limit, in obstacle distance queries (one clearance evaluation queries
-/// every obstacle): 2·10⁵. A query costs ~5 µs for a primitive and ~15 µs for a mesh, and a
+/// the obstacles whose bounding rectangle could hold the nearest, [`nearest_clearance`]; the
+/// house of the ROBOTIS TurtleBot3 worlds has 68 obstacles a burger can touch): 2·10⁵. A query costs ~5 µs for a primitive and ~15 µs for a mesh, and a
 /// world may plan twice (with the rows' stand-off, then the narrow band) in `check` and again in
 /// `run`: a refused leg costs a few seconds of one core at most. The catalogue's largest plan
 /// (doorway_clutter) makes 4,878 evaluations of 4 obstacles, 19,512 queries: 10 times below.

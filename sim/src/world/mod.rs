@@ -113,6 +113,10 @@ pub struct World {
     pub patterns: Vec<Vec<usize>>,
     /// Physics ticks per control step.
     pub ticks_per_control: u32,
+    /// What `[environment]` loaded (its obstacles are in `obstacles` and `file.obstacles`,
+    /// after the file's own; `file.environment` is taken out once loaded, so that a world
+    /// edited through [`World::with_file`] does not load it twice).
+    pub environment: Option<crate::environment::EnvironmentReport>,
 }
 
 impl World {
@@ -629,8 +633,16 @@ impl Validator<'_> {
                 for (k, p) in vertices.iter().enumerate() {
                     self.ranges(&format!("{shape}.vertices[{k}]"), p, r::POSITION)?;
                 }
-                if let Some(s) = scale {
-                    self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
+                match scale {
+                    Some(crate::obstacles::MeshScale::Uniform(s)) => {
+                        self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
+                    }
+                    Some(crate::obstacles::MeshScale::PerAxis(s)) => {
+                        for (k, v) in s.iter().enumerate() {
+                            self.range(&format!("{shape}.scale[{k}]"), v.abs(), r::MESH_SCALE)?;
+                        }
+                    }
+                    None => {}
                 }
             }
         }
@@ -779,7 +791,7 @@ impl Validator<'_> {
     /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
     fn validate(
         &self,
-        file: WorldFile,
+        mut file: WorldFile,
         name: String,
         loaded: Option<RobotDescription>,
     ) -> Result<World, WorldError> {
@@ -790,7 +802,6 @@ impl Validator<'_> {
         let ticks = self.check_control(&file, plant_dt)?;
         self.finite("goal.center", &file.goal.center)?;
         self.positive("goal.radius", file.goal.radius)?;
-        let mut names = self.check_safe_sets(&file)?;
         let robot = match (&file.dynamics, &file.robot) {
             (Dynamics::Rapier, Some(r)) => {
                 let robot = match loaded {
@@ -802,6 +813,8 @@ impl Validator<'_> {
             }
             _ => None,
         };
+        let environment = self.load_environment(&mut file, base, robot.as_ref())?;
+        let mut names = self.check_safe_sets(&file)?;
         let mut obstacles = Vec::with_capacity(file.obstacles.len());
         for (i, spec) in file.obstacles.iter().enumerate() {
             let ob = Obstacle::from_spec(spec, Some(base))
@@ -826,7 +839,62 @@ impl Validator<'_> {
             patterns,
             ticks_per_control: ticks as u32,
             file,
+            environment,
         })
+    }
+
+    /// `[environment]`: the SDF file's obstacles appended to the file's own (the robot's
+    /// height decides what it can touch), and the report of what was kept and dropped.
+    fn load_environment(
+        &self,
+        file: &mut WorldFile,
+        base: &Path,
+        robot: Option<&RobotDescription>,
+    ) -> Result<Option<crate::environment::EnvironmentReport>, WorldError> {
+        let Some(env) = file.environment.take() else {
+            return Ok(None);
+        };
+        if env.map.is_some() {
+            return Err(self.err(
+                "environment.map",
+                "occupancy maps are not read by this build (issue #47 part B); expected \
+                 `environment.sdf`",
+            ));
+        }
+        let Some(sdf) = &env.sdf else {
+            return Err(self.err(
+                "environment",
+                "expected `sdf = \"PATH\"` (a Gazebo SDF world or model file)",
+            ));
+        };
+        let opts = crate::environment::sdf::SdfOptions {
+            model_paths: env.model_paths.iter().map(|p| base.join(p)).collect(),
+            robot_height: robot.map(|r| r.height),
+            no_environment_variables: false,
+        };
+        let loaded = crate::environment::sdf::load(&base.join(sdf), &opts)
+            .map_err(|e| self.err("environment.sdf", e.to_string()))?;
+        let total = file.obstacles.len() + loaded.obstacles.len();
+        if total > ranges::MAX_OBSTACLES {
+            return Err(self.err(
+                "environment.sdf",
+                format!(
+                    "{} obstacles kept from the file and {} of the world's own: at most {} are \
+                     supported",
+                    loaded.obstacles.len(),
+                    file.obstacles.len(),
+                    ranges::MAX_OBSTACLES
+                ),
+            ));
+        }
+        for (i, o) in loaded.obstacles.iter().enumerate() {
+            self.check_obstacle_ranges(
+                &format!("environment.sdf: obstacle {i} (`{}`)", o.name),
+                o,
+            )?;
+        }
+        file.obstacles.extend(loaded.obstacles);
+        Ok(Some(loaded.report))
     }
 
     /// The plant: the rapier robot's `[robot]` and `[physics]`, or the linear plant's

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::expect::Expect;
 use crate::attacks::AttackSpec;
@@ -44,6 +44,9 @@ pub struct WorldFile {
     /// Obstacles (parry shapes): colliders in physics and barriers for the controller.
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
+    /// Obstacles loaded from the files robots already live in (a Gazebo SDF world): appended
+    /// to `obstacles` when the world is loaded.
+    pub environment: Option<EnvironmentSpec>,
     /// Sensor channels, in the order of the measurement vector y.
     pub sensors: Vec<ChannelSpec>,
     /// Fault patterns F(r_1..r_m): disjoint sets of channels that may fail together.
@@ -56,6 +59,21 @@ pub struct WorldFile {
     pub expect: Option<Expect>,
     /// The ranges `ftcbf falsify --scenario` varies the world in (no other command reads it).
     pub falsify: Option<FalsifySection>,
+}
+
+/// `[environment]`: obstacles loaded from files robots already live in (issue #47).
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSpec {
+    /// A Gazebo SDF world or model file, relative to the world file: its collision geometry a
+    /// ground robot can touch becomes obstacles (see `crate::environment`).
+    pub sdf: Option<PathBuf>,
+    /// Directories searched for `model://NAME/...` (before `GZ_SIM_RESOURCE_PATH` and
+    /// `GAZEBO_MODEL_PATH`), relative to the world file.
+    #[serde(default)]
+    pub model_paths: Vec<PathBuf>,
+    /// A ROS occupancy map (map_server YAML), relative to the world file.
+    pub map: Option<PathBuf>,
 }
 
 /// `[falsify]`: how far `ftcbf falsify --scenario` may move the world. Every key is optional
