@@ -1758,6 +1758,7 @@ fn environment_lines(world: &World) -> Vec<String> {
         return Vec::new();
     };
     let mut out = env.lines();
+    out.extend(crate::runner::setup::route_notes(world));
     let (r, z) = world
         .robot
         .as_ref()

@@ -47,8 +47,8 @@ pub const DEFAULT_MAX_EVALUATIONS: u64 = 1_000_000;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "planning leg {leg} (from ({:.3}, {:.3}) to ({:.3}, {:.3})) around the obstacles needs more than {limit} {}, the planner's limit",
-    if *.queries { "obstacle distance queries" } else { "clearance evaluations" },
-    from[0], from[1], to[0], to[1]
+    from[0], from[1], to[0], to[1],
+    if *.queries { "obstacle distance queries" } else { "clearance evaluations" }
 )]
 pub struct BudgetExceeded {
     /// The leg (0: start → first stop).
@@ -357,6 +357,55 @@ fn plan_inner(
         points,
         unplanned_legs,
     })
+}
+
+/// For a leg with no route at `cfg.inflate` clearance: the route that keeps the most
+/// clearance (bisected to 1/64 of `cfg.inflate` between 0 and it) and that clearance, or
+/// `None` when no route keeps the robot disc clear of the obstacles at all. The budget is
+/// [`PlannerConfig::max_evaluations`] over all the searches, in the clearance's cost.
+#[allow(clippy::type_complexity)]
+pub fn widest_route(
+    from: [f64; 2],
+    to: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+) -> Result<Option<(Vec<[f64; 2]>, f64)>, BudgetExceeded> {
+    let spent = Counter::new(0u64);
+    let costed = |p: [f64; 2]| {
+        let (c, n) = clear(p);
+        spent.set(spent.get() + n.max(1));
+        (c, n)
+    };
+    let attempt = |inflate: f64| -> Result<Option<Vec<[f64; 2]>>, BudgetExceeded> {
+        let left = cfg.max_evaluations.saturating_sub(spent.get()).max(1);
+        let c = PlannerConfig {
+            inflate,
+            max_evaluations: left,
+            ..*cfg
+        };
+        let p = plan_inner(from, &[], to, &costed, &c, true).map_err(|e| BudgetExceeded {
+            limit: cfg.max_evaluations,
+            ..e
+        })?;
+        Ok((p.unplanned_legs == 0).then_some(p.points))
+    };
+    let Some(mut best) = attempt(0.0)? else {
+        return Ok(None);
+    };
+    let (mut lo, mut hi) = (0.0, cfg.inflate);
+    for _ in 0..6 {
+        let mid = 0.5 * (lo + hi);
+        match attempt(mid)? {
+            Some(p) => {
+                best = p;
+                lo = mid;
+            }
+            None => hi = mid,
+        }
+    }
+    let mut path = vec![from];
+    path.extend(best);
+    Ok(Some((path, lo)))
 }
 
 #[cfg(test)]

@@ -64,7 +64,11 @@ fn primitives_land_where_their_composed_poses_put_them() {
     // Wall_1: link (2, 0, 0, yaw 90°), collision (0, 0, 0.25) → (2.5, 0, 0.25), yaw 90°.
     let wall = find(o, &format!("{ROOM}::Wall_1::Wall_1_Collision"));
     near(wall.position, [2.5, 0.0, 0.25], "Wall_1");
-    assert!((wall.rpy[2] - 1.5708).abs() < 1e-3, "{:?}", wall.rpy);
+    assert!(
+        (wall.rpy[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-3,
+        "{:?}",
+        wall.rpy
+    );
     assert_eq!(
         wall.shape,
         ShapeSpec::Cuboid {

@@ -306,7 +306,7 @@ fn mesh(
         Some(c) => doc.numbers(c, 3)?,
         None => vec![1.0; 3],
     };
-    if scale.iter().any(|s| *s == 0.0) {
+    if scale.contains(&0.0) {
         return Err(doc.err(
             g,
             format!("<mesh><scale> must be non-zero, found {scale:?}"),
