@@ -13,8 +13,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use ftcbf::batch::{self, Execution, TrialRunner};
-use ftcbf::runner::{plan_for, WorldRunner};
+use ftcbf_lab::batch::{self, Execution, TrialRunner};
+use ftcbf_lab::trials::{plan_for, WorldRunner};
 use ftcbf_sim::ftcbf_controller::{ControlLaw, ControllerConfig, Decision, Input, Readings, State};
 use ftcbf_sim::runner::{RunOptions, Simulation};
 use ftcbf_sim::summary::RunSummary;
@@ -150,7 +150,7 @@ fn main() -> anyhow::Result<()> {
     let plan = plan_for(world, &path, trials, controllers);
     let exec = Execution {
         jobs: None,
-        progress: false,
+        progress: &ftcbf_lab::progress::Silent,
     };
     let result = batch::run_batch(&runner, &plan, exec)?;
     for c in &result.summaries {

@@ -9,8 +9,8 @@
 
 use std::path::PathBuf;
 
-use ftcbf::batch::{run_batch, BatchPlan, BatchResult, Execution, TrialRunner};
-use ftcbf::runner::{plan_for, prepare_batch, trial_options};
+use ftcbf_lab::batch::{run_batch, BatchPlan, BatchResult, Execution, TrialRunner};
+use ftcbf_lab::trials::{plan_for, prepare_batch, trial_options};
 use ftcbf_sim::runner::{run, setups_computed};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::World;
@@ -30,7 +30,7 @@ impl TrialRunner for PerTrial {
 fn batch(runner: &dyn TrialRunner, plan: &BatchPlan) -> BatchResult {
     let exec = Execution {
         jobs: None,
-        progress: false,
+        progress: &ftcbf_lab::progress::Silent,
     };
     run_batch(runner, plan, exec).expect("the batch runs")
 }

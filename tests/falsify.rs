@@ -545,11 +545,29 @@ fn scenario_ranges_are_checked() {
     );
 }
 
-/// The library takes the caller's progress bar (no progress flag): a hidden one still counts,
-/// and the search advances it exactly `Settings::runs` times, with and without random search.
+/// The library reports to the caller's `Progress` (it draws nothing itself): the search starts
+/// it at `Settings::runs` and advances it exactly that many times, with and without random
+/// search.
 #[test]
-fn the_library_search_advances_the_callers_bar_once_per_run() {
-    use ftcbf::falsify::{falsify, Settings, WorldTemplate};
+fn the_library_search_advances_the_callers_progress_once_per_run() {
+    use ftcbf_lab::falsify::{falsify, Settings, WorldTemplate};
+    use ftcbf_lab::progress::Progress;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    /// (announced length, units advanced, finished).
+    #[derive(Default)]
+    struct Count(AtomicU64, AtomicU64, AtomicU64);
+    impl Progress for Count {
+        fn start(&self, len: u64, _label: &str) {
+            self.0.store(len, Ordering::Relaxed);
+        }
+        fn advance(&self, n: u64) {
+            self.1.fetch_add(n, Ordering::Relaxed);
+        }
+        fn phase(&self, _label: &str) {}
+        fn finish(&self) {
+            self.2.fetch_add(1, Ordering::Relaxed);
+        }
+    }
     let template = WorldTemplate::load(Path::new("worlds/paper_linear.toml")).expect("world");
     for compare_random in [false, true] {
         let settings = Settings {
@@ -559,11 +577,12 @@ fn the_library_search_advances_the_callers_bar_once_per_run() {
             jobs: Some(2),
             compare_random,
         };
-        let bar = indicatif::ProgressBar::hidden();
-        let report = falsify(&template, &settings, &bar).expect("search");
+        let count = Count::default();
+        let report = falsify(&template, &settings, &count).expect("search");
         assert_eq!(report.methods.len(), 1 + usize::from(compare_random));
         let runs = settings.runs().expect("runs");
-        assert_eq!(bar.position(), runs, "random search: {compare_random}");
+        let seen = [&count.0, &count.1, &count.2].map(|a| a.load(Ordering::Relaxed));
+        assert_eq!(seen, [runs, runs, 1], "random search: {compare_random}");
         // The budget is per method; the two methods share their first generation; the
         // attack-free reference adds one run per held-out seed, outside the budgets.
         let reference = report.plan.final_seeds as u64;

@@ -34,7 +34,7 @@ use rayon::prelude::*;
 use toml_edit::{DocumentMut, Item, Value};
 
 use ftcbf_sim::check::check_world;
-use ftcbf_sim::regress::{expectation_for, failures_of_run};
+use ftcbf_sim::expectations::{expectation_for, failures_of_run};
 use ftcbf_sim::runner::{preflight, run, RunOptions};
 use ftcbf_sim::summary::NamedValue;
 use ftcbf_sim::world::World;

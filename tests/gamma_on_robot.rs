@@ -10,9 +10,9 @@
 
 use std::path::{Path, PathBuf};
 
-use ftcbf::batch::{run_batch, BatchPlan, Execution, TrialRunner, CONFIDENCE};
+use ftcbf_lab::batch::{run_batch, BatchPlan, Execution, TrialRunner, CONFIDENCE};
 use ftcbf_sim::check;
-use ftcbf_sim::regress::collect_world_files;
+use ftcbf_sim::expectations::collect_world_files;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ControllerKindSpec, World};
@@ -43,7 +43,7 @@ fn attack_free(path: &Path) -> World {
 
 /// FT-CBF-CLF on `world` (its attacks already removed) for `n` trials from `base_seed`, through
 /// the batch engine.
-fn batch(world: World, path: &Path, n: u64, base_seed: u64) -> ftcbf::batch::BatchResult {
+fn batch(world: World, path: &Path, n: u64, base_seed: u64) -> ftcbf_lab::batch::BatchResult {
     let plan = BatchPlan {
         world: world.name.clone(),
         world_file: path.display().to_string(),
@@ -60,7 +60,7 @@ fn batch(world: World, path: &Path, n: u64, base_seed: u64) -> ftcbf::batch::Bat
     };
     let exec = Execution {
         jobs: None,
-        progress: false,
+        progress: &ftcbf_lab::progress::Silent,
     };
     run_batch(&AttackFree { world }, &plan, exec)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))

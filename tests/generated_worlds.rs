@@ -9,7 +9,7 @@ mod common;
 
 use std::collections::BTreeSet;
 
-use ftcbf::batch::trial_seed;
+use ftcbf_lab::batch::trial_seed;
 use ftcbf_sim::check::check_world;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::summary::RunSummary;

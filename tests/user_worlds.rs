@@ -7,7 +7,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use ftcbf::regress::Plan;
+use ftcbf_lab::regress::Plan;
 use ftcbf_sim::world::{FormSpec, LowSpeedSpec, World};
 
 fn dir() -> PathBuf {

@@ -77,6 +77,8 @@ kind = "bias"
 channels = ["x"]
 value = 1.0
 
+[environment]
+
 [expect]
 seeds = 1
 

@@ -15,6 +15,11 @@
 //! `closed_loop_safety_filter`: the same closed loop in the safety-filter form (a path tracker
 //! proposes u_nom; min ‖u − u_nom‖² over the CBF rows, no CLF rows).
 //!
+//! `step_m2_clutter_N` (issue #52): the m = 2 closed loop with N barriers, the floor half-plane
+//! and N − 1 discs of radius 0.1 m at least 3 m from the path, δ = ∞ (every row imposed at
+//! every step, as in a world without `delta`): a far obstacle should cost next to nothing.
+//! Target: N = 200 within 1.5× of N = 2.
+//!
 //! Plus `feasibility_m3_infeasible`: the geometric test alone on an infeasible m = 3 set
 //! (6 rows + box, every vertex enumerated: its worst case).
 
@@ -23,7 +28,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ftcbf_controller::barrier::HalfPlane;
+use ftcbf_controller::barrier::{Barrier, EllipsoidOutside, HalfPlane};
 use ftcbf_controller::constraints::HalfSpace;
 use ftcbf_controller::feasibility::check_half_spaces;
 use ftcbf_controller::params::FtParams;
@@ -89,6 +94,72 @@ fn controller_in(patterns: Vec<Vec<usize>>, form: ProblemForm) -> Controller {
         .build(),
     )
     .expect("config")
+}
+
+/// The m = 2 paper-form controller with the floor and `n − 1` far discs, δ = ∞.
+fn clutter(patterns: Vec<Vec<usize>>, n: usize) -> Controller {
+    let m = patterns.len();
+    let model = LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model");
+    let probe = QuadraticClf::new(
+        &model.f,
+        &model.g,
+        State::zeros(),
+        0.05,
+        &ClfConfig::paper(0.0),
+    )
+    .expect("clf");
+    let mut barriers: Vec<Arc<dyn Barrier>> = vec![Arc::new(HalfPlane::new(
+        "h",
+        State::new(0.0, 1.0, 0.0, 0.2),
+        -0.05,
+    ))];
+    for i in 0..n.saturating_sub(1) {
+        let (col, row) = (i % 20, i / 20);
+        let y = (3.5 + 0.5 * (row / 2) as f64) * if row % 2 == 0 { 1.0 } else { -1.0 };
+        barriers.push(Arc::new(EllipsoidOutside::disc(
+            format!("c{i}"),
+            -2.0 + 0.4 * col as f64,
+            y,
+            0.1,
+        )));
+    }
+    Controller::new(
+        ControllerConfig::builder(model, patterns, FtParams::uniform(m, 0.001, 0.045))
+            .barriers(barriers)
+            .goal(State::zeros(), 0.05)
+            .clf(ClfConfig::paper(probe.v_bar_inside_ball(0.025)))
+            .input_limit(Input::new(2.0, 2.0))
+            .start(
+                State::new(1.0, 0.0, 0.0, 0.0),
+                StateMatrix::identity() * 1e-3,
+            )
+            .build(),
+    )
+    .expect("config")
+}
+
+/// Builds a controller for fault patterns.
+type Make = fn(Vec<Vec<usize>>) -> Controller;
+
+fn clutter_2(patterns: Vec<Vec<usize>>) -> Controller {
+    clutter(patterns, 2)
+}
+
+fn clutter_200(patterns: Vec<Vec<usize>>) -> Controller {
+    clutter(patterns, 200)
+}
+
+fn bench_clutter(c: &mut Criterion) {
+    let make: [(usize, Make); 2] = [(2, clutter_2), (200, clutter_200)];
+    for (n, make) in make {
+        let mut cl = ClosedLoop::new(vec![vec![1], vec![3]], make);
+        for _ in 0..300 {
+            cl.step();
+        }
+        c.bench_function(&format!("step_m2_clutter_{n}"), |b| {
+            b.iter(|| black_box(cl.step().0))
+        });
+    }
 }
 
 /// Closed loop: truth + controller, restarted every 3000 steps.
@@ -228,6 +299,6 @@ fn bench_feasibility(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_secs(1));
-    targets = bench_step, bench_feasibility
+    targets = bench_step, bench_clutter, bench_feasibility
 }
 criterion_main!(benches);

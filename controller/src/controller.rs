@@ -771,15 +771,30 @@ impl Controller {
         self.bank.set_last_input(u);
         self.output.u = u;
         self.output.qp = outcome;
-        // logging values
+        // logging values: a unit's filter's h(x̂) is its rows' (the same evaluation of the same
+        // estimate, made in `fill_problem` this step), the other filters' are evaluated here
         let nb = self.barriers.len();
+        let nbu = self.problem.barriers();
+        let units = self.problem.units();
         for (fi, f) in self.bank.filters().iter().enumerate() {
+            let unit = (0..units).find(|&i| nbu == nb && self.unit_filter(i) == fi);
             for (bi, b) in self.barriers.iter().enumerate() {
-                self.output.h_values[fi * nb + bi] = b.eval(f.estimate()).value;
+                self.output.h_values[fi * nb + bi] = match unit {
+                    Some(i) => self.problem.cbf[i * nbu + bi].h,
+                    None => b.eval(f.estimate()).value,
+                };
             }
             self.output.v_values[fi] = self.clf.value(f.estimate());
         }
         &self.output
+    }
+
+    /// The filter whose estimate unit `i`'s rows use (as in `fill_problem`).
+    fn unit_filter(&self, i: usize) -> usize {
+        match self.kind {
+            ControllerKind::FtCbfClf => i,
+            _ => self.bank.baseline_index(),
+        }
     }
 
     /// The safety-filter form: u_nom from the estimate of a unit Step 2's isolation kept (this

@@ -1013,17 +1013,7 @@ impl FtParameters {
             BoundMethod::Horizon => 2 * m - 1,
         };
         let eps1 = eps / (n as f64 * events as f64);
-        let mask = |drop: &[&Vec<usize>]| {
-            let mut u = vec![true; q];
-            for p in drop {
-                for &c in p.iter() {
-                    if c < q {
-                        u[c] = false;
-                    }
-                }
-            }
-            u
-        };
+        let mask = |drop: &[&Vec<usize>]| kept_channels(q, drop);
         let lmax = |p: &StateMatrix| ((p + p.transpose()) * 0.5).symmetric_eigenvalues().max();
         let mut iterations = Vec::new();
         let mut converged = Vec::new();
@@ -1060,7 +1050,15 @@ impl FtParameters {
         let mut eta = Vec::new();
         let mut metrics = Vec::new();
         let mut schedule = Vec::new();
-        let w = ((STEP2_WINDOW / dt).round() as usize).max(1);
+        let separation = HorizonSeparation {
+            model,
+            updates,
+            dt,
+            p0,
+            n,
+            w: ((STEP2_WINDOW / dt).round() as usize).max(1),
+            eps1,
+        };
         for i in 0..patterns.len() {
             for j in (i + 1)..patterns.len() {
                 let pair = mask(&[&patterns[i], &patterns[j]]);
@@ -1071,35 +1069,11 @@ impl FtParameters {
                 match method {
                     BoundMethod::Paper => theta.push(tri),
                     BoundMethod::Horizon => {
-                        let chi = chi_square_quantile(4, 1.0 - eps1);
-                        let pair_phases = updates.phases(&pair);
-                        let sep = |single: &Vec<usize>| {
-                            separation_moments_scheduled(
-                                model,
-                                &updates.phases(&mask(&[single])),
-                                &pair_phases,
-                                dt,
-                                p0,
-                                n,
-                                w,
-                            )
-                        };
-                        let si = sep(&patterns[i]);
-                        let sj = sep(&patterns[j]);
-                        theta.push(2.0 * (si.worst_abs.max(sj.worst_abs).max(0.0) * chi).sqrt());
-                        let mut running = 0.0f64;
-                        schedule.push(
-                            si.absolute
-                                .iter()
-                                .zip(&sj.absolute)
-                                .map(|(a, b)| {
-                                    running = running.max(*a).max(*b).max(0.0);
-                                    2.0 * (running * chi).sqrt()
-                                })
-                                .collect::<Vec<f64>>(),
-                        );
-                        let (metric, scale) = increment_metric(&si.increments, &sj.increments);
-                        eta.push(2.0 * (scale * chi).sqrt());
+                        let (th, row, e, metric) =
+                            separation.pair(&mask(&[&patterns[i]]), &mask(&[&patterns[j]]), &pair);
+                        theta.push(th);
+                        schedule.push(row);
+                        eta.push(e);
                         metrics.push(metric);
                     }
                 }
@@ -1130,6 +1104,75 @@ impl FtParameters {
             patterns: patterns.len(),
             method,
         }
+    }
+}
+
+/// Which of `q` channels a filter keeps when the patterns `drop` are dropped.
+fn kept_channels(q: usize, drop: &[&Vec<usize>]) -> Vec<bool> {
+    let mut u = vec![true; q];
+    for p in drop {
+        for &c in p.iter() {
+            if c < q {
+                u[c] = false;
+            }
+        }
+    }
+    u
+}
+
+/// The horizon method's bounds on one pair of patterns, from the separation moments of each
+/// single-drop filter against the pair filter (issue #45 split this out of
+/// [`FtParameters::compute_scheduled`]; the arithmetic is unchanged).
+struct HorizonSeparation<'a> {
+    model: &'a LinearModel,
+    updates: &'a UpdateSchedule,
+    dt: f64,
+    p0: &'a StateMatrix,
+    /// Horizon in samples.
+    n: usize,
+    /// Step 2's window in samples.
+    w: usize,
+    /// Per-sample failure probability.
+    eps1: f64,
+}
+
+impl HorizonSeparation<'_> {
+    /// (θ_ij, θ_ij's schedule over the horizon, η_ij, the increment metric) of the filters
+    /// using `single_i`, `single_j` and `pair` (channel masks).
+    fn pair(
+        &self,
+        single_i: &[bool],
+        single_j: &[bool],
+        pair: &[bool],
+    ) -> (f64, Vec<f64>, f64, StateMatrix) {
+        let chi = chi_square_quantile(4, 1.0 - self.eps1);
+        let pair_phases = self.updates.phases(pair);
+        let sep = |single: &[bool]| {
+            separation_moments_scheduled(
+                self.model,
+                &self.updates.phases(single),
+                &pair_phases,
+                self.dt,
+                self.p0,
+                self.n,
+                self.w,
+            )
+        };
+        let si = sep(single_i);
+        let sj = sep(single_j);
+        let theta = 2.0 * (si.worst_abs.max(sj.worst_abs).max(0.0) * chi).sqrt();
+        let mut running = 0.0f64;
+        let schedule = si
+            .absolute
+            .iter()
+            .zip(&sj.absolute)
+            .map(|(a, b)| {
+                running = running.max(*a).max(*b).max(0.0);
+                2.0 * (running * chi).sqrt()
+            })
+            .collect::<Vec<f64>>();
+        let (metric, scale) = increment_metric(&si.increments, &sj.increments);
+        (theta, schedule, 2.0 * (scale * chi).sqrt(), metric)
     }
 }
 

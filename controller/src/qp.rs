@@ -13,6 +13,17 @@
 //! * 4 input-box rows (`±u_k ≤ limit_k`, or the inactive `0·z ≤ 1` when unbounded),
 //! * `−s ≤ 0`.
 //!
+//! **Compaction.** When more than [`COMPACT_CBF_ROWS`] CBF rows can occur, the solver is first
+//! built for [`COMPACT_START_ROWS`] of them, so a world with hundreds of obstacles does not make every
+//! interior-point iteration factor a KKT system with a row per (filter, obstacle). When more
+//! CBF rows are passed than the solver holds, the rows whose half-space contains the whole
+//! input box (`|n₁|L₁ + |n₂|L₂ < o`: every admissible input, and any slack s ≥ 0, satisfies
+//! them) are left out: the feasible set, hence the problem, is unchanged, and a far obstacle's
+//! row is such a row (its ĥ makes the offset exceed what the box can reach). Only when the
+//! remaining rows still do not fit is the solver rebuilt for more (doubling, up to every row).
+//! Problems with at most [`COMPACT_CBF_ROWS`] CBF rows are solved exactly as before, row for
+//! row.
+//!
 //! Unused rows are the inactive `0·z ≤ 1`. **Every row is scaled to a unit-norm input
 //! normal** (`n/‖n‖ · u ≤ o/‖n‖`), an equivalent problem; this removes the 1e8 of the CLF
 //! (eq. 6.6) from the numerics, and is why equilibration can stay off across reuses.
@@ -39,6 +50,13 @@ use crate::types::Input;
 
 /// Number of variables (u₁, u₂, s).
 const NV: usize = 3;
+
+/// The most CBF rows a solver is built to hold all of: with more possible rows, the rows the
+/// input box satisfies are left out (see the module documentation).
+pub const COMPACT_CBF_ROWS: usize = 12;
+
+/// CBF rows a solver is first built for when more than [`COMPACT_CBF_ROWS`] are possible.
+pub const COMPACT_START_ROWS: usize = 8;
 
 /// The outcome of one QP solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,7 +100,10 @@ pub enum RowMode {
 
 /// A reusable clarabel solver for problem 5.3.
 pub struct QpSolver {
+    /// CBF rows the current solver holds.
     cbf_capacity: usize,
+    /// The most CBF rows a solve may be given.
+    cbf_limit: usize,
     clf_capacity: usize,
     rows: usize,
     p_values: [f64; 4],
@@ -105,6 +126,7 @@ impl std::fmt::Debug for QpSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("QpSolver")
             .field("cbf_capacity", &self.cbf_capacity)
+            .field("cbf_limit", &self.cbf_limit)
             .field("clf_capacity", &self.clf_capacity)
             .field("input_limit", &self.input_limit)
             .field("solves", &self.solves)
@@ -136,6 +158,14 @@ impl QpSolver {
         slack_weight: f64,
         input_limit: Option<Input>,
     ) -> Self {
+        let cbf_limit = cbf_capacity;
+        // Up to COMPACT_CBF_ROWS rows: room for all of them, as before. Beyond, rows are left
+        // out anyway: start small, grow to what binds.
+        let cbf_capacity = if cbf_limit <= COMPACT_CBF_ROWS {
+            cbf_limit
+        } else {
+            COMPACT_START_ROWS
+        };
         let rows = cbf_capacity + clf_capacity + 5;
         // P upper triangle, CSC: col0 (0,0); col1 (0,1),(1,1); col2 (2,2).
         let p_values = [
@@ -153,6 +183,7 @@ impl QpSolver {
         );
         Self {
             cbf_capacity,
+            cbf_limit,
             clf_capacity,
             rows,
             p_values,
@@ -229,17 +260,32 @@ impl QpSolver {
         clf: &[HalfSpace],
         clf_mode: RowMode,
     ) -> QpResult {
-        if cbf.len() > self.cbf_capacity || clf.len() > self.clf_capacity {
+        if cbf.len() > self.cbf_limit || clf.len() > self.clf_capacity {
             return QpResult::TooManyRows {
                 given: (cbf.len(), clf.len()),
-                capacity: (self.cbf_capacity, self.clf_capacity),
+                capacity: (self.cbf_limit, self.clf_capacity),
             };
         }
-        for r in 0..self.cbf_capacity {
-            match cbf.get(r) {
-                Some(h) => self.set_row(r, h, cbf_mode == RowMode::Soft),
-                None => self.set_inactive(r),
+        // More rows than the solver holds: leave out those the input box satisfies.
+        let compact = cbf.len() > self.cbf_capacity;
+        let needed = if compact {
+            cbf.iter().filter(|h| !self.box_satisfies(h)).count()
+        } else {
+            cbf.len()
+        };
+        if needed > self.cbf_capacity {
+            self.grow(needed);
+        }
+        let mut r = 0;
+        for h in cbf {
+            if compact && self.box_satisfies(h) {
+                continue;
             }
+            self.set_row(r, h, cbf_mode == RowMode::Soft);
+            r += 1;
+        }
+        for r in r..self.cbf_capacity {
+            self.set_inactive(r);
         }
         for r in 0..self.clf_capacity {
             let row = self.cbf_capacity + r;
@@ -299,6 +345,34 @@ impl QpSolver {
                 QpResult::SolverFailure { status }
             }
         }
+    }
+
+    /// Whether every input of the box (and any slack s ≥ 0) satisfies `h`: `nᵀu ≤ o` for all
+    /// `|u_k| ≤ L_k`, i.e. `|n₁|L₁ + |n₂|L₂ < o`, with a relative margin of 1e-12 against
+    /// rounding. Never for a non-finite row (it must stay, and fail closed) or without a box.
+    pub fn box_satisfies(&self, h: &HalfSpace) -> bool {
+        let Some(lim) = self.input_limit else {
+            return false;
+        };
+        let reach = h.normal[0].abs() * lim[0] + h.normal[1].abs() * lim[1];
+        let margin = 1e-12 * (reach.abs() + h.offset.abs());
+        reach.is_finite() && h.offset.is_finite() && reach + margin < h.offset
+    }
+
+    /// Rebuilds the buffers for at least `needed` CBF rows (doubling, at most the limit); the
+    /// solver is built anew on the next solve.
+    fn grow(&mut self, needed: usize) {
+        let mut cap = self.cbf_capacity.max(1);
+        while cap < needed {
+            cap *= 2;
+        }
+        self.cbf_capacity = cap.min(self.cbf_limit);
+        self.rows = self.cbf_capacity + self.clf_capacity + 5;
+        self.a_dense = vec![0.0; self.rows * NV];
+        self.a_values = vec![0.0; self.rows * NV];
+        self.b = vec![1.0; self.rows];
+        self.last_z = vec![0.0; self.rows];
+        self.solver = None;
     }
 
     fn build(&mut self) -> bool {

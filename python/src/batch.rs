@@ -3,8 +3,8 @@
 
 use std::sync::{Arc, Mutex};
 
-use ftcbf::batch::{self as engine, BatchSpec, PreparedWorld, TrialRunner};
-use ftcbf::runner::{world_info, WorldRunner};
+use ftcbf_lab::batch::{self as engine, BatchSpec, PreparedWorld, TrialRunner};
+use ftcbf_lab::trials::{world_info, WorldRunner};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::Override;
 use pyo3::exceptions::PyValueError;
@@ -117,7 +117,7 @@ pub fn batch(
                 }),
             })
         };
-        let run = spec.run(&prepare, false)?;
+        let run = spec.run(&prepare, &ftcbf_lab::progress::Silent)?;
         Ok::<_, anyhow::Error>((engine::to_json(&run.results)?, run.report))
     });
     outcome.map_err(|e| {

@@ -91,7 +91,7 @@ impl Factory {
             return Err(pyo3::exceptions::PyTypeError::new_err(format!(
                 "a controller is a built-in name ({}) or a callable that builds a law from a \
                  LawConfig, not {}",
-                ftcbf::runner::CONTROLLERS.join(", "),
+                ftcbf_lab::trials::CONTROLLERS.join(", "),
                 obj.repr()?
             )));
         }

@@ -34,6 +34,6 @@ fn _ftcbf(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<law::Readings>()?;
     m.add_class::<law::LawConfig>()?;
     m.add_function(wrap_pyfunction!(batch::batch, m)?)?;
-    m.add("CONTROLLERS", ftcbf::runner::CONTROLLERS)?;
+    m.add("CONTROLLERS", ftcbf_lab::trials::CONTROLLERS)?;
     Ok(())
 }

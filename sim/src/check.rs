@@ -542,9 +542,10 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
     for ob in &world.obstacles {
         match ob.spec.shape {
             ShapeSpec::HalfSpace { .. } => flat += 1,
-            ShapeSpec::Cuboid { .. } | ShapeSpec::ConvexHull { .. } | ShapeSpec::TriMesh { .. } => {
-                cornered += 1
-            }
+            ShapeSpec::Cuboid { .. }
+            | ShapeSpec::ConvexHull { .. }
+            | ShapeSpec::TriMesh { .. }
+            | ShapeSpec::OccupancyMap { .. } => cornered += 1,
             ShapeSpec::Ball { .. }
             | ShapeSpec::Cylinder { .. }
             | ShapeSpec::Capsule { .. }
@@ -552,6 +553,31 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
         }
     }
     (flat, cornered, curved)
+}
+
+/// For an occupancy map: the blocked cells nearest the start and the goal centre.
+fn map_surroundings(world: &World, start: [f64; 2], context: &mut Vec<String>) {
+    for ob in &world.obstacles {
+        let Some(field) = ob.map_field() else {
+            continue;
+        };
+        for (what, p) in [("start", start), ("goal", world.file.goal.center)] {
+            if let Some(n) = field.nearest_blocked(p) {
+                context.push(format!(
+                    "{}: the blocked cell nearest the {what} ({:.3}, {:.3}) is column {}, row {} from the bottom, centred at ({:.3}, {:.3}), {:.3} m away (signed distance of the field there {:.3} m)",
+                    ob.name,
+                    p[0],
+                    p[1],
+                    n.cell.0,
+                    n.cell.1,
+                    n.centre[0],
+                    n.centre[1],
+                    n.distance,
+                    field.signed_distance(p).0
+                ));
+            }
+        }
+    }
 }
 
 /// The description lines: plant, control, channels and patterns, filters, parameters.
@@ -565,6 +591,8 @@ fn context(world: &World, setup: &ControlSetup, names: &Names) -> Vec<String> {
     for note in world.obstacles.iter().filter_map(|o| o.note.as_ref()) {
         context.push(format!("warning: {note}"));
     }
+    let x0 = setup.config.x0;
+    map_surroundings(world, [x0[0], x0[1]], &mut context);
     context.push(format!(
         "control: {} at {} Hz ({} plant steps per control step), duration {} s, seed {}",
         f.control.controller.name(),
@@ -737,6 +765,18 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         }
     ));
     context.push(format!("CBF gain: {}", setup.gain));
+    let rows = world.patterns.len().max(1) * setup.config.barriers.len();
+    if rows > ftcbf_controller::qp::COMPACT_CBF_ROWS {
+        context.push(match setup.config.input_limit {
+            Some(_) => format!(
+                "active rows: up to {rows} barrier rows (filters × barriers), more than the {} a QP holds all of: a step's QP leaves out each row whose half-space holds the whole input box (|Λ₁|L₁ + |Λ₂|L₂ ≤ −ω̄, i.e. κĥ exceeds what the box can reach plus the row's drift, robustness and Itô terms: a far obstacle's ĥ is far above the band where its row could bind). Every admissible input satisfies such a row, so the feasible set, the QP's solution and Steps 1–3 (which still test every row) are unchanged: the guarantee is the same",
+                ftcbf_controller::qp::COMPACT_CBF_ROWS
+            ),
+            None => format!(
+                "active rows: up to {rows} barrier rows and no input box: no row can be shown not to bind, every row enters every QP"
+            ),
+        });
+    }
     for b in &setup.config.barriers {
         let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
@@ -1371,12 +1411,24 @@ fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
         }
     }
     for ob in &world.obstacles {
-        found.hypotheses.push(Hypothesis {
-            name: format!("condition 1 (4.4) for obstacle {} ({})", ob.name, ob.spec.shape.kind()),
-            status: Status::Assumed,
-            detail: format!(
+        let detail = match ob.map_field() {
+            Some(f) => format!(
+                "lifted signed distance of the map's field: ∂H/∂v = k∇d with ‖∇d‖ ≤ G = {:.3} and κ ≤ {:.1} 1/m over the cells that reach free space; ∇d vanishes where the nearest obstacles pull equally (midway between them, the field's medial axis), so Λ ≠ 0 is assumed there, not shown; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see the same nearest obstacle",
+                f.gradient_bound(),
+                f.curvature_bound()
+            ),
+            None => format!(
                 "lifted signed distance: ∂H/∂v = k∇d with ‖∇d‖ = 1, so Λ ≠ 0 for each filter; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see the obstacle on the same side"
             ),
+        };
+        found.hypotheses.push(Hypothesis {
+            name: format!(
+                "condition 1 (4.4) for obstacle {} ({})",
+                ob.name,
+                ob.spec.shape.kind()
+            ),
+            status: Status::Assumed,
+            detail,
         });
     }
     if !world.obstacles.is_empty() {

@@ -13,14 +13,15 @@ pub mod attacks;
 pub mod check;
 pub mod drive;
 pub mod environment;
+pub mod expectations;
 pub mod liveness;
+pub mod movers;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;
 pub mod planner;
 #[cfg(feature = "record")]
 pub mod record;
-pub mod regress;
 pub mod robot;
 pub mod runner;
 pub mod safe_sets;

@@ -74,6 +74,7 @@ use parry3d::math::{Pose, Vector};
 use parry3d::shape::{SharedShape, TriMeshFlags};
 use serde::{Deserialize, Serialize};
 
+use crate::environment::{MapField, OccupancyGrid};
 use crate::robot::RobotDescription;
 
 /// Errors of obstacle validation; each names the obstacle and the key.
@@ -109,6 +110,18 @@ pub enum ObstacleError {
         name: String,
         /// What is wrong.
         message: String,
+    },
+    /// An occupancy map that cannot be read.
+    #[error(transparent)]
+    Map(#[from] crate::environment::MapError),
+    /// An occupancy map with no blocked cell.
+    #[error(
+        "{file}: no cell is an obstacle (with environment.unknown = \"free\" only occupied \
+         cells are): the map has nothing to avoid"
+    )]
+    EmptyMap {
+        /// The map's YAML file.
+        file: String,
     },
 }
 
@@ -175,6 +188,15 @@ pub enum ShapeSpec via ShapeByKind {
     HalfSpace {
         /// Outward normal (obstacle frame), any non-zero length.
         normal: [f64; 3],
+    },
+    /// An occupancy map (`environment.map`): built by the world loader from the map's files,
+    /// never written in `[[obstacles]]`.
+    #[serde(skip_deserializing)]
+    OccupancyMap {
+        /// map_server's YAML file, relative to the world file's directory.
+        file: PathBuf,
+        /// Whether unknown cells are obstacles.
+        unknown: crate::environment::UnknownCells,
     },
     /// Triangle mesh given inline or as an STL file.
     TriMesh {
@@ -248,6 +270,7 @@ impl ShapeSpec {
             ShapeSpec::ConvexHull { .. } => "convex_hull",
             ShapeSpec::HalfSpace { .. } => "half_space",
             ShapeSpec::TriMesh { .. } => "tri_mesh",
+            ShapeSpec::OccupancyMap { .. } => "occupancy_map",
         }
     }
 }
@@ -288,6 +311,8 @@ pub struct Obstacle {
     /// What the user should know about the shape: a `tri_mesh` that is not closed is a surface
     /// (unsigned distance), named here with why.
     pub note: Option<String>,
+    /// An occupancy map's distance field (its signed distance comes from here, not parry).
+    grid: Option<Arc<MapField>>,
 }
 
 fn iso(position: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
@@ -467,6 +492,14 @@ fn shape_of(
         }
         ShapeSpec::ConvexHull { points } => (convex_hull(name, points)?, world, None),
         ShapeSpec::HalfSpace { normal } => half_space(name, normal, world)?,
+        ShapeSpec::OccupancyMap { .. } => {
+            return Err(invalid(
+                name,
+                "shape.kind",
+                "a shape a world file may write (an occupancy map comes from environment.map)",
+                "occupancy_map".into(),
+            ))
+        }
         ShapeSpec::TriMesh {
             vertices,
             indices,
@@ -788,6 +821,13 @@ impl Obstacle {
     /// distance where there is one.
     pub fn from_spec(spec: &ObstacleSpec, base_dir: Option<&Path>) -> Result<Self, ObstacleError> {
         check_placement(spec)?;
+        if let ShapeSpec::OccupancyMap { file, unknown } = &spec.shape {
+            let path = match base_dir {
+                Some(d) if file.is_relative() => d.join(file),
+                _ => file.clone(),
+            };
+            return Self::from_map(spec, &OccupancyGrid::load(&path)?, *unknown, &path);
+        }
         let world = iso(spec.position, spec.rpy);
         let (shape, pose, closed, note) = shape_of(spec, world, base_dir)?;
         Ok(Self {
@@ -797,7 +837,49 @@ impl Obstacle {
             shape_pose: to_pose(&pose),
             closed,
             note,
+            grid: None,
         })
+    }
+
+    /// The obstacle of an occupancy map read from `path` (`spec` names it and says which
+    /// cells are blocked): its distance field for the barrier, its blocked cells merged into
+    /// boxes for the physics, placed at the map's origin.
+    fn from_map(
+        spec: &ObstacleSpec,
+        grid: &OccupancyGrid,
+        unknown: crate::environment::UnknownCells,
+        path: &Path,
+    ) -> Result<Self, ObstacleError> {
+        let shape = grid
+            .compound(unknown)
+            .ok_or_else(|| ObstacleError::EmptyMap {
+                file: path.display().to_string(),
+            })?;
+        let field = MapField::new(grid, unknown);
+        let note = format!(
+            "obstacle `{}` is the occupancy map {} ({} × {} cells of {} m): its distance field \
+             is below the true distance by at most {:.3} m (3 cells/√2), on the safe side",
+            spec.name,
+            path.display(),
+            grid.width,
+            grid.height,
+            grid.resolution,
+            field.error_bound()
+        );
+        Ok(Self {
+            name: spec.name.clone(),
+            spec: spec.clone(),
+            shape,
+            shape_pose: to_pose(&grid.pose()),
+            closed: None,
+            note: Some(note),
+            grid: Some(Arc::new(field)),
+        })
+    }
+
+    /// The distance field of an occupancy-map obstacle.
+    pub fn map_field(&self) -> Option<&MapField> {
+        self.grid.as_deref()
     }
 
     /// Validates a list of specs; names must be unique.
@@ -842,6 +924,10 @@ impl Obstacle {
 
     /// Signed distance and its gradient (world frame) at p.
     fn sd_and_grad(&self, p: Vector3<f64>) -> (f64, Vector3<f64>) {
+        if let Some(g) = &self.grid {
+            let (d, n) = g.signed_distance([p.x, p.y]);
+            return (d, Vector3::new(n.x, n.y, 0.0));
+        }
         match self.closed {
             Some(Closed::HalfSpace { n, p0 }) => return (n.dot(&(p - p0)), n),
             Some(Closed::RoundSegment {
@@ -898,10 +984,19 @@ impl Obstacle {
 
     /// A barrier for this obstacle (see the module docs).
     pub fn barrier(&self, cfg: &BarrierConfig) -> ObstacleBarrier {
+        let map_band = self.grid.as_ref().map(|g| {
+            // Where H = d − margin + k∇d·v can be 0: sd within k·G·v_max of r + margin; the
+            // h̄_γ segment reaches MAP_BAND_SLACK further.
+            let at = cfg.robot_radius + cfg.margin;
+            let lift = cfg.k * g.gradient_bound() * cfg.v_max;
+            let (gb, kappa) = g.bounds_in(at - lift - MAP_BAND_SLACK, at + lift + MAP_BAND_SLACK);
+            MapBand { gb, kappa }
+        });
         ObstacleBarrier {
             name: format!("obstacle:{}", self.name),
             obstacle: Arc::new(self.clone()),
             cfg: *cfg,
+            map_band,
         }
     }
 }
@@ -976,6 +1071,21 @@ pub struct ObstacleBarrier {
     name: String,
     obstacle: Arc<Obstacle>,
     cfg: BarrierConfig,
+    /// An occupancy map's gradient and curvature bounds over the band of its field around
+    /// this barrier's zero level.
+    map_band: Option<MapBand>,
+}
+
+/// How far beyond the band where an occupancy map's lifted barrier can be zero its bounds G
+/// and κ are taken \[m\]: an h̄_γ segment that moves sd by more (γ·G above it) uses the bounds
+/// over the whole free space instead.
+pub const MAP_BAND_SLACK: f64 = 0.1;
+
+/// G and κ of an occupancy map over a band of its field.
+#[derive(Debug, Clone, Copy)]
+struct MapBand {
+    gb: f64,
+    kappa: f64,
 }
 
 impl ObstacleBarrier {
@@ -991,6 +1101,9 @@ impl ObstacleBarrier {
     /// shape). `None` for a point robot and any other shape: the distance to an edge or vertex
     /// has unbounded curvature, so no h̄_γ bound exists for the lifted barrier.
     pub fn curvature_bound(&self) -> Option<f64> {
+        if let Some(b) = &self.map_band {
+            return Some(b.kappa);
+        }
         if self.obstacle.is_half_space() {
             return Some(0.0);
         }
@@ -1126,7 +1239,16 @@ impl Barrier for ObstacleBarrier {
     /// (k > 0) and no curvature bound is known (the runner refuses such worlds first).
     fn h_bar(&self, gamma: f64) -> f64 {
         let k = self.cfg.k;
-        let l = if k == 0.0 {
+        let l = if let (Some(g), Some(band)) = (&self.obstacle.grid, &self.map_band) {
+            // The map's ‖∇d‖ ≤ G (not 1): L = √((G + k·v_max·κ)² + (k·G)²), with G and κ of
+            // the band around the zero level when the segment stays in it.
+            let (gb, kappa) = if gamma.max(0.0) * g.gradient_bound() <= MAP_BAND_SLACK {
+                (band.gb, band.kappa)
+            } else {
+                (g.gradient_bound(), g.curvature_bound())
+            };
+            ((gb + k * self.cfg.v_max * kappa).powi(2) + (k * gb).powi(2)).sqrt()
+        } else if k == 0.0 {
             1.0
         } else {
             match self.curvature_bound() {

@@ -17,6 +17,8 @@
 //! - A *collision* is a contact pair between a robot collider and an obstacle collider that
 //!   has an active contact whose distance is ≤ [`PhysicsConfig::contact_distance`].
 
+use std::cmp::Ordering;
+
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rapier3d::prelude as rp;
 use rapier3d::prelude::{
@@ -126,6 +128,8 @@ pub struct PhysicsWorld {
     link_names: Vec<String>,
     robot_colliders: Vec<ColliderHandle>,
     obstacle_colliders: Vec<ColliderHandle>,
+    /// The obstacles' bounding boxes (they never move), for [`PhysicsWorld::clearances_near`].
+    obstacle_aabbs: Vec<parry3d::bounding_volume::Aabb>,
     obstacles: Vec<Obstacle>,
     /// Motors of the left wheels (one, or several for a skid-steer robot).
     left: Vec<WheelMotor>,
@@ -448,6 +452,10 @@ impl PhysicsWorld {
         let right = robot.wheels.right.iter().map(motor).collect();
         let obstacle_colliders = add_obstacles(&mut world, obstacles, cfg);
         let link_names = robot.bodies.iter().map(|b| b.name.clone()).collect();
+        let obstacle_aabbs = obstacle_colliders
+            .iter()
+            .map(|&h| world.colliders[h].compute_aabb())
+            .collect();
         let mut out = Self {
             world,
             cfg: *cfg,
@@ -455,6 +463,7 @@ impl PhysicsWorld {
             link_names,
             robot_colliders,
             obstacle_colliders,
+            obstacle_aabbs,
             obstacles: obstacles.to_vec(),
             left,
             right,
@@ -569,23 +578,73 @@ impl PhysicsWorld {
     /// the current poses); negative = penetration depth. `out` is resized to the obstacle count.
     pub fn clearances(&self, out: &mut Vec<f64>) {
         out.clear();
-        for &oc in &self.obstacle_colliders {
-            let o = &self.world.colliders[oc];
-            let mut best = f64::INFINITY;
-            for &rc in &self.robot_colliders {
-                let r = &self.world.colliders[rc];
-                let d = match parry3d::query::distance(
-                    r.position(),
-                    r.shape(),
-                    o.position(),
-                    o.shape(),
-                ) {
-                    Ok(d) if d.distance > 0.0 => d.distance as f64,
-                    _ => penetration(r, o),
-                };
-                best = best.min(d);
+        out.extend((0..self.obstacle_colliders.len()).map(|i| self.clearance(i)));
+    }
+
+    /// The true clearance to obstacle `i` (as in [`PhysicsWorld::clearances`]); +∞ for an
+    /// index out of range.
+    pub fn clearance(&self, i: usize) -> f64 {
+        let Some(o) = self
+            .obstacle_colliders
+            .get(i)
+            .map(|&h| &self.world.colliders[h])
+        else {
+            return f64::INFINITY;
+        };
+        let mut best = f64::INFINITY;
+        for &rc in &self.robot_colliders {
+            let r = &self.world.colliders[rc];
+            let d = match parry3d::query::distance(r.position(), r.shape(), o.position(), o.shape())
+            {
+                Ok(d) if d.distance > 0.0 => d.distance as f64,
+                _ => penetration(r, o),
+            };
+            best = best.min(d);
+        }
+        best
+    }
+
+    /// The clearances where they can matter, found through bounding boxes: `out[i]` is
+    /// obstacle i's true clearance (as [`PhysicsWorld::clearances`] computes it) and `exact[i]`
+    /// is true, unless the distance between the robot's bounding box and the obstacle's is
+    /// above both `within` and the smallest true clearance; then `out[i]` is that distance, a
+    /// lower bound of the clearance. So the minimum over `out` is the true minimum, and every
+    /// clearance at or below `within` is exact. A non-finite pose gives non-finite boxes and
+    /// is always queried exactly (its clearance is then not finite either).
+    pub fn clearances_near(&self, within: f64, out: &mut Vec<f64>, exact: &mut Vec<bool>) {
+        out.clear();
+        exact.clear();
+        let mut robot: Option<parry3d::bounding_volume::Aabb> = None;
+        for &rc in &self.robot_colliders {
+            let b = self.world.colliders[rc].compute_aabb();
+            if !finite_aabb(&b) {
+                robot = None;
+                break;
             }
-            out.push(best);
+            robot = Some(match robot {
+                Some(a) => merged_aabb(&a, &b),
+                None => b,
+            });
+        }
+        let mut least = f64::INFINITY;
+        for b in &self.obstacle_aabbs {
+            let lb = robot.map_or(f64::NAN, |r| aabb_gap(&r, b));
+            // NaN (a non-finite pose) is not provably far: queried exactly
+            out.push(lb);
+            exact.push(lb.partial_cmp(&within) != Some(Ordering::Greater));
+        }
+        for i in 0..out.len() {
+            if exact[i] {
+                out[i] = self.clearance(i);
+                least = least.min(out[i]);
+            }
+        }
+        for i in 0..out.len() {
+            if !exact[i] && out[i].partial_cmp(&least) != Some(Ordering::Greater) {
+                out[i] = self.clearance(i);
+                exact[i] = true;
+                least = least.min(out[i]);
+            }
         }
     }
 
@@ -628,6 +687,47 @@ impl PhysicsWorld {
 /// relative pose the wrong way round (it passes `pos12` where `pos12⁻¹` is needed; its
 /// `distance` does not), which reported −0.47 m for a robot pressed centimetres into a
 /// half-space wall. A half-space is therefore always queried as the first shape.
+/// Every corner of the box is a finite number.
+fn finite_aabb(a: &parry3d::bounding_volume::Aabb) -> bool {
+    [a.mins.x, a.mins.y, a.mins.z, a.maxs.x, a.maxs.y, a.maxs.z]
+        .iter()
+        .all(|v| v.is_finite())
+}
+
+/// The smallest box holding both.
+fn merged_aabb(
+    a: &parry3d::bounding_volume::Aabb,
+    b: &parry3d::bounding_volume::Aabb,
+) -> parry3d::bounding_volume::Aabb {
+    let mut m = *a;
+    m.mins.x = a.mins.x.min(b.mins.x);
+    m.mins.y = a.mins.y.min(b.mins.y);
+    m.mins.z = a.mins.z.min(b.mins.z);
+    m.maxs.x = a.maxs.x.max(b.maxs.x);
+    m.maxs.y = a.maxs.y.max(b.maxs.y);
+    m.maxs.z = a.maxs.z.max(b.maxs.z);
+    m
+}
+
+/// A lower bound of the distance between anything inside box `a` and anything inside box `b`
+/// \[m\]: the boxes' gap, computed in f64 from their f32 corners, less 1 mm (far above the
+/// rounding of the boxes and of parry's f32 distance). NaN when a corner is not finite (the
+/// caller then queries exactly).
+fn aabb_gap(a: &parry3d::bounding_volume::Aabb, b: &parry3d::bounding_volume::Aabb) -> f64 {
+    if !(finite_aabb(a) && finite_aabb(b)) {
+        return f64::NAN;
+    }
+    let axis = |amin: f32, amax: f32, bmin: f32, bmax: f32| {
+        (f64::from(bmin) - f64::from(amax))
+            .max(f64::from(amin) - f64::from(bmax))
+            .max(0.0)
+    };
+    let gx = axis(a.mins.x, a.maxs.x, b.mins.x, b.maxs.x);
+    let gy = axis(a.mins.y, a.maxs.y, b.mins.y, b.maxs.y);
+    let gz = axis(a.mins.z, a.maxs.z, b.mins.z, b.maxs.z);
+    (gx * gx + gy * gy + gz * gz).sqrt() - 1e-3
+}
+
 fn penetration(robot: &rp::Collider, obstacle: &rp::Collider) -> f64 {
     let (a, b) = if obstacle.shape().as_halfspace().is_some() {
         (obstacle, robot)

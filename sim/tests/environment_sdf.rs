@@ -279,10 +279,11 @@ fn a_world_file_loads_the_sdf_and_check_says_what_was_kept() {
     // board (from 1.19 m) are above it.
     let h = report.robot_height.unwrap();
     assert!(h > 0.15 && h < 0.25, "burger height {h}");
-    assert!(world.file.environment.is_none());
+    assert!(world.file.environment.as_ref().unwrap().sdf.is_none());
     // An edited copy does not load the environment a second time.
     let again = world.with_file(world.file.clone()).expect("revalidates");
     assert_eq!(again.obstacles.len(), 10);
+    assert_eq!(again.environment, world.environment);
     let check = ftcbf_sim::check::check_world(&world).expect("checks");
     let text = check.to_string();
     assert!(

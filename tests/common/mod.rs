@@ -36,8 +36,10 @@ pub fn tmp_in(tag: &str, name: &str) -> PathBuf {
 
 /// Runs every case of a regression `plan` (the library call behind `ftcbf regress`) and fails
 /// with each failing case's world, controller and failures.
-pub fn assert_plan_passes(plan: &ftcbf::regress::Plan) {
-    let results = plan.run(|| {}).unwrap_or_else(|e| panic!("{e}"));
+pub fn assert_plan_passes(plan: &ftcbf_lab::regress::Plan) {
+    let results = plan
+        .run(&ftcbf_lab::progress::Silent)
+        .unwrap_or_else(|e| panic!("{e}"));
     let failures: Vec<String> = results
         .iter()
         .filter(|r| !r.passed())

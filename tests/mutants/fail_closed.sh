@@ -144,7 +144,7 @@ mutant "a panic is not contained (Rust's exit 101)" src/main.rs \
   --test reliability a_contained_panic_exits_70_with_its_message_and_place
 mutant "usage errors exit 2, like an invalid world" src/main.rs \
   'let code = if e.use_stderr() { EXIT_USAGE } else { 0 };' \
-  'let code = if e.use_stderr() { EXIT_INVALID } else { 0 };' \
+  'let code = if e.use_stderr() { exit::EXIT_INVALID } else { 0 };' \
   usage_errors_exit_64_and_a_negative_duration_is_a_range_error \
   --test reliability usage_errors_exit_64_and_a_negative_duration_is_a_range_error
 mutant "a closed output pipe is reported as an internal error (exit 70)" src/main.rs \

@@ -3,10 +3,13 @@
 //! holds that a ground robot can touch becomes ordinary [`ObstacleSpec`]s appended to the
 //! world's own `obstacles`, so physics, barriers, planner, `check` and recording take them as
 //! they take any other obstacle. [`EnvironmentReport`] says what was kept and what was dropped
-//! and why.
+//! and why. `[environment] map = "…"` is a ROS occupancy map ([`map`]).
 
 pub mod collada;
+pub mod map;
 pub mod sdf;
+
+pub use map::{MapError, MapField, OccupancyGrid, UnknownCells};
 
 use std::path::PathBuf;
 

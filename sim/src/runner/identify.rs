@@ -60,18 +60,218 @@ fn cache() -> &'static Mutex<HashMap<String, DriveIdentification>> {
 }
 
 /// q of `world`'s robot and drive, identified once per process for each robot, physics, drive
-/// and rate (a batch of trials computes it once). Deterministic: its excitation has its own
-/// fixed seed, independent of the run's.
+/// and rate (a batch of trials computes it once), and kept on disk between processes (see
+/// [`disk`]). Deterministic: its excitation has its own fixed seed, independent of the run's,
+/// and a disk entry holds the numbers bit for bit, so a cached q is the q a fresh
+/// identification gives.
 pub fn identify(world: &World) -> Result<DriveIdentification, String> {
     let key = cache_key(world)?;
     if let Some(hit) = cache().lock().ok().and_then(|c| c.get(&key).copied()) {
         return Ok(hit);
     }
-    let found = run(world)?;
+    let dir = disk::dir();
+    let found = match dir.as_deref().and_then(|d| disk::load(d, &key)) {
+        Some(hit) => hit,
+        None => {
+            let found = run(world)?;
+            if let Some(d) = dir.as_deref() {
+                disk::store(d, &key, &found);
+            }
+            found
+        }
+    };
     if let Ok(mut c) = cache().lock() {
         c.insert(key, found);
     }
     Ok(found)
+}
+
+/// The identification cache on disk: one small text file per key, named by a hash of the key
+/// and holding the whole key, so an entry is used only for exactly the key it was made for (a
+/// hash collision or an entry from another version is a miss). A missing, unreadable, corrupt
+/// or stale entry is ignored (with a warning on stderr when it exists but cannot be used) and
+/// rewritten; a cache that cannot be written is skipped silently: q is then identified again
+/// by the next process, never wrong.
+pub mod disk {
+    use std::hash::{Hash, Hasher};
+    use std::path::{Path, PathBuf};
+
+    use super::DriveIdentification;
+
+    /// First line of an entry: the format, and what the identification's code depends on
+    /// (its length, windows, excitation and the crate version: a new version identifies again).
+    pub fn header() -> String {
+        format!(
+            "ftcbf drive identification v1 · ftcbf-sim {} · {} s · windows {:?} · excitation {}",
+            env!("CARGO_PKG_VERSION"),
+            super::IDENT_SECONDS,
+            super::WINDOWS,
+            super::DEFAULT_EXCITATION,
+        )
+    }
+
+    /// The cache folder: `FTCBF_CACHE_DIR` (empty: no disk cache), else
+    /// `$XDG_CACHE_HOME/ftcbf`, else `$HOME/.cache/ftcbf`; `None` when none is set.
+    pub fn dir() -> Option<PathBuf> {
+        let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty());
+        if let Some(v) = std::env::var_os("FTCBF_CACHE_DIR") {
+            return (!v.is_empty()).then(|| PathBuf::from(v));
+        }
+        if let Some(x) = var("XDG_CACHE_HOME") {
+            return Some(PathBuf::from(x).join("ftcbf"));
+        }
+        var("HOME").map(|h| PathBuf::from(h).join(".cache").join("ftcbf"))
+    }
+
+    /// The file of `key` in `dir`.
+    pub fn path(dir: &Path, key: &str) -> PathBuf {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        header().hash(&mut h);
+        key.hash(&mut h);
+        dir.join(format!("identify-{:016x}.txt", h.finish()))
+    }
+
+    /// The entry of `key`, if `dir` holds a valid one.
+    pub fn load(dir: &Path, key: &str) -> Option<DriveIdentification> {
+        let file = path(dir, key);
+        let text = std::fs::read_to_string(&file).ok()?;
+        match parse(&text, key) {
+            Ok(found) => Some(found),
+            Err(why) => {
+                eprintln!(
+                    "warning: ignoring the cached drive identification {} ({why}); identifying again",
+                    file.display()
+                );
+                None
+            }
+        }
+    }
+
+    /// An entry's numbers, checked against `key`.
+    fn parse(text: &str, key: &str) -> Result<DriveIdentification, String> {
+        let mut lines = text.lines();
+        if lines.next() != Some(header().as_str()) {
+            return Err("written by another version".into());
+        }
+        if lines.next() != Some(key) {
+            return Err("made for another robot, drive or physics".into());
+        }
+        let nums: Vec<f64> = lines
+            .next()
+            .ok_or("no numbers")?
+            .split(' ')
+            .map(|v| {
+                v.parse::<f64>()
+                    .map_err(|_| format!("`{v}` is not a number"))
+            })
+            .collect::<Result<_, _>>()?;
+        let [q, window, rms_step_mismatch, excitation, seconds] = nums[..] else {
+            return Err(format!("{} numbers where 5 were expected", nums.len()));
+        };
+        if !nums.iter().all(|v| v.is_finite() && *v >= 0.0) || lines.next().is_some() {
+            return Err("not five finite nonnegative numbers on the third and last line".into());
+        }
+        Ok(DriveIdentification {
+            q,
+            window,
+            rms_step_mismatch,
+            excitation,
+            seconds,
+        })
+    }
+
+    /// Writes the entry of `key` (through a temporary file and a rename, so a concurrent reader
+    /// sees the old entry or the new one, never half of one). Failures are ignored.
+    pub fn store(dir: &Path, key: &str, id: &DriveIdentification) {
+        if key.contains('\n') || std::fs::create_dir_all(dir).is_err() {
+            return;
+        }
+        let file = path(dir, key);
+        // `{:?}` of an f64 is the shortest text that parses back to the same bits.
+        let text = format!(
+            "{}\n{key}\n{:?} {:?} {:?} {:?} {:?}\n",
+            header(),
+            id.q,
+            id.window,
+            id.rms_step_mismatch,
+            id.excitation,
+            id.seconds
+        );
+        let tmp = file.with_extension(format!("tmp{}", std::process::id()));
+        if std::fs::write(&tmp, text).is_ok() && std::fs::rename(&tmp, &file).is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        fn id() -> DriveIdentification {
+            DriveIdentification {
+                q: 1.0 / 3.0 * 1e-3,
+                window: 0.1,
+                rms_step_mismatch: 2.0_f64.sqrt() * 1e-3,
+                excitation: 0.5,
+                seconds: 30.0,
+            }
+        }
+
+        fn scratch(name: &str) -> PathBuf {
+            let d =
+                std::env::temp_dir().join(format!("ftcbf-identify-{name}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&d);
+            d
+        }
+
+        #[test]
+        fn an_entry_reads_back_bit_for_bit_and_only_for_its_key() {
+            let d = scratch("roundtrip");
+            assert_eq!(load(&d, "k1"), None);
+            store(&d, "k1", &id());
+            let back = load(&d, "k1").expect("stored");
+            assert_eq!(back.q.to_bits(), id().q.to_bits());
+            assert_eq!(
+                back.rms_step_mismatch.to_bits(),
+                id().rms_step_mismatch.to_bits()
+            );
+            assert_eq!(back, id());
+            assert_eq!(load(&d, "k2"), None);
+            // the file of k1 copied to k2's name (a collision): its key line does not match
+            std::fs::copy(path(&d, "k1"), path(&d, "k2")).expect("copy");
+            assert_eq!(load(&d, "k2"), None);
+            let _ = std::fs::remove_dir_all(&d);
+        }
+
+        #[test]
+        fn a_corrupt_or_stale_entry_is_ignored() {
+            let d = scratch("corrupt");
+            store(&d, "k", &id());
+            let f = path(&d, "k");
+            let good = std::fs::read_to_string(&f).expect("read");
+            let bad = [
+                good.replace(
+                    "ftcbf drive identification v1",
+                    "ftcbf drive identification v0",
+                ),
+                good.replacen("0.5 ", "NaN ", 1),
+                good.replacen("0.5 ", "-0.5 ", 1),
+                good.replacen("0.5 ", "half ", 1),
+                good.replacen(" 30.0", "", 1),
+                format!("{good}extra\n"),
+                good.lines().take(2).collect::<Vec<_>>().join("\n"),
+                String::new(),
+            ];
+            for text in bad {
+                std::fs::write(&f, &text).expect("write");
+                assert_eq!(load(&d, "k"), None, "{text:?} was trusted");
+            }
+            // rewritten after a miss
+            store(&d, "k", &id());
+            assert_eq!(load(&d, "k"), Some(id()));
+            let _ = std::fs::remove_dir_all(&d);
+        }
+    }
 }
 
 /// What the identification depends on: the robot's dynamics (bodies' mass, inertia and

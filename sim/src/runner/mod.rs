@@ -234,14 +234,8 @@ impl<'w> Simulation<'w> {
         let file = &world.file;
         let seed = opts.seed.unwrap_or(file.seed);
         let kind = opts.controller.unwrap_or(file.control.controller);
-        let duration = opts.duration.unwrap_or(file.duration);
-        let r = crate::world::ranges::DURATION;
-        if !r.contains(duration) {
-            return Err(RunError::Option(format!(
-                "--duration: expected a number of seconds in {}, found {duration}",
-                r.describe()
-            )));
-        }
+        let duration = crate::world::ranges::check_duration(opts.duration.unwrap_or(file.duration))
+            .map_err(RunError::Option)?;
         if duration > file.duration {
             // γ, θ, η (and the dead-reckoning bounds) are computed for the world's duration:
             // their union bound is over its samples, so a longer run is past their horizon.
@@ -319,7 +313,7 @@ impl<'w> Simulation<'w> {
             world,
             seed,
             control_dt,
-            n_steps: (duration / control_dt).round().max(1.0) as u64,
+            n_steps: world.control_steps(duration),
             k: 0,
             setup,
             suite,
@@ -368,20 +362,29 @@ impl<'w> Simulation<'w> {
 
     /// Advances one control step and returns it; `None` once the run's duration is over.
     pub fn step(&mut self) -> Option<Frame<'_>> {
+        let t = self.advance(true)?;
+        Some(self.frame(t, self.k - 1))
+    }
+
+    /// Steps until the end of the run. No frame is shown to anyone, so the decision's note
+    /// (text formatted from the policy's record, for frames only) is not written: the run and
+    /// its summary are the same as [`Simulation::step`]'s, bit for bit.
+    pub fn run_to_end(&mut self) {
+        while self.advance(false).is_some() {}
+    }
+
+    /// One control step (writing the decision's note for a frame when `note`); its time, or
+    /// `None` once the run's duration is over.
+    fn advance(&mut self, note: bool) -> Option<f64> {
         if self.k >= self.n_steps {
             return None;
         }
         let t = self.k as f64 * self.control_dt;
         self.sense(t);
-        let u = self.decide(t);
+        let u = self.decide(t, note);
         self.actuate(u);
         self.k += 1;
-        Some(self.frame(t, self.k - 1))
-    }
-
-    /// Steps until the end of the run.
-    pub fn run_to_end(&mut self) {
-        while self.step().is_some() {}
+        Some(t)
     }
 
     /// Sensors sample the truth, attacks rewrite the samples (a stealthy attacker reads the
@@ -422,7 +425,7 @@ impl<'w> Simulation<'w> {
     }
 
     /// The law's step; counts the deciding policy stage and the rejected readings.
-    fn decide(&mut self, t: f64) -> Input {
+    fn decide(&mut self, t: f64, note: bool) -> Input {
         let readings = Readings {
             t,
             dt: self.control_dt,
@@ -452,7 +455,7 @@ impl<'w> Simulation<'w> {
                 v.rejected = c.is_some_and(|c| out.rejected.channels.get(c) == Some(&true));
             }
         }
-        self.view.decision(decision.record, &self.filters);
+        self.view.decision(decision.record, &self.filters, note);
         let u = decision.u;
         self.view.u = [u[0], u[1]];
         self.view.estimates(self.law.estimators(), &mut self.errors);

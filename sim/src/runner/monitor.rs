@@ -23,6 +23,9 @@ pub(super) struct Monitor {
     min_barrier: Vec<f64>,
     in_contact: Vec<bool>,
     clearances: Vec<f64>,
+    /// Which of `clearances` are exact (the others are lower bounds above the disagreement
+    /// tolerance and above the least clearance: far obstacles are not queried).
+    clearance_exact: Vec<bool>,
     pub(super) min_clearance: Option<f64>,
     /// Each obstacle's barrier geometry (distance without margin or lift), to hold the
     /// physics' clearances against.
@@ -52,6 +55,7 @@ impl Monitor {
             safe_sets: setup.safe_sets,
             in_contact: vec![false; world.obstacles.len()],
             clearances: Vec::new(),
+            clearance_exact: Vec::new(),
             min_clearance: None,
             geometry: {
                 let bcfg = super::setup::obstacle_barrier_config(world);
@@ -157,7 +161,14 @@ impl Monitor {
             }
         }
         if !world.obstacles.is_empty() {
-            plant.clearances(&mut self.clearances);
+            // Exact where the disagreement rule can fire (|c| ≤ its tolerance) and at the
+            // minimum; a far obstacle's lower bound decides the rule just as its true value
+            // would (both exceed the tolerance).
+            plant.clearances_near(
+                crate::summary::DISAGREEMENT_TOLERANCE,
+                &mut self.clearances,
+                &mut self.clearance_exact,
+            );
             let m = self
                 .clearances
                 .iter()
@@ -169,13 +180,13 @@ impl Monitor {
                 }
             }
             self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
-            self.hold_against_physics(world, [x[0], x[1]], truth.t);
+            self.hold_against_physics(world, plant, [x[0], x[1]], truth.t);
         }
     }
 
     /// Holds each obstacle's barrier geometry at position `p` against the physics' clearance
     /// just measured; keeps the first disagreement.
-    fn hold_against_physics(&mut self, world: &World, p: [f64; 2], t: f64) {
+    fn hold_against_physics(&mut self, world: &World, plant: &Plant, p: [f64; 2], t: f64) {
         if self.disagreement.is_some() {
             return;
         }
@@ -185,7 +196,9 @@ impl Monitor {
             .iter()
             .zip(&self.clearances)
             .zip(&world.obstacles)
-            .find_map(|((g, &c), o)| {
+            .zip(&self.clearance_exact)
+            .enumerate()
+            .find_map(|(i, (((g, &c), o), &exact))| {
                 let d = g.clearance(at);
                 let centre = d + g.config().robot_radius;
                 disagree(centre, d, c).then(|| Disagreement {
@@ -193,7 +206,7 @@ impl Monitor {
                     obstacle: o.name.clone(),
                     centre_distance: centre,
                     barrier_clearance: d,
-                    physics_clearance: c,
+                    physics_clearance: if exact { c } else { plant.clearance(i) },
                 })
             });
     }

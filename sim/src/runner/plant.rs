@@ -231,6 +231,30 @@ impl Plant {
         }
     }
 
+    /// The clearances where they can matter (see [`crate::physics::PhysicsWorld::clearances_near`]):
+    /// exact at or below `within` and at the minimum, a lower bound elsewhere (`exact[i]`
+    /// false). The linear plant's are all exact.
+    pub fn clearances_near(&self, within: f64, out: &mut Vec<f64>, exact: &mut Vec<bool>) {
+        match self {
+            Plant::Rapier { physics, .. } => physics.clearances_near(within, out, exact),
+            Plant::Linear { .. } => {
+                self.clearances(out);
+                exact.clear();
+                exact.resize(out.len(), true);
+            }
+        }
+    }
+
+    /// The exact clearance to obstacle `i` \[m\] (+∞ for an index out of range).
+    pub fn clearance(&self, i: usize) -> f64 {
+        match self {
+            Plant::Rapier { physics, .. } => physics.clearance(i),
+            Plant::Linear { x, obstacles, .. } => obstacles
+                .get(i)
+                .map_or(f64::INFINITY, |o| o.clearance(Vector2::new(x[0], x[1]))),
+        }
+    }
+
     /// World poses of the robot's bodies (empty for the linear plant, which is drawn as a point).
     pub fn link_poses(&self, out: &mut Vec<(String, [f32; 3], [f32; 4])>) {
         out.clear();

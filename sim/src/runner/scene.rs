@@ -112,7 +112,24 @@ fn obstacle_geometry(ob: &Obstacle) -> Placed {
             None => in_shape_pose(Geometry::Ball { radius: 0.0 }),
         },
         ShapeSpec::HalfSpace { normal } => half_space_patch(ob, &rot, normal),
+        ShapeSpec::OccupancyMap { .. } => in_shape_pose(compound_mesh(ob)),
     }
+}
+
+/// A compound of boxes (an occupancy map's blocked cells) as one mesh in the shape's frame.
+fn compound_mesh(ob: &Obstacle) -> Geometry {
+    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+    if let Some(c) = ob.shape().as_compound() {
+        for (pose, part) in c.shapes() {
+            if let Some(b) = part.as_cuboid() {
+                let (v, t) = b.to_trimesh();
+                let base = vertices.len() as u32;
+                vertices.extend(v.into_iter().map(|p| *pose * p));
+                triangles.extend(t.into_iter().map(|t| t.map(|k| k + base)));
+            }
+        }
+    }
+    mesh_from(vertices, triangles)
 }
 
 fn collider_geometry(shape: &CollisionShape) -> Geometry {

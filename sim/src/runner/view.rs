@@ -83,8 +83,14 @@ impl StepView {
         }
     }
 
-    /// Copies what the policy decided (or clears it for a law without a record).
-    pub(super) fn decision(&mut self, record: Option<&ControlOutput>, filters: &[String]) {
+    /// Copies what the policy decided (or clears it for a law without a record); writes the
+    /// decision's note only when `note` (a frame will show it).
+    pub(super) fn decision(
+        &mut self,
+        record: Option<&ControlOutput>,
+        filters: &[String],
+        note: bool,
+    ) {
         self.note.clear();
         self.barrier_values.clear();
         self.v_values.clear();
@@ -93,7 +99,9 @@ impl StepView {
             self.decided_by = Some(super::stage_name(&out.qp));
             self.barrier_values.extend_from_slice(&out.h_values);
             self.v_values.extend_from_slice(&out.v_values);
-            decision_note(&mut self.note, out, filters);
+            if note {
+                decision_note(&mut self.note, out, filters);
+            }
         }
     }
 

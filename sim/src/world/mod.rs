@@ -113,9 +113,9 @@ pub struct World {
     pub patterns: Vec<Vec<usize>>,
     /// Physics ticks per control step.
     pub ticks_per_control: u32,
-    /// What `[environment]` loaded (its obstacles are in `obstacles` and `file.obstacles`,
-    /// after the file's own; `file.environment` is taken out once loaded, so that a world
-    /// edited through [`World::with_file`] does not load it twice).
+    /// What `[environment] sdf` loaded (its obstacles are in `obstacles` and `file.obstacles`,
+    /// after the file's own; `sdf` and `model_paths` are taken out of `file.environment` once
+    /// loaded, so that a world edited through [`World::with_file`] does not load it twice).
     pub environment: Option<crate::environment::EnvironmentReport>,
 }
 
@@ -187,7 +187,12 @@ impl World {
     /// (so `file.robot` must name the same robot — URDF, packages, wheels, limits, xacro
     /// arguments; its `start` may differ). Mesh obstacles are loaded from their files.
     pub fn with_file(&self, file: WorldFile) -> Result<World, WorldError> {
-        Self::validated(file, self.name.clone(), &self.path, self.robot.clone())
+        let mut w = Self::validated(file, self.name.clone(), &self.path, self.robot.clone())?;
+        if w.environment.is_none() {
+            // The SDF file's obstacles came along in `file.obstacles`; so does its report.
+            w.environment = self.environment.clone();
+        }
+        Ok(w)
     }
 
     /// Validates a resolved file and checks the control structure; `robot`, if given, is used
@@ -222,6 +227,12 @@ impl World {
     /// Control period \[s\].
     pub fn control_dt(&self) -> f64 {
         1.0 / self.file.control.rate_hz
+    }
+
+    /// Control steps in a run of `duration` seconds (at least one): the one count the runner
+    /// steps and the CLI's progress bar shows.
+    pub fn control_steps(&self, duration: f64) -> u64 {
+        (duration / self.control_dt()).round().max(1.0) as u64
     }
 
     /// Plant step \[s\] (physics or linear integration).
@@ -645,6 +656,8 @@ impl Validator<'_> {
                     None => {}
                 }
             }
+            // Never read from a world file (the loader builds it from environment.map).
+            ShapeSpec::OccupancyMap { .. } => {}
         }
         Ok(())
     }
@@ -786,6 +799,39 @@ impl Validator<'_> {
         Ok(())
     }
 
+    /// The obstacle of `environment.map` (named `map`), when the world has one (an SDF file's
+    /// obstacles are in `file.obstacles` by now, see `load_environment`).
+    fn environment_map(
+        &self,
+        file: &WorldFile,
+        base: &Path,
+    ) -> Result<Option<Obstacle>, WorldError> {
+        let Some(env) = &file.environment else {
+            return Ok(None);
+        };
+        let Some(map) = &env.map else {
+            if env.unknown.is_some() {
+                return Err(self.err(
+                    "environment.unknown",
+                    "applies to a map: set environment.map too",
+                ));
+            }
+            return Ok(None);
+        };
+        let spec = ObstacleSpec {
+            name: "map".into(),
+            position: [0.0; 3],
+            rpy: [0.0; 3],
+            shape: ShapeSpec::OccupancyMap {
+                file: map.clone(),
+                unknown: env.unknown.unwrap_or_default(),
+            },
+        };
+        Obstacle::from_spec(&spec, Some(base))
+            .map(Some)
+            .map_err(|e| self.err("environment.map", e.to_string()))
+    }
+
     /// The parsed file checked, section by section in the file's order, into a [`World`]: the
     /// ranges, the plant, the control rate and parameters, the goal, the safe sets, the robot
     /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
@@ -822,6 +868,10 @@ impl Validator<'_> {
             names.push((spec.name.as_str(), format!("obstacles[{i}]")));
             obstacles.push(ob);
         }
+        if let Some(ob) = self.environment_map(&file, base)? {
+            names.push(("map", "environment.map".into()));
+            obstacles.push(ob);
+        }
         self.check_unique_names(&names)?;
         let patterns = self.check_channels(&file)?;
         if file.control.controller == ControllerKindSpec::FtCbfClf && patterns.is_empty() {
@@ -851,24 +901,23 @@ impl Validator<'_> {
         base: &Path,
         robot: Option<&RobotDescription>,
     ) -> Result<Option<crate::environment::EnvironmentReport>, WorldError> {
-        let Some(env) = file.environment.take() else {
+        let Some(env) = file.environment.as_mut() else {
             return Ok(None);
         };
-        if env.map.is_some() {
-            return Err(self.err(
-                "environment.map",
-                "occupancy maps are not read by this build (issue #47 part B); expected \
-                 `environment.sdf`",
-            ));
-        }
-        let Some(sdf) = &env.sdf else {
-            return Err(self.err(
-                "environment",
-                "expected `sdf = \"PATH\"` (a Gazebo SDF world or model file)",
-            ));
+        // Taken out once loaded (the map, if any, stays): a world edited through
+        // `World::with_file` keeps these obstacles and does not load the file twice.
+        let Some(sdf) = env.sdf.take() else {
+            if !env.model_paths.is_empty() {
+                return Err(self.err(
+                    "environment.model_paths",
+                    "applies to an SDF file: set environment.sdf too",
+                ));
+            }
+            return Ok(None);
         };
+        let model_paths = std::mem::take(&mut env.model_paths);
         let opts = crate::environment::sdf::SdfOptions {
-            model_paths: env.model_paths.iter().map(|p| base.join(p)).collect(),
+            model_paths: model_paths.iter().map(|p| base.join(p)).collect(),
             robot_height: robot.map(|r| r.height),
             no_environment_variables: false,
         };

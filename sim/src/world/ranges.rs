@@ -98,6 +98,19 @@ pub const ANGLE: Range = Range::closed(-100.0, 100.0, "rad");
 pub const VELOCITY: Range = Range::closed(-100.0, 100.0, "m/s");
 /// `duration` and `run --duration` \[s\].
 pub const DURATION: Range = Range::positive(3600.0, "s");
+
+/// A run's `--duration` (the CLI's option, `RunOptions::duration` from Python and the library)
+/// checked against [`DURATION`]: the one place it is validated, with the one message.
+pub fn check_duration(d: f64) -> Result<f64, String> {
+    if DURATION.contains(d) {
+        Ok(d)
+    } else {
+        Err(format!(
+            "--duration {d}: expected a number of seconds in {}",
+            DURATION.describe()
+        ))
+    }
+}
 /// `control.rate_hz` \[Hz\].
 pub const CONTROL_RATE: Range = Range::closed(1.0, 1.0e4, "Hz");
 /// A sensor channel's `rate_hz` \[Hz\].

@@ -44,8 +44,8 @@ pub struct WorldFile {
     /// Obstacles (parry shapes): colliders in physics and barriers for the controller.
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
-    /// Obstacles loaded from the files robots already live in (a Gazebo SDF world): appended
-    /// to `obstacles` when the world is loaded.
+    /// Obstacles loaded from files robots already live in (a Gazebo SDF world, an occupancy
+    /// map); they add to `obstacles`.
     pub environment: Option<EnvironmentSpec>,
     /// Sensor channels, in the order of the measurement vector y.
     pub sensors: Vec<ChannelSpec>,
@@ -65,16 +65,18 @@ pub struct WorldFile {
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvironmentSpec {
-    /// A Gazebo SDF world or model file, relative to the world file: its collision geometry a
-    /// ground robot can touch becomes obstacles (see `crate::environment`).
+    /// A Gazebo SDF world or model file, relative to the world file.
     pub sdf: Option<PathBuf>,
-    /// Directories searched for `model://NAME/...` (before `GZ_SIM_RESOURCE_PATH` and
-    /// `GAZEBO_MODEL_PATH`), relative to the world file.
+    /// Directories searched for `model://` URIs, relative to the world file.
     #[serde(default)]
     pub model_paths: Vec<PathBuf>,
-    /// A ROS occupancy map (map_server YAML), relative to the world file.
+    /// A ROS map_server map (`map.yaml` naming a PGM or PNG image), relative to the world file.
     pub map: Option<PathBuf>,
+    /// What the map's unknown cells are: `"obstacle"` (default) or `"free"`.
+    pub unknown: Option<UnknownCells>,
 }
+
+pub use crate::environment::UnknownCells;
 
 /// `[falsify]`: how far `ftcbf falsify --scenario` may move the world. Every key is optional
 /// (the defaults suit a ground robot) and ≥ 0; relative ranges are below 1.

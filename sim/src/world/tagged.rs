@@ -22,6 +22,10 @@ use serde_path_to_error::Segment;
 /// The tag key.
 const TAG: &str = "kind";
 
+/// Kinds the world loader builds itself (`#[serde(skip_deserializing)]`), left out of the
+/// kinds an error lists: an occupancy map comes from `environment.map`.
+pub const LOADER_ONLY: &[&str] = &["occupancy_map"];
+
 /// Reads a `kind`-tagged table from `d` as the externally tagged mirror `M` (see the module
 /// docs). `kinds` lists the accepted tags, for the message of a missing or mistyped `kind`.
 pub fn deserialize<'de, D, M>(d: D, kinds: &[&str]) -> Result<M, D::Error>
@@ -135,6 +139,8 @@ macro_rules! kind_tagged {
         }
 
         /// The externally tagged mirror `Deserialize` reads through (see `world::tagged`).
+        // A variant the loader builds itself (`skip_deserializing`) is never read into it.
+        #[allow(dead_code)]
         #[derive(serde::Deserialize)]
         #[serde(rename_all = "snake_case", deny_unknown_fields)]
         enum $Mirror {
@@ -154,6 +160,7 @@ macro_rules! kind_tagged {
                 let kinds: Vec<String> = [$( stringify!($Variant) ),*]
                     .iter()
                     .map(|v| $crate::world::tagged::snake_case(v))
+                    .filter(|k| !$crate::world::tagged::LOADER_ONLY.contains(&k.as_str()))
                     .collect();
                 let kinds: Vec<&str> = kinds.iter().map(String::as_str).collect();
                 $crate::world::tagged::deserialize::<D, $Mirror>(d, &kinds).map(Self::from)

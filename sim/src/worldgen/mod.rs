@@ -244,7 +244,7 @@ pub struct GeneratedWorld {
     /// The fault pattern the attack lies in.
     pub attack_pattern: String,
     /// The planned path with [`SPARE`] clearance, start → goal.
-    pub reach: Reach,
+    pub reach: Route,
     /// Layouts drawn until one was reachable (1 = the first).
     pub draws: usize,
     /// The file's text.
@@ -271,7 +271,7 @@ pub enum GenError {
     },
     /// No reachable layout in [`MAX_DRAWS`] draws.
     #[error("world {index} ({kind}, {robot}): no layout with its goal reachable at {SPARE} m clearance in {draws} draws")]
-    Unreachable {
+    NoReachableLayout {
         /// World index.
         index: usize,
         /// Its kind.
@@ -311,7 +311,7 @@ pub enum GenError {
 
 /// How a world's goal is reached with [`SPARE`] (or the spare asked) to spare.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Reach {
+pub struct Route {
     /// The planned points after the start, the goal last \[m\].
     pub path: Vec<[f64; 2]>,
     /// Length of the path from the start \[m\].
@@ -327,7 +327,7 @@ pub struct Reach {
 
 /// Why a goal is not reachable with the spare asked.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Blocked {
+pub enum Unreachable {
     /// The start's clearance \[m\] is below the spare.
     Start(f64),
     /// The goal disc's clearance \[m\] (the centre's less the radius) is below the spare.
@@ -337,13 +337,13 @@ pub enum Blocked {
     Path(Option<f64>),
 }
 
-impl fmt::Display for Blocked {
+impl fmt::Display for Unreachable {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Blocked::Start(c) => write!(f, "the start is {c:.3} m clear"),
-            Blocked::Goal(c) => write!(f, "the goal disc is {c:.3} m clear"),
-            Blocked::Path(None) => write!(f, "the planner finds no path"),
-            Blocked::Path(Some(c)) => write!(f, "the planned path comes {c:.3} m close"),
+            Unreachable::Start(c) => write!(f, "the start is {c:.3} m clear"),
+            Unreachable::Goal(c) => write!(f, "the goal disc is {c:.3} m clear"),
+            Unreachable::Path(None) => write!(f, "the planner finds no path"),
+            Unreachable::Path(Some(c)) => write!(f, "the planned path comes {c:.3} m close"),
         }
     }
 }
@@ -360,7 +360,7 @@ pub fn reach_among(
     goal: [f64; 2],
     goal_radius: f64,
     spare: f64,
-) -> Result<Reach, Blocked> {
+) -> Result<Route, Unreachable> {
     let bcfg = BarrierConfig::for_robot(robot, 0.0, 0.0);
     let barriers: Vec<_> = obstacles.iter().map(|o| o.barrier(&bcfg)).collect();
     let clear = |p: [f64; 2]| {
@@ -371,11 +371,11 @@ pub fn reach_among(
     };
     let start_clearance = clear(start);
     if start_clearance.is_nan() || start_clearance < spare {
-        return Err(Blocked::Start(start_clearance));
+        return Err(Unreachable::Start(start_clearance));
     }
     let goal_clearance = clear(goal);
     if goal_clearance.is_nan() || goal_clearance - goal_radius < spare {
-        return Err(Blocked::Goal(goal_clearance - goal_radius));
+        return Err(Unreachable::Goal(goal_clearance - goal_radius));
     }
     let defaults = PlannerConfig::default();
     let cfg = PlannerConfig {
@@ -383,10 +383,10 @@ pub fn reach_among(
         ..defaults
     };
     let Ok(p) = plan(start, &[], goal, &clear, &cfg) else {
-        return Err(Blocked::Path(None));
+        return Err(Unreachable::Path(None));
     };
     if p.unplanned_legs > 0 {
-        return Err(Blocked::Path(None));
+        return Err(Unreachable::Path(None));
     }
     let mut length = 0.0;
     let mut path_clearance = f64::INFINITY;
@@ -406,9 +406,9 @@ pub fn reach_among(
         from = to;
     }
     if path_clearance.is_nan() || path_clearance < spare {
-        return Err(Blocked::Path(Some(path_clearance)));
+        return Err(Unreachable::Path(Some(path_clearance)));
     }
-    Ok(Reach {
+    Ok(Route {
         path: p.points,
         length,
         start_clearance,
@@ -419,7 +419,7 @@ pub fn reach_among(
 
 /// [`reach_among`] for a loaded world: its obstacles, robot, start, goal centre and radius.
 /// `None` for a world without a robot (the linear plant).
-pub fn reach(world: &World, spare: f64) -> Option<Result<Reach, Blocked>> {
+pub fn reach(world: &World, spare: f64) -> Option<Result<Route, Unreachable>> {
     let robot = world.robot.as_ref()?;
     let start = world
         .file
@@ -551,7 +551,7 @@ impl Generator {
         kind: Kind,
         model: RobotModel,
         goal_radius: f64,
-    ) -> Result<(layout::Layout, Reach, usize), GenError> {
+    ) -> Result<(layout::Layout, Route, usize), GenError> {
         let robot = &self.robots[model as usize];
         let fp = robot.description.footprint_radius;
         let keep = KeepOut {
@@ -580,7 +580,7 @@ impl Generator {
                 return Ok((l, r, draw));
             }
         }
-        Err(GenError::Unreachable {
+        Err(GenError::NoReachableLayout {
             index: i,
             kind,
             robot: model,
@@ -982,19 +982,19 @@ mod tests {
                 0.1,
                 SPARE
             ),
-            Err(Blocked::Path(None))
+            Err(Unreachable::Path(None))
         );
         // the start closer to the wall than footprint + spare
         let x = 1.0 - 0.05 - fp - SPARE + 0.01;
         assert!(matches!(
             reach_among(&[wall(1.0, 0.5)], &robot, [x, 0.0], [2.0, 0.0], 0.1, SPARE),
-            Err(Blocked::Start(c)) if c < SPARE
+            Err(Unreachable::Start(c)) if c < SPARE
         ));
         // the goal disc reaching within the spare (its centre would do)
         let g = 1.0 + 0.05 + fp + SPARE + 0.05;
         assert!(matches!(
             reach_among(&[wall(1.0, 0.5)], &robot, [0.0, 0.0], [g, 0.0], 0.1, SPARE),
-            Err(Blocked::Goal(c)) if c < SPARE
+            Err(Unreachable::Goal(c)) if c < SPARE
         ));
         // two walls leaving a door narrower than the footprint plus the spare on both sides
         let door = 2.0 * (fp + SPARE) - 0.05;

@@ -1,5 +1,5 @@
 //! `ftcbf falsify`: clap arguments, the command and its printing (the search is
-//! `ftcbf::falsify`).
+//! `ftcbf_lab::falsify`).
 
 use std::path::{Path, PathBuf};
 
@@ -7,11 +7,12 @@ use anyhow::{anyhow, Context};
 use ftcbf_sim::record::{Recorder, RecordingName};
 use ftcbf_sim::runner::{run, run_observed, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
-use indicatif::ProgressBar;
 use serde::Serialize;
 
-use ftcbf::falsify::search::MIN_BUDGET;
-use ftcbf::falsify::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
+use ftcbf_lab::falsify::search::MIN_BUDGET;
+
+use crate::bars::RunsBar;
+use ftcbf_lab::falsify::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
 
 /// Search for the worst attack inside the world's threat model.
 ///
@@ -40,7 +41,7 @@ pub struct FalsifyArgs {
     /// World file (TOML). Its own `[[attacks]]` are replaced by the searched ones.
     pub world: PathBuf,
     /// Controller under test [default: the world's `control.controller`].
-    #[arg(long, value_name = "KIND", value_parser = crate::cli::controller_parser(false))]
+    #[arg(long, value_name = "KIND", value_parser = crate::parsers::controller_parser(false))]
     pub controller: Option<ControllerKindSpec>,
     /// Runs (simulations) per search method (at least 24; plus one run of the world without
     /// attacks per held-out seed, the reference), or in all with --scenario (at least 8).
@@ -74,19 +75,13 @@ pub struct FalsifyArgs {
     pub scenario: bool,
     /// A scenario range, overriding the [falsify] table: obstacle_shift, obstacle_scale,
     /// start_shift, start_heading, goal_shift, noise, onset_shift (repeatable).
-    #[arg(long, value_name = "KEY=VALUE", value_parser = ftcbf::falsify::scenario::parse_range,
+    #[arg(long, value_name = "KEY=VALUE", value_parser = ftcbf_lab::falsify::scenario::parse_range,
           requires = "scenario")]
     pub range: Vec<(String, f64)>,
     /// Where --scenario writes a regression world per defect [default: runs/WORLD-scenario/]
     /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,
-}
-
-/// The bar of a search's `runs` on stderr, labelled with the world's name: shown on a
-/// terminal, hidden otherwise.
-fn runs_bar(runs: u64, world: &str) -> ProgressBar {
-    ftcbf::batch::progress_bar(runs, world, true)
 }
 
 /// A command-line value out of range (exit 64, as clap's own usage errors).
@@ -225,15 +220,14 @@ fn scenario_command(
     template: &WorldTemplate,
     settings: &Settings,
 ) -> anyhow::Result<()> {
-    use ftcbf::falsify::scenario::{scenario, write_defects, write_run, Ranges};
+    use ftcbf_lab::falsify::scenario::{scenario, write_defects, write_run, Ranges};
     if args.no_record || args.no_random {
         eprintln!(
             "note: --no-record and --no-random apply to the attack search, not to --scenario"
         );
     }
     let ranges = Ranges::resolve(&template.world, &args.range)?;
-    let bar = runs_bar(settings.budget as u64, &template.world.name);
-    let mut report = scenario(template, settings, &ranges, &bar)?;
+    let mut report = scenario(template, settings, &ranges, &RunsBar::new())?;
     let dir = args
         .defects
         .clone()
@@ -270,7 +264,7 @@ fn scenario_command(
 }
 
 /// `ftcbf falsify`: search, print the summary, write the worst world, its recording and the JSON.
-pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
+pub fn command(args: &FalsifyArgs) -> anyhow::Result<()> {
     if let Some(j) = &args.json {
         if j.extension().is_none_or(|e| e != "json") {
             return Err(anyhow!(
@@ -288,7 +282,7 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
         }
     }
     let least = if args.scenario {
-        ftcbf::falsify::scenario::MIN_BUDGET
+        ftcbf_lab::falsify::scenario::MIN_BUDGET
     } else {
         MIN_BUDGET
     };
@@ -319,16 +313,15 @@ pub fn falsify_command(args: &FalsifyArgs) -> anyhow::Result<()> {
             .context("--jobs is too large for this machine")?,
         compare_random: !args.no_random,
     };
-    for w in ftcbf::falsify::model_warnings(&template.world) {
+    for w in ftcbf_lab::falsify::model_warnings(&template.world) {
         eprintln!("warning: {w}");
     }
     if args.scenario {
         return scenario_command(args, &template, &settings);
     }
     let runs = settings.runs()?;
-    let bar = runs_bar(runs, &template.world.name);
     let clock = std::time::Instant::now();
-    let report = falsify(&template, &settings, &bar)?;
+    let report = falsify(&template, &settings, &RunsBar::new())?;
     // The time goes to stderr: the summary on stdout and the JSON stay the same for any --jobs.
     eprintln!(
         "searched {} in {:.1} s ({runs} runs)",

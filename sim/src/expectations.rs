@@ -1,5 +1,5 @@
 //! Worlds as regression cases: which controllers a world's `[expect]` names, and whether the runs
-//! of its seeds meet it. Running the seeds (in parallel, with a table) is `ftcbf::regress`; this
+//! of its seeds meet it. Running the seeds (in parallel, with a table) is `ftcbf_lab::regress`; this
 //! module is the judgement, a pure function of the summaries.
 
 use std::path::PathBuf;

@@ -43,7 +43,7 @@ pub use plan::{ArgError, BatchPlan, Execution, Shard, Sweep};
 pub use result::{
     BatchResult, ControllerSummary, LowerQuantiles, TrialRecord, UpperQuantiles, Verdict,
 };
-pub use run::{progress_bar, run_batch, run_parallel, run_sweep, worker_pool};
+pub use run::{run_batch, run_parallel, run_sweep, worker_pool};
 pub use spec::{
     failing_verdicts, report_text, write_outputs, BatchOutcome, BatchSpec, FailOn, PrepareFn,
     UnknownLevel, VerdictFailure,
@@ -221,9 +221,9 @@ pub(crate) mod testutil {
         }
     }
 
-    pub const SERIAL: Execution = Execution {
+    pub const SERIAL: Execution<'static> = Execution {
         jobs: Some(1),
-        progress: false,
+        progress: &crate::progress::Silent,
     };
 }
 

@@ -73,7 +73,7 @@ pub use search::{Method, MethodResult, Plan, SeedRun};
 pub use space::{Candidate, Kind, SearchSpace};
 pub use template::{ReplayInfo, WorldTemplate};
 
-use indicatif::ProgressBar;
+use crate::progress::Progress;
 
 use crate::batch::worker_pool;
 
@@ -302,15 +302,16 @@ pub fn model_warnings(world: &World) -> Vec<String> {
         .collect()
 }
 
-/// Searches the worst attack on `template`'s world, advancing `bar` once per run: the caller
-/// makes the bar (shown or hidden, [`Settings::runs`] long); the search clears it when its runs
-/// are done.
+/// Searches the worst attack on `template`'s world, telling `progress` of its
+/// [`Settings::runs`] runs (labelled with the world's name, then each phase) and finishing it
+/// when they are done.
 pub fn falsify(
     template: &WorldTemplate,
     settings: &Settings,
-    bar: &ProgressBar,
+    progress: &dyn Progress,
 ) -> anyhow::Result<Report> {
     let world = &template.world;
+    progress.start(settings.runs()?, &world.name);
     let space = SearchSpace::new(world).with_context(|| format!("world `{}`", world.name))?;
     let plan = Plan::new(settings.budget)?;
     let methods = settings.methods();
@@ -322,7 +323,7 @@ pub fn falsify(
         controller: settings.controller,
         seed: settings.seed,
         pool: &pool,
-        bar,
+        progress,
     };
     let results = search.first_generation().and_then(|first| {
         methods
@@ -334,7 +335,7 @@ pub fn falsify(
         Ok(ms) => Some(search.attack_free().map(|runs| AttackFree::of(runs, ms))),
         Err(_) => None,
     };
-    bar.finish_and_clear();
+    progress.finish();
     let attack_free = attack_free.transpose()?;
     let patterns: Vec<String> = space
         .patterns
@@ -369,9 +370,19 @@ pub fn falsify(
 }
 
 impl Report {
-    /// The human-readable summary (deterministic: no timings).
+    /// The human-readable summary (deterministic: no timings): the plan, the methods' table,
+    /// the comparisons, then each method's worst run and worst attack.
     pub fn text(&self) -> String {
         let mut s = String::new();
+        self.write_plan(&mut s);
+        self.write_table(&mut s);
+        self.write_comparisons(&mut s);
+        self.write_details(&mut s);
+        s
+    }
+
+    /// The header: world, threat model, warnings and the plan.
+    fn write_plan(&self, s: &mut String) {
         let p = &self.plan;
         let _ = writeln!(
             s,
@@ -406,6 +417,10 @@ impl Report {
             p.refine_rounds,
             p.refine_per_round,
         );
+    }
+
+    /// One row per method, then each method's CMA-ES refinements.
+    fn write_table(&self, s: &mut String) {
         let _ = writeln!(s);
         let _ = writeln!(
             s,
@@ -444,6 +459,10 @@ impl Report {
                 );
             }
         }
+    }
+
+    /// The CEM against random search, paired on held-out seeds, and against no attack.
+    fn write_comparisons(&self, s: &mut String) {
         if let [cem, random] = &self.methods[..] {
             let ord = cem.witness.robustness.cmp_worse(&random.witness.robustness);
             let _ = writeln!(
@@ -498,6 +517,10 @@ impl Report {
                 );
             }
         }
+    }
+
+    /// Each method's worst run and worst attack on average.
+    fn write_details(&self, s: &mut String) {
         for m in &self.methods {
             let _ = writeln!(s);
             let _ = writeln!(
@@ -538,6 +561,5 @@ impl Report {
                 b.collisions
             );
         }
-        s
     }
 }

@@ -762,79 +762,7 @@ fn falsify_page(inputs: &Inputs) -> String {
                 unsafe_certified.push(format!("`{}`", f.world));
             }
         }
-        let cell = |m: Option<&FalsifyMethod>, g: &dyn Fn(&FalsifyMethod) -> String| {
-            m.map_or("—".to_string(), g)
-        };
-        let worst_run = match (cem, random) {
-            (Some(c), Some(r)) => match worse(&c.witness.robustness, &r.witness.robustness) {
-                Some(true) => "CEM".to_string(),
-                Some(false) => "**random**".to_string(),
-                None => "tie".to_string(),
-            },
-            _ => "—".to_string(),
-        };
-        let (paired, paired_better) = match &f.paired {
-            Some(p) => (
-                format!(
-                    "{} : {} of {} (p = {})",
-                    p.cem_worse,
-                    p.random_worse,
-                    p.seeds,
-                    p_value(p.p)
-                ),
-                if p.p >= 0.05 {
-                    "tie".to_string()
-                } else if p.cem_worse > p.random_worse {
-                    "CEM".to_string()
-                } else {
-                    "**random**".to_string()
-                },
-            ),
-            None => ("—".to_string(), "—".to_string()),
-        };
-        let attack_free = f.attack_free.as_ref().map_or("—".to_string(), |a| {
-            let counts: Vec<String> = a
-                .moved
-                .iter()
-                .map(|m| {
-                    format!(
-                        "{} : {}{}",
-                        m.attack_worse,
-                        m.attack_free_worse,
-                        if m.p < 0.05 && m.attack_worse > m.attack_free_worse {
-                            ""
-                        } else {
-                            " (not moved)"
-                        }
-                    )
-                })
-                .collect();
-            format!(
-                "{} ({})",
-                a.mean.map_or("−∞".to_string(), |v| format!("{v:.4}")),
-                counts.join("; ")
-            )
-        });
-        let _ = writeln!(
-            out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-            f.world,
-            theorem3_short(batch.and_then(|b| b.plan.theorem3.as_deref())),
-            cell(cem, &|m| format!(
-                "{} ({})",
-                rho(&m.witness.robustness),
-                m.witness.robustness.binding
-            )),
-            cell(random, &|m| rho(&m.witness.robustness)),
-            cell(cem, &|m| format!("{}/{}", m.unsafe_runs, m.runs)),
-            cell(random, &|m| format!("{}/{}", m.unsafe_runs, m.runs)),
-            cell(cem, &|m| held_out(&m.finalists[0])),
-            cell(random, &|m| held_out(&m.finalists[0])),
-            worst_run,
-            paired,
-            paired_better,
-            attack_free,
-        );
+        let _ = writeln!(out, "{}", falsify_row(f, batch, cem, random));
     }
     let _ = writeln!(out);
     let _ = writeln!(out, "What the table shows:\n");
@@ -869,6 +797,87 @@ fn falsify_page(inputs: &Inputs) -> String {
     let runs: Vec<&StampedRun> = inputs.falsify.iter().map(|(r, _)| r).collect();
     commands(&mut out, stamp, &runs);
     out
+}
+
+/// One world's row of the falsify table.
+fn falsify_row(
+    f: &FalsifyJson,
+    batch: Option<&BatchResult>,
+    cem: Option<&FalsifyMethod>,
+    random: Option<&FalsifyMethod>,
+) -> String {
+    let cell = |m: Option<&FalsifyMethod>, g: &dyn Fn(&FalsifyMethod) -> String| {
+        m.map_or("—".to_string(), g)
+    };
+    let worst_run = match (cem, random) {
+        (Some(c), Some(r)) => match worse(&c.witness.robustness, &r.witness.robustness) {
+            Some(true) => "CEM".to_string(),
+            Some(false) => "**random**".to_string(),
+            None => "tie".to_string(),
+        },
+        _ => "—".to_string(),
+    };
+    let (paired, paired_better) = match &f.paired {
+        Some(p) => (
+            format!(
+                "{} : {} of {} (p = {})",
+                p.cem_worse,
+                p.random_worse,
+                p.seeds,
+                p_value(p.p)
+            ),
+            if p.p >= 0.05 {
+                "tie".to_string()
+            } else if p.cem_worse > p.random_worse {
+                "CEM".to_string()
+            } else {
+                "**random**".to_string()
+            },
+        ),
+        None => ("—".to_string(), "—".to_string()),
+    };
+    let attack_free = f.attack_free.as_ref().map_or("—".to_string(), |a| {
+        let counts: Vec<String> = a
+            .moved
+            .iter()
+            .map(|m| {
+                format!(
+                    "{} : {}{}",
+                    m.attack_worse,
+                    m.attack_free_worse,
+                    if m.p < 0.05 && m.attack_worse > m.attack_free_worse {
+                        ""
+                    } else {
+                        " (not moved)"
+                    }
+                )
+            })
+            .collect();
+        format!(
+            "{} ({})",
+            a.mean.map_or("−∞".to_string(), |v| format!("{v:.4}")),
+            counts.join("; ")
+        )
+    });
+    format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+        f.world,
+        theorem3_short(batch.and_then(|b| b.plan.theorem3.as_deref())),
+        cell(cem, &|m| format!(
+            "{} ({})",
+            rho(&m.witness.robustness),
+            m.witness.robustness.binding
+        )),
+        cell(random, &|m| rho(&m.witness.robustness)),
+        cell(cem, &|m| format!("{}/{}", m.unsafe_runs, m.runs)),
+        cell(random, &|m| format!("{}/{}", m.unsafe_runs, m.runs)),
+        cell(cem, &|m| held_out(&m.finalists[0])),
+        cell(random, &|m| held_out(&m.finalists[0])),
+        worst_run,
+        paired,
+        paired_better,
+        attack_free,
+    )
 }
 
 fn p_value(p: f64) -> String {

@@ -214,12 +214,20 @@ impl BatchPlan {
 }
 
 /// How a batch executes (does not change its results).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Execution {
+#[derive(Clone, Copy)]
+pub struct Execution<'a> {
     /// Worker threads; `None` = all cores.
     pub jobs: Option<usize>,
-    /// Show a progress bar with ETA on stderr (only when stderr is a terminal).
-    pub progress: bool,
+    /// Told how many trials run and each one that finishes ([`crate::progress::Silent`]: nothing shown).
+    pub progress: &'a dyn crate::progress::Progress,
+}
+
+impl std::fmt::Debug for Execution<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Execution")
+            .field("jobs", &self.jobs)
+            .finish_non_exhaustive()
+    }
 }
 
 #[cfg(test)]

@@ -1,15 +1,16 @@
 //! `ftcbf batch` and `ftcbf merge`: clap arguments, the commands and their printing (the batch
-//! is [`BatchSpec`] run on [`ftcbf::runner::prepare_batch`], the merge [`batch::merge`]).
+//! is [`BatchSpec`] run on [`ftcbf_lab::trials::prepare_batch`], the merge [`batch::merge`]).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 
-use ftcbf::batch::{self, BatchSpec, FailOn, PrepareFn, Shard, Sweep};
+use ftcbf_lab::batch::{self, BatchSpec, FailOn, PrepareFn, Shard, Sweep};
 
 use ftcbf_sim::world::ControllerKindSpec;
 
-use crate::cli::{controller_parser, fail_on_parser};
+use crate::bars::RunsBar;
+use crate::parsers::{controller_parser, fail_on_parser};
 
 /// Run a world many times with independent seeds and certify its safety claim.
 ///
@@ -131,9 +132,9 @@ fn report_and_write(outputs: &[PathBuf], results: &[batch::BatchResult]) -> anyh
 
 /// `ftcbf batch`: run the trials of worlds from `prepare`, print the report on stdout, write
 /// the --out files; then a [`batch::VerdictFailure`] if a verdict matched --fail-on.
-pub fn batch_command(args: &BatchArgs, prepare: &PrepareFn<'_>) -> anyhow::Result<()> {
+pub fn command(args: &BatchArgs, prepare: &PrepareFn<'_>) -> anyhow::Result<()> {
     let spec = args.spec()?;
-    let outcome = spec.run(prepare, true)?;
+    let outcome = spec.run(prepare, &RunsBar::new())?;
     report_and_write(&spec.outputs, &outcome.results)?;
     match args.fail_on {
         Some(level) => Ok(level.check(&outcome.results)?),
@@ -142,104 +143,8 @@ pub fn batch_command(args: &BatchArgs, prepare: &PrepareFn<'_>) -> anyhow::Resul
 }
 
 /// `ftcbf merge`: merge, print the report on stdout, write the --out files.
-pub fn merge_command(args: &MergeArgs) -> anyhow::Result<()> {
+pub fn merge(args: &MergeArgs) -> anyhow::Result<()> {
     batch::check_outputs(&args.out)?;
     let results = batch::merge(&args.files, args.allow_incomplete)?;
     report_and_write(&args.out, &results)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::cli::tests::parse;
-    use crate::cli::Command as Cmd;
-
-    #[test]
-    fn batch_arguments_parse_with_defaults() {
-        let Ok(Cmd::Batch(a)) = parse(&["batch", "w.toml"]) else {
-            panic!("batch args did not parse");
-        };
-        assert_eq!(a.trials, 100);
-        assert_eq!(
-            a.controllers,
-            [ControllerKindSpec::FtCbfClf, ControllerKindSpec::Baseline]
-        );
-        assert_eq!((a.jobs, a.seed, a.shard, a.sweep), (None, None, None, None));
-        let Ok(Cmd::Batch(a)) = parse(&[
-            "batch",
-            "w.toml",
-            "--trials",
-            "7",
-            "-j",
-            "2",
-            "--seed",
-            "9",
-            "--controller",
-            "nominal",
-            "--out",
-            "a.csv",
-            "--out",
-            "b.json",
-            "--sweep",
-            "x.y=1,2",
-            "--shard",
-            "3/4",
-        ]) else {
-            panic!("batch args did not parse");
-        };
-        assert_eq!((a.trials, a.jobs, a.seed), (7, Some(2), Some(9)));
-        assert_eq!(a.controllers, [ControllerKindSpec::Nominal]);
-        assert_eq!(a.out.len(), 2);
-        assert_eq!(
-            a.sweep.map(|s| (s.key, s.values)),
-            Some(("x.y".to_string(), vec![1.0, 2.0]))
-        );
-        assert_eq!(a.shard, Some(Shard { index: 3, count: 4 }));
-    }
-
-    #[test]
-    fn bad_arguments_give_clear_errors() {
-        let e = parse(&["batch", "w.toml", "--shard", "5/4"]).expect_err("shard");
-        assert!(
-            e.contains("invalid shard `5/4`") && e.contains("K out of range"),
-            "{e}"
-        );
-        let e = parse(&["batch", "w.toml", "--sweep", "k=1,nope"]).expect_err("sweep");
-        assert!(e.contains("value `nope` is not a number"), "{e}");
-        let e = parse(&["batch", "w.toml", "--trials", "0"]).expect_err("trials");
-        assert!(e.contains("--trials"), "{e}");
-        let e = parse(&["batch", "w.toml", "--controller", "pid"]).expect_err("controller");
-        assert!(e.contains("pid") && e.contains("ft-cbf-clf"), "{e}");
-        let e = parse(&["merge"]).expect_err("no files");
-        assert!(e.contains("FILE.json"), "{e}");
-    }
-
-    #[test]
-    fn fail_on_parses_its_levels() {
-        let Ok(Cmd::Batch(a)) = parse(&["batch", "w.toml", "--fail-on", "refuted"]) else {
-            panic!("--fail-on did not parse");
-        };
-        assert_eq!(a.fail_on, Some(FailOn::Refuted));
-        let e = parse(&["batch", "w.toml", "--fail-on", "sometimes"]).expect_err("bad level");
-        assert!(e.contains("refuted") && e.contains("unresolved"), "{e}");
-    }
-
-    #[test]
-    fn the_spec_is_the_command_line() {
-        let Ok(Cmd::Batch(a)) = parse(&[
-            "batch", "w.toml", "--trials", "7", "-j", "2", "--out", "a.json",
-        ]) else {
-            panic!("batch args did not parse");
-        };
-        let s = a.spec().expect("spec");
-        assert_eq!(
-            s,
-            BatchSpec {
-                trials: 7,
-                jobs: Some(2),
-                outputs: vec![PathBuf::from("a.json")],
-                ..BatchSpec::new("w.toml")
-            }
-        );
-    }
 }

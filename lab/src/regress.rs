@@ -4,7 +4,7 @@
 //! `[expect.baseline]`, `[expect.nominal]`). Each case runs on the same `seeds = N` seeds:
 //! [`regression_seeds`] — the world's seed, then the first N − 1 trial seeds `ftcbf batch` would
 //! use with that base seed, so any failing seed re-runs with `ftcbf run --seed`. All runs of all
-//! cases share one rayon pool; the verdicts ([`ftcbf_sim::regress::failures`]) are pure functions
+//! cases share one rayon pool; the verdicts ([`ftcbf_sim::expectations::failures`]) are pure functions
 //! of the summaries, so the table does not depend on the number of threads.
 
 use std::path::{Path, PathBuf};
@@ -13,12 +13,15 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use ftcbf_sim::regress::{collect_world_files, expectation_for, expected_controllers, failures};
+use ftcbf_sim::expectations::{
+    collect_world_files, expectation_for, expected_controllers, failures,
+};
 use ftcbf_sim::runner::{run, CompiledWorld, RunError, RunOptions};
 use ftcbf_sim::summary::{RunSummary, METRICS};
 use ftcbf_sim::world::{ControllerKindSpec, ExpectOutcome, World, WorldError};
 
 use crate::batch::trial_seed;
+use crate::progress::Progress;
 
 /// Why a regression could not be judged (a failed expectation is not an error: see
 /// [`CaseResult::failures`]).
@@ -65,7 +68,7 @@ pub fn regression_seeds(world_seed: u64, n: u32) -> Vec<u64> {
 
 /// The seeds of `world`'s `[expect]` (just its seed without one).
 pub fn world_seeds(world: &World) -> Vec<u64> {
-    regression_seeds(world.file.seed, ftcbf_sim::regress::seed_count(world))
+    regression_seeds(world.file.seed, ftcbf_sim::expectations::seed_count(world))
 }
 
 /// One controller on one world, over the world's regression seeds.
@@ -146,16 +149,17 @@ impl Plan {
         self.cases.iter().map(|c| c.seeds.len()).sum()
     }
 
-    /// Runs every (case, seed) on the current rayon pool, calling `progress` after each run,
-    /// and judges each case.
-    pub fn run(&self, progress: impl Fn() + Sync) -> Result<Vec<CaseResult>, RegressError> {
+    /// Runs every (case, seed) on the current rayon pool, telling `progress` of each run, and
+    /// judges each case.
+    pub fn run(&self, progress: &dyn Progress) -> Result<Vec<CaseResult>, RegressError> {
         let jobs: Vec<(usize, u64)> = self
             .cases
             .iter()
             .enumerate()
             .flat_map(|(i, c)| c.seeds.iter().map(move |&s| (i, s)))
             .collect();
-        let summaries: Vec<RunSummary> = jobs
+        progress.start(jobs.len() as u64, "regress");
+        let summaries: Result<Vec<RunSummary>, _> = jobs
             .par_iter()
             .map(|&(i, seed)| {
                 let c = &self.cases[i];
@@ -170,10 +174,12 @@ impl Plan {
                     seed,
                     source: Box::new(source),
                 });
-                progress();
+                progress.advance(1);
                 r
             })
-            .collect::<Result<_, _>>()?;
+            .collect::<Result<_, _>>();
+        progress.finish();
+        let summaries = summaries?;
         let mut it = summaries.into_iter();
         Ok(self
             .cases

@@ -12,7 +12,7 @@ use super::{
 };
 
 /// Loads the world with the given overrides and returns its info and trial runner (for the
-/// world's own controllers: [`crate::runner::prepare_batch`]).
+/// world's own controllers: [`crate::trials::prepare_batch`]).
 pub type PrepareFn<'a> = dyn Fn(&[Override]) -> anyhow::Result<PreparedWorld> + 'a;
 
 /// One batch: a world run `trials` times with independent seeds for each controller, maybe
@@ -78,9 +78,13 @@ impl BatchSpec {
     }
 
     /// Runs the batch on worlds from `prepare` (given the overrides, then a sweep point's) and
-    /// returns its results and report; writes no file (see [`write_outputs`]). `progress`
-    /// shows a bar on stderr when it is a terminal.
-    pub fn run(&self, prepare: &PrepareFn<'_>, progress: bool) -> anyhow::Result<BatchOutcome> {
+    /// returns its results and report; writes no file (see [`write_outputs`]). `progress` hears
+    /// each sweep point's trials.
+    pub fn run(
+        &self,
+        prepare: &PrepareFn<'_>,
+        progress: &dyn crate::progress::Progress,
+    ) -> anyhow::Result<BatchOutcome> {
         io::check_outputs(&self.outputs)?;
         let digest = io::digest_file(&self.world)?;
         let world_file = self.world.display().to_string();
@@ -296,7 +300,9 @@ mod tests {
             shard: shard.map(|s| s.parse().expect("shard")),
             ..BatchSpec::new(&world)
         };
-        let full = spec(None, "full.json").run(&prepare, false).expect("full");
+        let full = spec(None, "full.json")
+            .run(&prepare, &crate::progress::Silent)
+            .expect("full");
         assert_eq!(full.results.len(), 2);
         assert_eq!(
             full.results[0].plan.base_seed, 42,
@@ -307,7 +313,7 @@ mod tests {
         let mut parts = Vec::new();
         for k in 1..=3 {
             let s = spec(Some(&format!("{k}/3")), &format!("part{k}.json"));
-            let part = s.run(&prepare, false).expect("shard");
+            let part = s.run(&prepare, &crate::progress::Silent).expect("shard");
             let written = write_outputs(&s.outputs, &part.results).expect("write");
             assert_eq!(
                 written,
@@ -331,22 +337,30 @@ mod tests {
             key: "q".into(),
             value: 0.1,
         }];
-        let b = based.run(&prepare, false).expect("based");
+        let b = based
+            .run(&prepare, &crate::progress::Silent)
+            .expect("based");
         assert_eq!(b.results, full.results, "the sweep point's value wins");
         based.sweep = None;
-        let b = based.run(&prepare, false).expect("based, no sweep");
+        let b = based
+            .run(&prepare, &crate::progress::Silent)
+            .expect("based, no sweep");
         assert!(b.results[0].plan.overrides.is_empty());
         assert!(b.results[0].summaries[0].safe_rate < 0.5, "p = 0.1 applies");
 
         // A bad output name is refused before any trial runs.
         let mut bad = spec(None, "x.txt");
         bad.trials = 1;
-        let e = bad.run(&prepare, false).expect_err("txt");
+        let e = bad
+            .run(&prepare, &crate::progress::Silent)
+            .expect_err("txt");
         assert!(e.to_string().contains("x.txt"));
         // A missing world file is named.
         let mut gone = spec(None, "y.json");
         gone.world = dir.join("missing.toml");
-        let e = gone.run(&prepare, false).expect_err("missing");
+        let e = gone
+            .run(&prepare, &crate::progress::Silent)
+            .expect_err("missing");
         assert!(e.to_string().contains("missing.toml"));
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -379,7 +393,11 @@ mod tests {
             controllers: vec!["ft-cbf-clf".into()],
             ..BatchSpec::new(&world)
         };
-        let run = |s: &BatchSpec| s.run(&prepare, false).expect("batch").results;
+        let run = |s: &BatchSpec| {
+            s.run(&prepare, &crate::progress::Silent)
+                .expect("batch")
+                .results
+        };
         FailOn::Refuted
             .check(&run(&spec))
             .expect("p = 0.99 is not refuted");

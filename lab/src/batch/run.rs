@@ -1,9 +1,10 @@
 //! Running a batch on a thread pool, and a sweep of batches.
 
-use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{anyhow, Context};
+
+use crate::progress::Progress;
 
 use super::{
     trial_seed, BatchPlan, BatchResult, Execution, Override, PrepareFn, Sweep, TrialRecord,
@@ -19,30 +20,14 @@ pub fn worker_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
     pool.build().context("could not start the worker threads")
 }
 
-/// A progress bar over `len` runs on stderr with elapsed time and ETA, labelled `message`;
-/// hidden unless `show` and stderr is a terminal.
-pub fn progress_bar(len: u64, message: &str, show: bool) -> indicatif::ProgressBar {
-    if !(show && std::io::stderr().is_terminal()) {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(len);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} runs, ETA {eta}",
-    ) {
-        bar.set_style(style);
-    }
-    bar.set_message(message.to_string());
-    bar
-}
-
-/// Runs `f` on every item on `pool`, advancing `bar` once per finished item, and returns the
+/// Runs `f` on every item on `pool`, advancing `progress` once per finished item, and returns the
 /// results in item order, so the outcome does not depend on the number of threads. After a
 /// failure, items not yet started are skipped, and the error of the lowest-index failed item is
 /// returned.
 pub fn run_parallel<T, R, F>(
     pool: &rayon::ThreadPool,
     items: &[T],
-    bar: &indicatif::ProgressBar,
+    progress: &dyn Progress,
     f: F,
 ) -> anyhow::Result<Vec<R>>
 where
@@ -64,7 +49,7 @@ where
                 if out.is_err() {
                     failed.store(true, Ordering::Relaxed);
                 }
-                bar.inc(1);
+                progress.advance(1);
                 Some(out)
             })
             .collect()
@@ -89,7 +74,7 @@ where
 pub fn run_batch(
     runner: &dyn TrialRunner,
     plan: &BatchPlan,
-    exec: Execution,
+    exec: Execution<'_>,
 ) -> anyhow::Result<BatchResult> {
     plan.validate()?;
     let tasks: Vec<(u64, &str)> = plan
@@ -97,9 +82,9 @@ pub fn run_batch(
         .into_iter()
         .flat_map(|k| plan.controllers.iter().map(move |c| (k, c.as_str())))
         .collect();
-    let bar = progress_bar(tasks.len() as u64, &plan.world, exec.progress);
+    exec.progress.start(tasks.len() as u64, &plan.world);
     let pool = worker_pool(exec.jobs)?;
-    let records = run_parallel(&pool, &tasks, &bar, |&(k, controller)| {
+    let records = run_parallel(&pool, &tasks, exec.progress, |&(k, controller)| {
         let seed = trial_seed(plan.base_seed, k);
         runner
             .run_trial(controller, seed)
@@ -116,7 +101,7 @@ pub fn run_batch(
             })
             .with_context(|| format!("trial {k} (seed {seed}, controller {controller}) failed"))
     });
-    bar.finish_and_clear();
+    exec.progress.finish();
     BatchResult::from_records(plan.clone(), records?, Vec::new())
 }
 
@@ -127,7 +112,7 @@ pub fn run_sweep(
     prepare: &PrepareFn<'_>,
     sweep: Option<&Sweep>,
     plan_for: &dyn Fn(&WorldInfo, Vec<Override>) -> anyhow::Result<BatchPlan>,
-    exec: Execution,
+    exec: Execution<'_>,
 ) -> anyhow::Result<Vec<BatchResult>> {
     let points: Vec<Vec<Override>> = match sweep {
         None => vec![Vec::new()],
@@ -188,7 +173,7 @@ mod tests {
             &plan,
             Execution {
                 jobs: Some(2),
-                progress: false,
+                progress: &crate::progress::Silent,
             },
         )
         .expect("batch");
@@ -197,7 +182,7 @@ mod tests {
             &plan,
             Execution {
                 jobs: Some(4),
-                progress: false,
+                progress: &crate::progress::Silent,
             },
         )
         .expect("batch");

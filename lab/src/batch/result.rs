@@ -871,7 +871,7 @@ mod tests {
             &plan(60, None),
             Execution {
                 jobs: Some(2),
-                progress: false,
+                progress: &crate::progress::Silent,
             },
         )
         .expect("batch");

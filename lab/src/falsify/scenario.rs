@@ -25,13 +25,13 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::progress::{Progress, Silent};
 use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
 use ftcbf_sim::check::check_world;
 use ftcbf_sim::obstacles::{MeshScale, ShapeSpec};
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::world::{Dynamics, World, WorldFile};
-use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -238,7 +238,7 @@ fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
             f(half_height);
         }
         ShapeSpec::ConvexHull { points } => points.iter_mut().flatten().for_each(f),
-        ShapeSpec::HalfSpace { .. } => {}
+        ShapeSpec::HalfSpace { .. } | ShapeSpec::OccupancyMap { .. } => {}
         ShapeSpec::TriMesh {
             vertices,
             file,
@@ -549,203 +549,60 @@ struct Accepted {
     world: World,
 }
 
-/// The scenario search on `template`'s world, advancing `bar` once per run: the caller makes
-/// the bar (shown or hidden, `settings.budget` long); the search sets its message to the phase
-/// and clears it when the runs are done.
+/// The variants drawn and checked (phase 1), with the count of each refusal.
+struct Drawn {
+    accepted: Vec<Accepted>,
+    tried: usize,
+    invalid: usize,
+    not_applies: usize,
+    not_live: usize,
+}
+
+/// One screening run to make (phase 2): a variant, its seed, and an attack (`None`: the
+/// world's own attacks).
+struct Task {
+    variant: usize,
+    seed: u64,
+    candidate: Option<Candidate>,
+}
+
+/// What every phase of the scenario search reads.
+struct ScenarioSearch<'a> {
+    template: &'a WorldTemplate,
+    settings: &'a Settings,
+    ranges: &'a Ranges,
+    space: SearchSpace,
+    plan: ScenarioPlan,
+    pool: rayon::ThreadPool,
+    progress: &'a dyn Progress,
+}
+
+/// The scenario search on `template`'s world, telling `progress` of its `settings.budget` runs
+/// and of each phase, and finishing it when the runs are done.
 pub fn scenario(
     template: &WorldTemplate,
     settings: &Settings,
     ranges: &Ranges,
-    bar: &ProgressBar,
+    progress: &dyn Progress,
 ) -> anyhow::Result<ScenarioReport> {
     let clock = Instant::now();
     let base = &template.world;
-    let space = SearchSpace::new(base).with_context(|| format!("world `{}`", base.name))?;
-    let controller = settings.controller.name();
-    let plan = ScenarioPlan::new(settings.budget, !base.file.attacks.is_empty())?;
-    let pool = worker_pool(settings.jobs)?;
-    let hidden = ProgressBar::hidden();
-
-    // 1. Draw and check variants, in batches, until enough are accepted.
-    let mut accepted: Vec<Accepted> = Vec::new();
-    let (mut tried, mut invalid, mut not_applies, mut not_live) = (0, 0, 0, 0);
-    while accepted.len() < plan.variants_wanted && tried < plan.max_tries {
-        bar.set_message(format!(
-            "{}: checking variants ({} accepted of {tried})",
-            base.name,
-            accepted.len()
-        ));
-        let n = (plan.variants_wanted - accepted.len()).min(plan.max_tries - tried);
-        let batch: Vec<usize> = (tried..tried + n).collect();
-        let checked = run_parallel(&pool, &batch, &hidden, |&i| {
-            let v = Variant::draw(base, ranges, settings.seed, i);
-            let world = base.with_file(v.apply(&base.file, controller)).ok();
-            let c = world.as_ref().map(check);
-            Ok((v, world, c))
-        })?;
-        tried += n;
-        for (v, world, c) in checked {
-            match (world, c) {
-                (Some(world), Some(c)) if c.applies && c.live => {
-                    if accepted.len() < plan.variants_wanted {
-                        accepted.push(Accepted { variant: v, world });
-                    }
-                }
-                (Some(_), Some(c)) if c.applies => not_live += 1,
-                (Some(_), _) => not_applies += 1,
-                (None, _) => invalid += 1,
-            }
-        }
-    }
-
-    // 2. Screen: own attacks and uniform attacks on every accepted variant, one seed each.
-    struct Task {
-        variant: usize,
-        seed: u64,
-        candidate: Option<Candidate>,
-    }
-    let mut tasks = Vec::new();
-    for (k, a) in accepted.iter().enumerate() {
-        let mut rng = ChaCha8Rng::seed_from_u64(trial_seed(
-            settings.seed,
-            (ATTACK_TAG << 32) + a.variant.index as u64,
-        ));
-        let runs = plan.runs_per_variant;
-        for j in 0..runs {
-            let candidate = if j == 0 && runs > ATTACKS_PER_VARIANT {
-                None
-            } else {
-                Some(uniform(&space, &mut rng))
-            };
-            tasks.push(Task {
-                variant: k,
-                seed: run_seed(settings.seed, (k * runs + j) as u64),
-                candidate,
-            });
-        }
-    }
-    bar.set_message(format!(
-        "{}: {} accepted variants × {} attacks",
-        base.name,
-        accepted.len(),
-        plan.runs_per_variant
-    ));
-    let one =
-        |variant: usize, seed: u64, candidate: Option<&Candidate>| -> anyhow::Result<ScenarioRun> {
-            let a = &accepted[variant];
-            let (world, attack) = match candidate {
-                None => (
-                    None,
-                    a.world
-                        .file
-                        .attacks
-                        .iter()
-                        .map(|s| s.display_label())
-                        .collect::<Vec<_>>()
-                        .join("; "),
-                ),
-                Some(c) => (
-                    Some(template.variant_with(&a.world, &space.decode(c))?),
-                    space.describe(c),
-                ),
-            };
-            let w = world.as_ref().unwrap_or(&a.world);
-            let opts = RunOptions {
-                seed: Some(seed),
-                controller: Some(settings.controller),
-                duration: None,
-            };
-            let s = run(w, &opts).with_context(|| format!("{}: {attack}", a.variant.describe()))?;
-            let robustness = Robustness::of(w, &s)
-                .ok_or_else(|| anyhow!("the world has no safe set and no obstacle"))?;
-            Ok(ScenarioRun {
-                variant,
-                seed,
-                phase: if candidate.is_some() { "search" } else { "own" },
-                attack,
-                candidate: candidate.cloned(),
-                robustness,
-            })
-        };
-    let mut runs: Vec<ScenarioRun> = run_parallel(&pool, &tasks, bar, |t| {
-        one(t.variant, t.seed, t.candidate.as_ref())
-    })?;
-
-    // 3. CMA-ES on the worst searched runs of up to REFINED distinct variants.
-    let mut order: Vec<&ScenarioRun> = runs.iter().filter(|r| r.candidate.is_some()).collect();
-    order.sort_by(|a, b| a.robustness.cmp_worse(&b.robustness));
-    let mut starts: Vec<ScenarioRun> = Vec::new();
-    for r in order {
-        if starts.len() == REFINED {
-            break;
-        }
-        if !starts.iter().any(|s| s.variant == r.variant) {
-            starts.push(r.clone());
-        }
-    }
-    let mut cma_traces = Vec::new();
-    let mut rng = ChaCha8Rng::seed_from_u64(trial_seed(settings.seed, u64::MAX - CMA_TAG));
-    let n_starts = starts.len().max(1);
-    for (i, start) in starts.iter().enumerate() {
-        let share = plan.refine_runs / n_starts + usize::from(i < plan.refine_runs % n_starts);
-        let Some(c0) = &start.candidate else { continue };
-        let lambda = cmaes::default_lambda(c0.z.len()).min(share / 3).max(2);
-        let sigma0 = 0.15;
-        let mut es = cmaes::Cmaes::new(&c0.z, sigma0, &vec![1.0; c0.z.len()], lambda);
-        bar.set_message(format!(
-            "{}: CMA-ES on variant {}",
-            base.name, accepted[start.variant].variant.index
-        ));
-        let best = es
-            .spend(&mut rng, share, |zs| {
-                let cs: Vec<Candidate> = zs.iter().map(|z| c0.with_z(z)).collect();
-                let rs =
-                    run_parallel(&pool, &cs, bar, |c| one(start.variant, start.seed, Some(c)))?;
-                let f = rs
-                    .iter()
-                    .map(|r| r.robustness.value - if r.robustness.collided { 10.0 } else { 0.0 })
-                    .collect();
-                runs.extend(rs.into_iter().map(|mut r| {
-                    r.phase = "cmaes";
-                    r
-                }));
-                Ok::<_, anyhow::Error>(f)
-            })?
-            .min(start.robustness.value);
-        cma_traces.push(ScenarioCma {
-            variant: start.variant,
-            seed: start.seed,
-            start: start.robustness.value,
-            best,
-            runs: share,
-            sigma: [sigma0, es.sigma()],
-        });
-    }
-    bar.finish_and_clear();
-
-    // 4. Every unsafe run: does `check` still accept its world with the run's attack declared?
+    let search = ScenarioSearch {
+        template,
+        settings,
+        ranges,
+        space: SearchSpace::new(base).with_context(|| format!("world `{}`", base.name))?,
+        plan: ScenarioPlan::new(settings.budget, !base.file.attacks.is_empty())?,
+        pool: worker_pool(settings.jobs)?,
+        progress,
+    };
+    progress.start(settings.budget as u64, &base.name);
+    let drawn = search.draw_variants()?;
+    let mut runs = search.screen(&drawn.accepted)?;
+    let cma_traces = search.refine(&drawn.accepted, &mut runs)?;
+    progress.finish();
     let unsafe_runs: Vec<&ScenarioRun> = runs.iter().filter(|r| r.robustness.is_unsafe()).collect();
-    let rechecked = run_parallel(&pool, &unsafe_runs, &hidden, |r| {
-        let a = &accepted[r.variant];
-        let world = match &r.candidate {
-            Some(c) => template.variant_with(&a.world, &space.decode(c))?,
-            None => a.world.with_file(a.world.file.clone())?,
-        };
-        Ok(check(&world))
-    })?;
-    let mut defects = Vec::new();
-    let mut declines = 0;
-    for (r, c) in unsafe_runs.iter().zip(rechecked) {
-        if c.applies && c.live {
-            defects.push(Defect {
-                run: (*r).clone(),
-                verdict: c.verdict,
-                file: String::new(),
-            });
-        } else {
-            declines += 1;
-        }
-    }
+    let (defects, declines) = search.recheck(&drawn.accepted, &unsafe_runs)?;
     let worst = runs
         .iter()
         .reduce(|a, b| {
@@ -759,16 +616,16 @@ pub fn scenario(
     Ok(ScenarioReport {
         world: base.name.clone(),
         world_file: template.path.display().to_string(),
-        controller: controller.to_string(),
+        controller: settings.controller.name().to_string(),
         seed: settings.seed,
         ranges: *ranges,
-        plan,
-        variants_tried: tried,
-        variants_invalid: invalid,
-        variants_not_applies: not_applies,
-        variants_not_live: not_live,
-        variants_accepted: accepted.len(),
-        accepted: accepted.into_iter().map(|a| a.variant).collect(),
+        plan: search.plan,
+        variants_tried: drawn.tried,
+        variants_invalid: drawn.invalid,
+        variants_not_applies: drawn.not_applies,
+        variants_not_live: drawn.not_live,
+        variants_accepted: drawn.accepted.len(),
+        accepted: drawn.accepted.into_iter().map(|a| a.variant).collect(),
         unsafe_runs: unsafe_runs.len(),
         runs: runs.len(),
         unsafe_where_applies: defects.len(),
@@ -778,6 +635,229 @@ pub fn scenario(
         cmaes: cma_traces,
         time_seconds: clock.elapsed().as_secs_f64(),
     })
+}
+
+impl ScenarioSearch<'_> {
+    /// Phase 1: draw and check variants, in batches, until enough are accepted.
+    fn draw_variants(&self) -> anyhow::Result<Drawn> {
+        let (base, plan, settings) = (&self.template.world, &self.plan, self.settings);
+        let controller = settings.controller.name();
+        let mut d = Drawn {
+            accepted: Vec::new(),
+            tried: 0,
+            invalid: 0,
+            not_applies: 0,
+            not_live: 0,
+        };
+        while d.accepted.len() < plan.variants_wanted && d.tried < plan.max_tries {
+            self.progress.phase(&format!(
+                "{}: checking variants ({} accepted of {})",
+                base.name,
+                d.accepted.len(),
+                d.tried
+            ));
+            let n = (plan.variants_wanted - d.accepted.len()).min(plan.max_tries - d.tried);
+            let batch: Vec<usize> = (d.tried..d.tried + n).collect();
+            let checked = run_parallel(&self.pool, &batch, &Silent, |&i| {
+                let v = Variant::draw(base, self.ranges, settings.seed, i);
+                let world = base.with_file(v.apply(&base.file, controller)).ok();
+                let c = world.as_ref().map(check);
+                Ok((v, world, c))
+            })?;
+            d.tried += n;
+            for (v, world, c) in checked {
+                match (world, c) {
+                    (Some(world), Some(c)) if c.applies && c.live => {
+                        if d.accepted.len() < plan.variants_wanted {
+                            d.accepted.push(Accepted { variant: v, world });
+                        }
+                    }
+                    (Some(_), Some(c)) if c.applies => d.not_live += 1,
+                    (Some(_), _) => d.not_applies += 1,
+                    (None, _) => d.invalid += 1,
+                }
+            }
+        }
+        Ok(d)
+    }
+
+    /// Phase 2, the screen: own attacks and uniform attacks on every accepted variant, one seed
+    /// each.
+    fn screen(&self, accepted: &[Accepted]) -> anyhow::Result<Vec<ScenarioRun>> {
+        let seed = self.settings.seed;
+        let mut tasks = Vec::new();
+        for (k, a) in accepted.iter().enumerate() {
+            let mut rng = ChaCha8Rng::seed_from_u64(trial_seed(
+                seed,
+                (ATTACK_TAG << 32) + a.variant.index as u64,
+            ));
+            let runs = self.plan.runs_per_variant;
+            for j in 0..runs {
+                let candidate = if j == 0 && runs > ATTACKS_PER_VARIANT {
+                    None
+                } else {
+                    Some(uniform(&self.space, &mut rng))
+                };
+                tasks.push(Task {
+                    variant: k,
+                    seed: run_seed(seed, (k * runs + j) as u64),
+                    candidate,
+                });
+            }
+        }
+        self.progress.phase(&format!(
+            "{}: {} accepted variants × {} attacks",
+            self.template.world.name,
+            accepted.len(),
+            self.plan.runs_per_variant
+        ));
+        run_parallel(&self.pool, &tasks, self.progress, |t| {
+            self.one(accepted, t.variant, t.seed, t.candidate.as_ref())
+        })
+    }
+
+    /// One run of an accepted variant under `candidate` (`None`: its own attacks).
+    fn one(
+        &self,
+        accepted: &[Accepted],
+        variant: usize,
+        seed: u64,
+        candidate: Option<&Candidate>,
+    ) -> anyhow::Result<ScenarioRun> {
+        let a = &accepted[variant];
+        let (world, attack) = match candidate {
+            None => (
+                None,
+                a.world
+                    .file
+                    .attacks
+                    .iter()
+                    .map(|s| s.display_label())
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            ),
+            Some(c) => (
+                Some(
+                    self.template
+                        .variant_with(&a.world, &self.space.decode(c))?,
+                ),
+                self.space.describe(c),
+            ),
+        };
+        let w = world.as_ref().unwrap_or(&a.world);
+        let opts = RunOptions {
+            seed: Some(seed),
+            controller: Some(self.settings.controller),
+            duration: None,
+        };
+        let s = run(w, &opts).with_context(|| format!("{}: {attack}", a.variant.describe()))?;
+        let robustness = Robustness::of(w, &s)
+            .ok_or_else(|| anyhow!("the world has no safe set and no obstacle"))?;
+        Ok(ScenarioRun {
+            variant,
+            seed,
+            phase: if candidate.is_some() { "search" } else { "own" },
+            attack,
+            candidate: candidate.cloned(),
+            robustness,
+        })
+    }
+
+    /// Phase 3, CMA-ES on the worst searched runs of up to REFINED distinct variants; the runs
+    /// it makes join `runs`.
+    fn refine(
+        &self,
+        accepted: &[Accepted],
+        runs: &mut Vec<ScenarioRun>,
+    ) -> anyhow::Result<Vec<ScenarioCma>> {
+        let mut order: Vec<&ScenarioRun> = runs.iter().filter(|r| r.candidate.is_some()).collect();
+        order.sort_by(|a, b| a.robustness.cmp_worse(&b.robustness));
+        let mut starts: Vec<ScenarioRun> = Vec::new();
+        for r in order {
+            if starts.len() == REFINED {
+                break;
+            }
+            if !starts.iter().any(|s| s.variant == r.variant) {
+                starts.push(r.clone());
+            }
+        }
+        let refine_runs = self.plan.refine_runs;
+        let mut cma_traces = Vec::new();
+        let mut rng = ChaCha8Rng::seed_from_u64(trial_seed(self.settings.seed, u64::MAX - CMA_TAG));
+        let n_starts = starts.len().max(1);
+        for (i, start) in starts.iter().enumerate() {
+            let share = refine_runs / n_starts + usize::from(i < refine_runs % n_starts);
+            let Some(c0) = &start.candidate else { continue };
+            let lambda = cmaes::default_lambda(c0.z.len()).min(share / 3).max(2);
+            let sigma0 = 0.15;
+            let mut es = cmaes::Cmaes::new(&c0.z, sigma0, &vec![1.0; c0.z.len()], lambda);
+            self.progress.phase(&format!(
+                "{}: CMA-ES on variant {}",
+                self.template.world.name, accepted[start.variant].variant.index
+            ));
+            let best = es
+                .spend(&mut rng, share, |zs| {
+                    let cs: Vec<Candidate> = zs.iter().map(|z| c0.with_z(z)).collect();
+                    let rs = run_parallel(&self.pool, &cs, self.progress, |c| {
+                        self.one(accepted, start.variant, start.seed, Some(c))
+                    })?;
+                    let f = rs
+                        .iter()
+                        .map(|r| {
+                            r.robustness.value - if r.robustness.collided { 10.0 } else { 0.0 }
+                        })
+                        .collect();
+                    runs.extend(rs.into_iter().map(|mut r| {
+                        r.phase = "cmaes";
+                        r
+                    }));
+                    Ok::<_, anyhow::Error>(f)
+                })?
+                .min(start.robustness.value);
+            cma_traces.push(ScenarioCma {
+                variant: start.variant,
+                seed: start.seed,
+                start: start.robustness.value,
+                best,
+                runs: share,
+                sigma: [sigma0, es.sigma()],
+            });
+        }
+        Ok(cma_traces)
+    }
+
+    /// Phase 4, every unsafe run: does `check` still accept its world with the run's attack
+    /// declared? The defects (it does), and how many it declines.
+    fn recheck(
+        &self,
+        accepted: &[Accepted],
+        unsafe_runs: &[&ScenarioRun],
+    ) -> anyhow::Result<(Vec<Defect>, usize)> {
+        let rechecked = run_parallel(&self.pool, unsafe_runs, &Silent, |r| {
+            let a = &accepted[r.variant];
+            let world = match &r.candidate {
+                Some(c) => self
+                    .template
+                    .variant_with(&a.world, &self.space.decode(c))?,
+                None => a.world.with_file(a.world.file.clone())?,
+            };
+            Ok(check(&world))
+        })?;
+        let mut defects = Vec::new();
+        let mut declines = 0;
+        for (r, c) in unsafe_runs.iter().zip(rechecked) {
+            if c.applies && c.live {
+                defects.push(Defect {
+                    run: (*r).clone(),
+                    verdict: c.verdict,
+                    file: String::new(),
+                });
+            } else {
+                declines += 1;
+            }
+        }
+        Ok((defects, declines))
+    }
 }
 
 /// Sets `key` of the table-like `item` to `value`.

@@ -148,93 +148,49 @@ pub enum SpaceError {
     NoPatterns,
 }
 
-/// The channel scale used for magnitudes and rates [unit].
-fn scale(q: Quantity) -> f64 {
-    match q {
-        Quantity::X | Quantity::Y => 1.0,
-        Quantity::Vx | Quantity::Vy | Quantity::Heading | Quantity::YawRate => 0.5,
-        Quantity::Speed => 0.2,
-        Quantity::WheelLeft | Quantity::WheelRight => 6.0,
-    }
-}
-
-/// `lo · (hi / lo)^a`: log-uniform in [lo, hi] for a uniform a ∈ [0, 1].
-fn log_range(a: f64, lo: f64, hi: f64) -> f64 {
-    lo * (hi / lo).powf(a.clamp(0.0, 1.0))
-}
-
-/// Rounds to four significant digits (exact zero stays zero).
-fn round4(x: f64) -> f64 {
-    if x == 0.0 || !x.is_finite() {
-        return x;
-    }
-    format!("{x:.3e}").parse().unwrap_or(x)
-}
-
-impl SearchSpace {
-    /// The search space of `world`: its declared fault patterns, whatever their channels measure.
-    pub fn new(world: &World) -> Result<Self, SpaceError> {
-        let f = &world.file;
-        if world.patterns.is_empty() {
-            return Err(SpaceError::NoPatterns);
-        }
-        let mut patterns = Vec::with_capacity(world.patterns.len());
-        for (spec, idx) in f.fault_patterns.iter().zip(&world.patterns) {
-            let mut channels = Vec::with_capacity(idx.len());
-            for &c in idx {
-                let ch = &f.sensors[c];
-                channels.push((ch.name.clone(), ch.measures));
-            }
-            patterns.push(Pattern {
-                name: spec.name.clone(),
-                channels,
-            });
-        }
-        let widest = patterns.iter().map(|p| p.channels.len()).max().unwrap_or(1);
-        Ok(Self {
-            patterns,
-            duration: f.duration,
-            dim: HEAD + widest,
-        })
-    }
-
-    /// The `[[attacks]]` entries of `c`: all on channels of pattern `c.pattern` (never of two
-    /// patterns), in a fixed order.
-    pub fn decode(&self, c: &Candidate) -> Vec<AttackSpec> {
-        let pattern = &self.patterns[c.pattern.min(self.patterns.len() - 1)];
-        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
-        let t_end = self.duration;
-        let mut start = z(0) * 0.75 * t_end;
-        if c.kind == Kind::Replay {
-            start = start.max(0.1 * t_end);
-        }
-        let start = round4(start);
-        let end_raw = start + 1.25 * z(1) * (t_end - start);
-        let end = (end_raw < t_end).then(|| round4(end_raw.max(start + 0.02)));
-        // Attacked channels with signed relative weights.
-        let weights: Vec<f64> = (0..pattern.channels.len())
-            .map(|i| 2.0 * z(HEAD + i) - 1.0)
-            .collect();
-        let wmax = weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
-        let mut on: Vec<(usize, f64)> = weights
+/// The channels of `pattern` a candidate attacks, with signed relative weights (the largest
+/// magnitude 1): those whose weight reaches [`CHANNEL_ON`], or else the strongest one.
+fn attacked_channels(pattern: &Pattern, z: &dyn Fn(usize) -> f64) -> Vec<(usize, f64)> {
+    let weights: Vec<f64> = (0..pattern.channels.len())
+        .map(|i| 2.0 * z(HEAD + i) - 1.0)
+        .collect();
+    let wmax = weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+    let mut on: Vec<(usize, f64)> = weights
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.abs() >= CHANNEL_ON)
+        .map(|(i, &w)| (i, if wmax > 0.0 { w / wmax } else { 1.0 }))
+        .collect();
+    if on.is_empty() {
+        let (i, w) = weights
             .iter()
             .enumerate()
-            .filter(|(_, w)| w.abs() >= CHANNEL_ON)
-            .map(|(i, &w)| (i, if wmax > 0.0 { w / wmax } else { 1.0 }))
-            .collect();
-        if on.is_empty() {
-            let (i, w) = weights
-                .iter()
-                .enumerate()
-                .fold((0, 0.0f64), |(bi, bw), (i, &w)| {
-                    if w.abs() > bw.abs() {
-                        (i, w)
-                    } else {
-                        (bi, bw)
-                    }
-                });
-            on.push((i, if w < 0.0 { -1.0 } else { 1.0 }));
-        }
+            .fold((0, 0.0f64), |(bi, bw), (i, &w)| {
+                if w.abs() > bw.abs() {
+                    (i, w)
+                } else {
+                    (bi, bw)
+                }
+            });
+        on.push((i, if w < 0.0 { -1.0 } else { 1.0 }));
+    }
+    on
+}
+
+/// A candidate being turned into attack entries: its pattern, attacked channels and window.
+struct Decoding<'a> {
+    pattern: &'a Pattern,
+    c: &'a Candidate,
+    on: Vec<(usize, f64)>,
+    start: f64,
+    end: Option<f64>,
+}
+
+impl Decoding<'_> {
+    /// The candidate's entries, one per attacked channel or one for them all, by kind.
+    fn specs(&self) -> Vec<AttackSpec> {
+        let (c, pattern, on, start, end) = (self.c, self.pattern, &self.on, self.start, self.end);
+        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
         let names: Vec<String> = on
             .iter()
             .map(|&(i, _)| pattern.channels[i].0.clone())
@@ -337,6 +293,80 @@ impl SearchSpace {
                 )]
             }
         }
+    }
+}
+
+/// The channel scale used for magnitudes and rates [unit].
+fn scale(q: Quantity) -> f64 {
+    match q {
+        Quantity::X | Quantity::Y => 1.0,
+        Quantity::Vx | Quantity::Vy | Quantity::Heading | Quantity::YawRate => 0.5,
+        Quantity::Speed => 0.2,
+        Quantity::WheelLeft | Quantity::WheelRight => 6.0,
+    }
+}
+
+/// `lo · (hi / lo)^a`: log-uniform in [lo, hi] for a uniform a ∈ [0, 1].
+fn log_range(a: f64, lo: f64, hi: f64) -> f64 {
+    lo * (hi / lo).powf(a.clamp(0.0, 1.0))
+}
+
+/// Rounds to four significant digits (exact zero stays zero).
+fn round4(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    format!("{x:.3e}").parse().unwrap_or(x)
+}
+
+impl SearchSpace {
+    /// The search space of `world`: its declared fault patterns, whatever their channels measure.
+    pub fn new(world: &World) -> Result<Self, SpaceError> {
+        let f = &world.file;
+        if world.patterns.is_empty() {
+            return Err(SpaceError::NoPatterns);
+        }
+        let mut patterns = Vec::with_capacity(world.patterns.len());
+        for (spec, idx) in f.fault_patterns.iter().zip(&world.patterns) {
+            let mut channels = Vec::with_capacity(idx.len());
+            for &c in idx {
+                let ch = &f.sensors[c];
+                channels.push((ch.name.clone(), ch.measures));
+            }
+            patterns.push(Pattern {
+                name: spec.name.clone(),
+                channels,
+            });
+        }
+        let widest = patterns.iter().map(|p| p.channels.len()).max().unwrap_or(1);
+        Ok(Self {
+            patterns,
+            duration: f.duration,
+            dim: HEAD + widest,
+        })
+    }
+
+    /// The `[[attacks]]` entries of `c`: all on channels of pattern `c.pattern` (never of two
+    /// patterns), in a fixed order.
+    pub fn decode(&self, c: &Candidate) -> Vec<AttackSpec> {
+        let pattern = &self.patterns[c.pattern.min(self.patterns.len() - 1)];
+        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
+        let t_end = self.duration;
+        let mut start = z(0) * 0.75 * t_end;
+        if c.kind == Kind::Replay {
+            start = start.max(0.1 * t_end);
+        }
+        let start = round4(start);
+        let end_raw = start + 1.25 * z(1) * (t_end - start);
+        let end = (end_raw < t_end).then(|| round4(end_raw.max(start + 0.02)));
+        Decoding {
+            pattern,
+            c,
+            on: attacked_channels(pattern, &z),
+            start,
+            end,
+        }
+        .specs()
     }
 
     /// A one-line description of `c`'s attack, e.g.

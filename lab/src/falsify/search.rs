@@ -1,11 +1,11 @@
 //! The optimiser (a cross-entropy method over the mixed discrete/continuous attack space), the
 //! random-search comparison, and the evaluation of candidates on several seeds.
 
+use crate::progress::{Progress, Silent};
 use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
 use ftcbf_sim::runner::{run, CompiledWorld, RunOptions};
 use ftcbf_sim::world::ControllerKindSpec;
-use indicatif::ProgressBar;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -406,7 +406,7 @@ pub struct Search<'a> {
     /// Worker threads.
     pub pool: &'a rayon::ThreadPool,
     /// Advanced once per run.
-    pub bar: &'a ProgressBar,
+    pub progress: &'a dyn Progress,
 }
 
 /// The CEM's sampling distribution: categorical over patterns and kinds, an independent
@@ -894,8 +894,7 @@ impl Search<'_> {
         candidates: Vec<Candidate>,
         seeds: &[u64],
     ) -> anyhow::Result<Vec<Evaluation>> {
-        let hidden = ProgressBar::hidden();
-        let worlds: Vec<CompiledWorld> = run_parallel(self.pool, &candidates, &hidden, |c| {
+        let worlds: Vec<CompiledWorld> = run_parallel(self.pool, &candidates, &Silent, |c| {
             self.template
                 .compiled_with(&self.space.decode(c))
                 .with_context(|| self.space.describe(c))
@@ -903,7 +902,7 @@ impl Search<'_> {
         let tasks: Vec<(usize, u64)> = (0..candidates.len())
             .flat_map(|i| seeds.iter().map(move |&s| (i, s)))
             .collect();
-        let results = run_parallel(self.pool, &tasks, self.bar, |&(i, seed)| {
+        let results = run_parallel(self.pool, &tasks, self.progress, |&(i, seed)| {
             self.run_one(&worlds[i], seed, || self.space.describe(&candidates[i]))
         })?;
         let mut runs = results.into_iter();
@@ -940,11 +939,11 @@ impl Search<'_> {
     /// that says how far the best attacks moved ρ (runs outside both methods' budgets).
     pub fn attack_free(&self) -> anyhow::Result<Vec<SeedRun>> {
         let world = self.template.compiled_with(&[])?;
-        self.bar.set_message("no attack, on the held-out seeds");
+        self.progress.phase("no attack, on the held-out seeds");
         run_parallel(
             self.pool,
             &self.plan.final_seeds(self.seed),
-            self.bar,
+            self.progress,
             |&seed| self.run_one(&world, seed, || "the world without attacks".to_string()),
         )
     }
@@ -953,7 +952,7 @@ impl Search<'_> {
     /// that both methods share these runs instead of making them twice.
     pub fn first_generation(&self) -> anyhow::Result<Vec<Evaluation>> {
         let mut proposer = Proposer::new(Method::Random, &self.plan, self.space, self.seed);
-        self.bar.set_message("first generation (both methods)");
+        self.progress.phase("first generation (both methods)");
         self.evaluate(
             Some(0),
             proposer.propose(0),
@@ -980,8 +979,8 @@ impl Search<'_> {
                         "the shared first generation does not match; this is a bug"
                     ));
                 }
-                self.bar
-                    .set_message(if method == Method::Cem && g >= plan.cma_from {
+                self.progress
+                    .phase(&if method == Method::Cem && g >= plan.cma_from {
                         "cem CMA-ES refinement".to_string()
                     } else {
                         format!(
@@ -1001,16 +1000,16 @@ impl Search<'_> {
             .take(plan.finalists)
             .cloned()
             .collect();
-        self.bar
-            .set_message(format!("{} final re-evaluation", method.name()));
+        self.progress
+            .phase(&format!("{} final re-evaluation", method.name()));
         let mut finalists = self.evaluate(None, picked, &plan.final_seeds(self.seed))?;
         finalists.sort_by(|a, b| a.cmp_worse(b));
         // The CEM's refinement (paid from its CMA-ES share): refine the worst run so far,
         // held-out runs included (the finalists' held-out results are final before it starts).
         if refine {
             if let Some(start) = worst_run(search.iter().chain(&finalists)) {
-                self.bar
-                    .set_message(format!("{} refining the worst run", method.name()));
+                self.progress
+                    .phase(&format!("{} refining the worst run", method.name()));
                 let refined = refine_counterexample(plan, self.seed, start, |cs, seeds| {
                     self.evaluate(None, cs, seeds)
                 })?;

@@ -1,0 +1,176 @@
+#!/usr/bin/env bash
+# Regenerates book/src/development/speed.md (issue #52): every figure on the page is measured by
+# this script in one run, on this machine, with the previous release's binary measured side by
+# side, so a regression shows as a ratio and a slower machine does not pass for one.
+#
+#   scripts/speed.sh --base-bin PATH [--trials N] [--repeat R] [--out FILE]
+#
+#   --base-bin PATH  the previous release's `ftcbf` (build it in its own worktree and target:
+#                    git worktree add ../ftcbf-base v0.X && (cd ../ftcbf-base && cargo build
+#                    --release --workspace --all-targets --locked)); required
+#   --trials N       trials of the batch rate (default 1000, the issue's figure)
+#   --repeat R       runs per clutter point, the best kept (default 3)
+#   --out FILE       where the page goes (default book/src/development/speed.md)
+#
+# Needs `cargo build --release --workspace --all-targets --locked` first (this tree's binary and
+# its criterion bench executables in target/release/deps; they are run with `--bench`, so no
+# bench-profile build is made). Times are whole processes: wall clock and CPU (user + system,
+# from /usr/bin/time), best of R. On a shared machine read the CPU column.
+#
+# Occupancy-map hook: when the map branch lands, add its point by defining MAP_WORLD below (a
+# world on a 384×384, 5 cm map, same robot and path); `clutter_row` measures it like the rest.
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+base_bin=""
+trials=1000
+repeat=3
+out="$root/book/src/development/speed.md"
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --base-bin) base_bin="$2"; shift 2 ;;
+    --trials) trials="$2"; shift 2 ;;
+    --repeat) repeat="$2"; shift 2 ;;
+    --out) out="$2"; shift 2 ;;
+    *) echo "speed.sh: unknown argument '$1' (see the header of $0)" >&2; exit 2 ;;
+  esac
+done
+new_bin="$root/target/release/ftcbf"
+[[ -x "$new_bin" ]] || { echo "speed.sh: $new_bin missing: cargo build --release --workspace --all-targets --locked" >&2; exit 2; }
+[[ -n "$base_bin" && -x "$base_bin" ]] || { echo "speed.sh: --base-bin PATH (the previous release's ftcbf) is required" >&2; exit 2; }
+[[ -x /usr/bin/time ]] || { echo "speed.sh: needs /usr/bin/time (GNU time)" >&2; exit 2; }
+
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+# The start-up cache (q of the drive) is measured warm, like a user's second command.
+export FTCBF_CACHE_DIR="$work/cache"
+
+# --- the clutter worlds: the README's world with its one box (the wall removed), the path held
+# by two waypoints (no planning, so the planner's cost is not in the sweep), plus N − 1
+# cylinders of radius 0.1 m at least 3.4 m from the path.
+python3 - "$root" "$work" <<'EOF'
+import sys, re
+root, work = sys.argv[1], sys.argv[2]
+base = open(f"{root}/worlds/quickstart.toml").read()
+base = base.replace('urdf = "../robots/', f'urdf = "{root}/robots/')
+base = base[: base.index("[expect]")]
+wall = base.index('[[obstacles]]\nname = "wall"')
+base = base[:wall] + base[base.index("[[sensors]]", wall):]
+base = base.replace("radius = 0.15\n", "radius = 0.15\nplan = false\nwaypoints = [[1.0, 0.75], [2.0, 0.75]]\n", 1)
+for n in (1, 16, 69, 201):
+    s = base
+    for i in range(n - 1):
+        col, row = i % 20, i // 20
+        y = (3.5 + 0.5 * (row // 2)) * (1 if row % 2 == 0 else -1)
+        s += f'\n[[obstacles]]\nname = "c{i}"\nposition = [{-2.0 + 0.4 * col:.2f}, {y:.2f}, 0.3]\nshape = {{ kind = "cylinder", radius = 0.1, half_height = 0.3 }}\n'
+    open(f"{work}/clutter_{n}.toml", "w").write(s)
+EOF
+MAP_WORLD=""   # occupancy-map hook (see the header)
+
+# best of $repeat: "wall cpu" in seconds
+measure() {
+  local best_w="" best_c=""
+  for _ in $(seq "$repeat"); do
+    /usr/bin/time -f "%e %U %S" -o "$work/t" "$@" > /dev/null 2>&1 || { echo "speed.sh: failed: $*" >&2; exit 1; }
+    read -r w u s < "$work/t"
+    c=$(python3 -c "print(f'{$u + $s:.2f}')")
+    if [[ -z "$best_w" ]] || python3 -c "import sys; sys.exit(0 if $c < $best_c else 1)"; then best_w=$w; best_c=$c; fi
+  done
+  echo "$best_w $best_c"
+}
+
+rows="$work/rows"
+: > "$rows"
+clutter_row() { # label world
+  local label="$1" w="$2"
+  "$new_bin" run "$w" --no-record > /dev/null 2>&1 || true   # warm the q cache
+  "$base_bin" run "$w" --no-record > /dev/null 2>&1 || true
+  read -r nw nc < <(measure "$new_bin" run "$w" --no-record)
+  read -r bw bc < <(measure "$base_bin" run "$w" --no-record)
+  echo "clutter|$label|$nw|$nc|$bw|$bc" >> "$rows"
+}
+for n in 1 16 69 201; do clutter_row "$n" "$work/clutter_$n.toml"; done
+if [[ -n "$MAP_WORLD" ]]; then clutter_row "384×384 map" "$MAP_WORLD"; fi
+
+read -r nw nc < <(measure "$new_bin" check "$root/worlds/quickstart.toml")
+read -r bw bc < <(measure "$base_bin" check "$root/worlds/quickstart.toml")
+echo "check|quickstart|$nw|$nc|$bw|$bc" >> "$rows"
+
+# batch rate: one run each (it is long), all cores
+batch() { /usr/bin/time -f "%e %U %S" -o "$work/t" "$@" > /dev/null 2>&1; read -r w u s < "$work/t"; echo "$w $(python3 -c "print(f'{$u + $s:.1f}')")"; }
+cmd=(batch "$root/worlds/paper_turtlebot.toml" --trials "$trials" --controller ft-cbf-clf)
+read -r nw nc < <(batch "$new_bin" "${cmd[@]}" --out "$work/new.csv")
+read -r bw bc < <(batch "$base_bin" "${cmd[@]}" --out "$work/base.csv")
+same=$(cmp -s "$work/new.csv" "$work/base.csv" && echo "identical" || echo "different")
+echo "batch|$trials|$nw|$nc|$bw|$bc|$same" >> "$rows"
+
+# criterion: the control step with 2 and 200 barriers (this tree only: the bench is new)
+step_bench=$(ls -t "$root"/target/release/deps/step-* 2>/dev/null | grep -v '\.d$' | head -1 || true)
+bench_txt=""
+if [[ -n "$step_bench" ]]; then
+  bench_txt=$("$step_bench" --bench clutter 2>/dev/null | grep -E '^step_m2_clutter|time:' | paste - - | sed -E 's/ +/ /g' || true)
+fi
+
+commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD || echo "+dirty")
+cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //')
+python3 - "$rows" "$out" "$commit" "$cpu" "$(nproc)" "$(uname -sr)" "$base_bin" "$("$base_bin" --version 2>/dev/null || echo '?')" "$bench_txt" "$(cat /proc/loadavg | cut -d' ' -f1-3)" <<'EOF'
+import sys, datetime
+rows, out, commit, cpu, cores, kernel, base_bin, base_ver, bench, load = sys.argv[1:11]
+R = [l.rstrip("\n").split("|") for l in open(rows) if l.strip()]
+cl = [r for r in R if r[0] == "clutter"]
+one_new, one_base = float(cl[0][3]), float(cl[0][5])
+L = []
+L.append("# Speed\n")
+L.append("Generated by `scripts/speed.sh` (issue #52): every figure below was measured in one run, "
+         "with the previous release's binary measured side by side on the same machine, so a "
+         "regression shows as a ratio. Do not edit by hand; run the script again.\n")
+L.append(f"- date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; commit {commit}")
+L.append(f"- machine: {cpu}, {cores} cores, {kernel}; load average at the end {load}")
+L.append(f"- previous release: `{base_bin}` ({base_ver})")
+L.append("- times are whole processes, best of the script's `--repeat`; CPU = user + system. "
+         "On a shared machine the CPU column is the one to compare.\n")
+L.append("## Clutter: cost per obstacle\n")
+L.append("The README's world (burger, two receivers, odometry, compass, one box; path held by two "
+         "waypoints) plus cylinders at least 3.4 m from the path; `ftcbf run W --no-record`, 30 s "
+         "simulated. Target (#52): 201 obstacles ≤ 1.3× the one-obstacle world.\n")
+L.append("| obstacles | wall | CPU | × one obstacle (CPU) | real time (CPU) | previous: CPU | × one obstacle | this / previous |")
+L.append("|---:|---:|---:|---:|---:|---:|---:|---:|")
+for _, n, nw, nc, bw, bc in cl:
+    nc, bc = float(nc), float(bc)
+    L.append(f"| {n} | {nw} s | {nc:.2f} s | {nc / one_new:.2f} | {30 / nc:.0f}× | {bc:.2f} s | {bc / one_base:.2f} | {nc / bc:.2f} |")
+L.append("")
+for r in R:
+    if r[0] == "check":
+        _, _, nw, nc, bw, bc = r
+        L.append(f"`ftcbf check worlds/quickstart.toml` (q of the drive cached on disk, warm): {nw} s wall, {nc} s CPU; previous release {bw} s wall, {bc} s CPU. Target: ≤ 0.1 s.\n")
+    if r[0] == "batch":
+        _, n, nw, nc, bw, bc, same = r
+        L.append("## Batch rate\n")
+        L.append(f"`ftcbf batch worlds/paper_turtlebot.toml --trials {n} --controller ft-cbf-clf`, all cores, one run each:\n")
+        L.append("| | wall | CPU | trials per CPU-second |")
+        L.append("|---|---:|---:|---:|")
+        L.append(f"| this tree | {nw} s | {nc} s | {int(n) / float(nc):.1f} |")
+        L.append(f"| previous release | {bw} s | {bc} s | {int(n) / float(bc):.1f} |")
+        L.append(f"| this / previous | {float(nw) / float(bw):.2f} | {float(nc) / float(bc):.2f} | |\n")
+        L.append(f"The two CSVs are {same} byte for byte. Target (#52): ≥ 2.4× faster.\n")
+L.append("## Criterion: the control step with far barriers\n")
+L.append("`target/release/deps/step-* --bench clutter` (controller/benches/step.rs): the m = 2 closed loop "
+         "with the floor and 1 or 199 far discs, δ = ∞. Target: 200 ≤ 1.5× 2.\n")
+L.append("```text")
+L.append(bench.strip() or "(no bench executable found: build with --all-targets)")
+L.append("```\n")
+L.append("## Other benches\n")
+L.append("Not run by this script (run them for figures; the page keeps no hand-written numbers): "
+         "`target/release/deps/step-* --bench` (every control-step bench: m = 2 and 3, static, "
+         "closed loop, safety-filter form, the feasibility test), `target/release/deps/physics-* "
+         "--bench` (one physics tick), `target/release/deps/run-* --bench` (a whole "
+         "`paper_turtlebot` run, recording off and on), `target/release/deps/setup-* --bench` "
+         "(starting trials from one `CompiledWorld`), after `cargo build --release --workspace "
+         "--all-targets --locked`.\n")
+L.append("A control step allocates nothing outside clarabel (checked by a counting allocator in "
+         "`controller/tests/allocation.rs`); a QP that must grow for more binding rows than it "
+         "holds (a world with more than 12 barrier rows, see `controller/src/qp.rs`) is rebuilt "
+         "once, then reused.\n")
+open(out, "w").write("\n".join(L))
+EOF
+echo "wrote $out"
