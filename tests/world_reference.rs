@@ -60,9 +60,6 @@ b = -1.0
 name = "box"
 shape = { kind = "cuboid", half_extents = [0.1, 0.1, 0.1] }
 
-[environment]
-sdf = "world.sdf"
-
 [[sensors]]
 name = "x"
 measures = "x"

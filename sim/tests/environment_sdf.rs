@@ -7,9 +7,9 @@
 
 use std::path::{Path, PathBuf};
 
-use ftcbf_sim::environment::sdf::{load, SdfOptions};
 use ftcbf_sim::environment::{DropReason, EnvironmentError};
 use ftcbf_sim::obstacles::{MeshScale, Obstacle, ObstacleSpec, ShapeSpec};
+use ftcbf_sim::world::sdf::{load, SdfOptions};
 use ftcbf_sim::world::World;
 use nalgebra::Vector3;
 

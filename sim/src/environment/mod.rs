@@ -1,5 +1,5 @@
 //! Environments: obstacles loaded from the files robots already live in (issue #47). A world
-//! file's `[environment] sdf = "…"` names a Gazebo SDF world or model file ([`sdf`]); what it
+//! file's `[environment] sdf = "…"` names a Gazebo SDF world or model file (read by `crate::world::sdf`); what it
 //! holds that a ground robot can touch becomes ordinary [`ObstacleSpec`]s appended to the
 //! world's own `obstacles`, so physics, barriers, planner, `check` and recording take them as
 //! they take any other obstacle. [`EnvironmentReport`] says what was kept and what was dropped
@@ -7,13 +7,10 @@
 
 pub mod collada;
 pub mod map;
-pub mod sdf;
 
 pub use map::{MapError, MapField, OccupancyGrid, UnknownCells};
 
 use std::path::PathBuf;
-
-use crate::obstacles::ObstacleSpec;
 
 /// Why an SDF element that could be an obstacle is not one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -120,15 +117,6 @@ pub fn name_list(names: &[&str], max: usize) -> String {
     } else {
         format!("{} and {rest} more", shown.join(", "))
     }
-}
-
-/// An environment loaded: its obstacles (world frame) and the report.
-#[derive(Debug, Clone, Default)]
-pub struct Environment {
-    /// The obstacles, named by their scoped SDF names.
-    pub obstacles: Vec<ObstacleSpec>,
-    /// What was kept and dropped.
-    pub report: EnvironmentReport,
 }
 
 /// Why an environment file cannot be loaded. Each names the file, and the line where there is

@@ -6,6 +6,7 @@ mod overrides;
 mod parse_error;
 pub mod ranges;
 pub mod schema;
+pub mod sdf;
 pub(crate) mod tagged;
 mod toml_limits;
 
@@ -916,12 +917,12 @@ impl Validator<'_> {
             return Ok(None);
         };
         let model_paths = std::mem::take(&mut env.model_paths);
-        let opts = crate::environment::sdf::SdfOptions {
+        let opts = sdf::SdfOptions {
             model_paths: model_paths.iter().map(|p| base.join(p)).collect(),
             robot_height: robot.map(|r| r.height),
             no_environment_variables: false,
         };
-        let loaded = crate::environment::sdf::load(&base.join(sdf), &opts)
+        let loaded = sdf::load(&base.join(sdf), &opts)
             .map_err(|e| self.err("environment.sdf", e.to_string()))?;
         let total = file.obstacles.len() + loaded.obstacles.len();
         if total > ranges::MAX_OBSTACLES {

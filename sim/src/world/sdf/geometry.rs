@@ -302,6 +302,9 @@ fn mesh(
         return Err(doc.err(g, format!("mesh of `{name}` needs a <uri>")));
     };
     let path = l.resolve_mesh(doc.path, uri).map_err(|e| doc.err(g, e))?;
+    // Absolute: the spec's `file` would otherwise be joined to the world file's directory a
+    // second time when the obstacle is built (a world file named by a relative path).
+    let path = std::path::absolute(&path).unwrap_or(path);
     let scale = match child(g, "scale") {
         Some(c) => doc.numbers(c, 3)?,
         None => vec![1.0; 3],

@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 
-use super::{DropReason, Dropped, Environment, EnvironmentError, EnvironmentReport};
+use crate::environment::{DropReason, Dropped, EnvironmentError, EnvironmentReport};
 use crate::obstacles::{MeshScale, ObstacleSpec, ShapeSpec};
 
 mod geometry;
@@ -38,6 +38,15 @@ mod geometry;
 const MAX_DEPTH: usize = 32;
 /// Most collision elements one environment may give (what a world's obstacle list can hold).
 pub const MAX_COLLISIONS: usize = 4096;
+
+/// An environment loaded: its obstacles (world frame) and the report.
+#[derive(Debug, Clone, Default)]
+pub struct Environment {
+    /// The obstacles, named by their scoped SDF names.
+    pub obstacles: Vec<ObstacleSpec>,
+    /// What was kept and dropped.
+    pub report: EnvironmentReport,
+}
 
 /// How an SDF file is loaded.
 #[derive(Debug, Clone, Default)]
