@@ -222,6 +222,9 @@ pub struct CheckReport {
     /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
     /// barrier they name are printed once, listing the barriers ([`group_by_barrier`]).
     pub barrier_names: Vec<String>,
+    /// What `[environment]` loaded: kept and dropped elements and why, and the loader's
+    /// warnings ([`crate::environment::EnvironmentReport::lines`]); empty without one.
+    pub environment: Vec<String>,
 }
 
 fn fmt_list(v: &[f64]) -> String {
@@ -354,11 +357,39 @@ pub fn condition_4_4_at_start(setup: &ControlSetup) -> Vec<(&str, Condition44Ver
 
 /// The lines `ftcbf check` prints for [`condition_4_4_at_start`], grouped by barrier
 /// ([`group_by_barrier`]).
+/// With more than [`MAX_LISTED`] barriers, the barriers where it holds share one line (naming
+/// three, the count of the rest, and the least margin), and only the others get a line each.
 pub fn condition_4_4_lines(setup: &ControlSetup) -> Vec<String> {
-    let lines = condition_4_4_at_start(setup)
-        .into_iter()
-        .map(|(name, v)| format!("(4.4) for {name} at the start estimate: {v}"));
-    group_by_barrier(lines, &setup.barrier_names)
+    let all = condition_4_4_at_start(setup);
+    if all.len() <= MAX_LISTED {
+        let lines = all
+            .into_iter()
+            .map(|(name, v)| format!("(4.4) for {name} at the start estimate: {v}"));
+        return group_by_barrier(lines, &setup.barrier_names);
+    }
+    let (holds, other): (Vec<_>, Vec<_>) = all.into_iter().partition(|(_, v)| v.holds);
+    let mut out = Vec::new();
+    if !holds.is_empty() {
+        let names: Vec<&str> = holds.iter().map(|(n, _)| *n).collect();
+        let worst = holds
+            .iter()
+            .filter_map(|(n, v)| v.margin.map(|m| (m, *n)))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        out.push(format!(
+            "(4.4) at the start estimate HOLDS for {} barriers ({}){}",
+            names.len(),
+            crate::environment::name_list(&names, 3),
+            worst.map_or(String::new(), |(m, n)| format!(
+                "; least min cos {m:.4} ({n})"
+            ))
+        ));
+    }
+    out.extend(
+        other
+            .into_iter()
+            .map(|(name, v)| format!("(4.4) for {name} at the start estimate: {v}")),
+    );
+    out
 }
 
 fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
@@ -408,6 +439,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
         .collect();
     let safe_stop = crate::safe_stop::verdict(world, &failed, &liveness);
     CheckReport {
+        environment: environment_lines(world),
         world: world.name.clone(),
         context,
         filters,
@@ -1772,14 +1804,76 @@ pub fn group_by_barrier<I: IntoIterator<Item = String>>(lines: I, names: &[Strin
         .map(|(t, n)| match n.len() {
             0 => t,
             1 => t.replace(MARK, &n[0]),
+            k if k > MAX_LISTED => {
+                let shown: Vec<&str> = n.iter().take(3).map(String::as_str).collect();
+                t.replace(
+                    MARK,
+                    &format!("{{{} and {} more}}", shown.join(", "), k - shown.len()),
+                )
+            }
             _ => t.replace(MARK, &format!("{{{}}}", n.join(", "))),
         })
         .collect()
 }
 
+/// `check`'s `environment:` section: what the environment file gave, and the three obstacles
+/// nearest the start and the goal with the robot footprint's clearance from each (empty for a
+/// world without `[environment]`).
+fn environment_lines(world: &World) -> Vec<String> {
+    let Some(env) = &world.environment else {
+        return Vec::new();
+    };
+    let mut out = env.lines();
+    out.extend(crate::runner::setup::route_notes(world));
+    let (r, z) = world
+        .robot
+        .as_ref()
+        .map_or((0.0, 0.0), |r| (r.footprint_radius, r.centre_height));
+    let start = world.file.robot.as_ref().map_or_else(
+        || {
+            let x0 = world.file.linear.as_ref().map_or([0.0; 4], |l| l.x0);
+            [x0[0], x0[1]]
+        },
+        |rb| [rb.start.x, rb.start.y],
+    );
+    for (what, p) in [("start", start), ("goal", world.file.goal.center)] {
+        let mut near: Vec<(f64, &str)> = world
+            .obstacles
+            .iter()
+            .map(|o| {
+                let d = o.signed_distance(nalgebra::Vector3::new(p[0], p[1], z)) - r;
+                (d, o.name.as_str())
+            })
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let list: Vec<String> = near
+            .iter()
+            .take(3)
+            .map(|(d, n)| format!("{n} {d:.3} m"))
+            .collect();
+        out.push(format!(
+            "nearest the {what} ({:.3}, {:.3}), footprint clearance: {}",
+            p[0],
+            p[1],
+            list.join(", ")
+        ));
+    }
+    out
+}
+
+/// The most barriers a grouped line lists by name; beyond it (a loaded environment's dozens of
+/// walls) a line names three and says how many more.
+const MAX_LISTED: usize = 6;
+
 impl fmt::Display for CheckReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let names = &self.barrier_names;
+        if !self.environment.is_empty() {
+            writeln!(f, "environment:")?;
+            for line in &self.environment {
+                writeln!(f, "  {line}")?;
+            }
+        }
         for line in group_by_barrier(self.context.iter().cloned(), names) {
             writeln!(f, "  {line}")?;
         }

@@ -209,11 +209,53 @@ pub enum ShapeSpec via ShapeByKind {
         /// STL file (instead of vertices/indices), relative to the world file's directory.
         #[serde(default)]
         file: Option<PathBuf>,
-        /// Uniform scale applied to the file's vertices (default 1).
+        /// Scale applied to the file's vertices (default 1): one factor, or one per axis
+        /// `[sx, sy, sz]` as SDF's `<mesh><scale>` writes it.
         #[serde(default)]
-        scale: Option<f64>,
+        scale: Option<MeshScale>,
     },
 }
+}
+
+/// A mesh file's scale: one factor for every axis, or one per axis (`[sx, sy, sz]`, obstacle
+/// frame; a negative factor mirrors the mesh, as SDF allows).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum MeshScale {
+    /// The same factor on x, y and z.
+    Uniform(f64),
+    /// Factors on x, y and z.
+    PerAxis([f64; 3]),
+}
+
+impl MeshScale {
+    /// The factors on x, y and z.
+    pub fn factors(self) -> [f64; 3] {
+        match self {
+            MeshScale::Uniform(s) => [s; 3],
+            MeshScale::PerAxis(s) => s,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for MeshScale {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            One(f64),
+            Three(Vec<f64>),
+        }
+        let expected = "expected a number or three numbers [sx, sy, sz]";
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom(expected))? {
+            Raw::One(s) => Ok(MeshScale::Uniform(s)),
+            Raw::Three(v) => <[f64; 3]>::try_from(v.as_slice())
+                .map(MeshScale::PerAxis)
+                .map_err(|_| {
+                    serde::de::Error::custom(format!("{expected}, found {} numbers", v.len()))
+                }),
+        }
+    }
 }
 
 impl ShapeSpec {
@@ -539,7 +581,7 @@ fn mesh_data(
     vertices: &[[f64; 3]],
     indices: &[[u32; 3]],
     file: Option<&Path>,
-    scale: Option<f64>,
+    scale: Option<MeshScale>,
     base_dir: Option<&Path>,
 ) -> Result<Triangles, ObstacleError> {
     match file {
@@ -550,15 +592,36 @@ fn mesh_data(
                     "give either `file` or `vertices`/`indices`, not both".into(),
                 ));
             }
-            let s = scale.unwrap_or(1.0);
-            positive(name, "scale", s)?;
+            let s = match scale.unwrap_or(MeshScale::Uniform(1.0)) {
+                MeshScale::Uniform(s) => {
+                    positive(name, "scale", s)?;
+                    [s; 3]
+                }
+                MeshScale::PerAxis(s) => {
+                    for (i, v) in s.iter().enumerate() {
+                        if !(v.is_finite() && *v != 0.0) {
+                            return Err(invalid(
+                                name,
+                                &format!("shape.scale[{i}]"),
+                                "a finite non-zero factor",
+                                format!("{v}"),
+                            ));
+                        }
+                    }
+                    s
+                }
+            };
             let path = match base_dir {
                 Some(d) if f.is_relative() => d.join(f),
                 _ => f.to_path_buf(),
             };
             let (v, i) = crate::robot::read_mesh(&path)
                 .map_err(|m| mesh_err(name, format!("{}: {m}", path.display())))?;
-            Ok((v.into_iter().map(|p| p.map(|c| c * s)).collect(), i))
+            let scaled = v
+                .into_iter()
+                .map(|p| [p[0] * s[0], p[1] * s[1], p[2] * s[2]])
+                .collect();
+            Ok((scaled, i))
         }
         None => {
             if scale.is_some() {

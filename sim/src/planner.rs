@@ -43,11 +43,12 @@ pub struct PlannerConfig {
 /// square at 5 cm, searched in full; some 100 MB for the search's maps).
 pub const DEFAULT_MAX_EVALUATIONS: u64 = 1_000_000;
 
-/// A plan that would need more clearance evaluations than its budget.
+/// A plan that would need more clearance work than its budget.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "planning leg {leg} (from ({:.3}, {:.3}) to ({:.3}, {:.3})) around the obstacles needs more than {limit} clearance evaluations, the planner's limit",
-    from[0], from[1], to[0], to[1]
+    "planning leg {leg} (from ({:.3}, {:.3}) to ({:.3}, {:.3})) around the obstacles needs more than {limit} {}, the planner's limit",
+    from[0], from[1], to[0], to[1],
+    if *.queries { "obstacle distance queries" } else { "clearance evaluations" }
 )]
 pub struct BudgetExceeded {
     /// The leg (0: start → first stop).
@@ -58,6 +59,8 @@ pub struct BudgetExceeded {
     pub to: [f64; 2],
     /// The budget.
     pub limit: u64,
+    /// The budget counts obstacle distance queries ([`plan_with_cost`]), not evaluations.
+    pub queries: bool,
 }
 
 impl Default for PlannerConfig {
@@ -283,6 +286,31 @@ pub fn plan(
     clear: &dyn Fn([f64; 2]) -> f64,
     cfg: &PlannerConfig,
 ) -> Result<Plan, BudgetExceeded> {
+    let costed = |p: [f64; 2]| (clear(p), 1);
+    plan_inner(start, waypoints, goal, &costed, cfg, false)
+}
+
+/// [`plan`] with a clearance that reports its own cost (the obstacle distance queries it
+/// made): [`PlannerConfig::max_evaluations`] bounds the total cost instead of the number of
+/// evaluations, so a clearance that skips far obstacles buys a longer search.
+pub fn plan_with_cost(
+    start: [f64; 2],
+    waypoints: &[[f64; 2]],
+    goal: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+) -> Result<Plan, BudgetExceeded> {
+    plan_inner(start, waypoints, goal, clear, cfg, true)
+}
+
+fn plan_inner(
+    start: [f64; 2],
+    waypoints: &[[f64; 2]],
+    goal: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+    queries: bool,
+) -> Result<Plan, BudgetExceeded> {
     let used = Counter::new(0u64);
     let exhausted = Counter::new(false);
     // Past the budget every point is blocked: line of sight fails at its first sample, the
@@ -292,8 +320,9 @@ pub fn plan(
             exhausted.set(true);
             return f64::NEG_INFINITY;
         }
-        used.set(used.get() + 1);
-        clear(p)
+        let (c, cost) = clear(p);
+        used.set(used.get() + cost.max(1));
+        c
     };
     let clear: &dyn Fn([f64; 2]) -> f64 = &counted;
     let mut stops = waypoints.to_vec();
@@ -319,6 +348,7 @@ pub fn plan(
                 from,
                 to,
                 limit: cfg.max_evaluations,
+                queries,
             });
         }
         from = to;
@@ -327,6 +357,55 @@ pub fn plan(
         points,
         unplanned_legs,
     })
+}
+
+/// For a leg with no route at `cfg.inflate` clearance: the route that keeps the most
+/// clearance (bisected to 1/64 of `cfg.inflate` between 0 and it) and that clearance, or
+/// `None` when no route keeps the robot disc clear of the obstacles at all. The budget is
+/// [`PlannerConfig::max_evaluations`] over all the searches, in the clearance's cost.
+#[allow(clippy::type_complexity)]
+pub fn widest_route(
+    from: [f64; 2],
+    to: [f64; 2],
+    clear: &dyn Fn([f64; 2]) -> (f64, u64),
+    cfg: &PlannerConfig,
+) -> Result<Option<(Vec<[f64; 2]>, f64)>, BudgetExceeded> {
+    let spent = Counter::new(0u64);
+    let costed = |p: [f64; 2]| {
+        let (c, n) = clear(p);
+        spent.set(spent.get() + n.max(1));
+        (c, n)
+    };
+    let attempt = |inflate: f64| -> Result<Option<Vec<[f64; 2]>>, BudgetExceeded> {
+        let left = cfg.max_evaluations.saturating_sub(spent.get()).max(1);
+        let c = PlannerConfig {
+            inflate,
+            max_evaluations: left,
+            ..*cfg
+        };
+        let p = plan_inner(from, &[], to, &costed, &c, true).map_err(|e| BudgetExceeded {
+            limit: cfg.max_evaluations,
+            ..e
+        })?;
+        Ok((p.unplanned_legs == 0).then_some(p.points))
+    };
+    let Some(mut best) = attempt(0.0)? else {
+        return Ok(None);
+    };
+    let (mut lo, mut hi) = (0.0, cfg.inflate);
+    for _ in 0..6 {
+        let mid = 0.5 * (lo + hi);
+        match attempt(mid)? {
+            Some(p) => {
+                best = p;
+                lo = mid;
+            }
+            None => hi = mid,
+        }
+    }
+    let mut path = vec![from];
+    path.extend(best);
+    Ok(Some((path, lo)))
 }
 
 #[cfg(test)]

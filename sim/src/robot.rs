@@ -61,7 +61,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 
-mod urdf;
+pub(crate) mod urdf;
 mod xacro;
 
 pub use urdf::MAX_DEPTH as MAX_URDF_DEPTH;
@@ -530,6 +530,9 @@ pub struct RobotDescription {
     /// Height above the ground of the middle of the robot's collision geometry \[m\]; obstacle
     /// distances for the barriers are evaluated at this height.
     pub centre_height: f64,
+    /// Height above the ground of the top of the robot's collision geometry \[m\]: what an
+    /// environment keeps (an SDF collision wholly above it cannot touch the robot).
+    pub height: f64,
     /// Non-fatal problems (missing visual meshes, …).
     pub warnings: Vec<String>,
     /// The expanded URDF when the file was a xacro source (what was read; errors and warnings
@@ -767,7 +770,7 @@ fn build(
     wheel_colliders(&mut kin.bodies, &kin.joints, &wheels);
     cx.massless_wheel_masses(&mut kin, &massless_wheels, &mut warnings)?;
     let (limits, limits_source) = cx.drive_limits(&wheels)?;
-    let (footprint_radius, centre_height) = cx.footprint(&kin.bodies)?;
+    let (footprint_radius, centre_height, height) = cx.footprint(&kin.bodies)?;
     Ok(RobotDescription {
         name: cx.robot.name.clone(),
         origin: origin.to_string(),
@@ -778,6 +781,7 @@ fn build(
         limits_source,
         footprint_radius,
         centre_height,
+        height,
         warnings,
         xacro_output: None,
     })
@@ -1303,8 +1307,9 @@ impl Build<'_> {
     }
 
     /// The footprint: the circumscribed radius of the collision geometry in the plane, and the
-    /// middle height of it (from the ground up); an error when there is no collision geometry.
-    fn footprint(&self, bodies: &[RobotBody]) -> Result<(f64, f64), RobotError> {
+    /// middle height of it (from the ground up) and its top; an error when there is no
+    /// collision geometry.
+    fn footprint(&self, bodies: &[RobotBody]) -> Result<(f64, f64, f64), RobotError> {
         let mut r_max: f64 = 0.0;
         let (mut z_min, mut z_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for body in bodies {
@@ -1321,7 +1326,7 @@ impl Build<'_> {
         if !z_min.is_finite() {
             return Err(self.structure("the robot has no collision geometry".into()));
         }
-        Ok((r_max, 0.5 * (z_min.max(0.0) + z_max)))
+        Ok((r_max, 0.5 * (z_min.max(0.0) + z_max), z_max))
     }
 }
 
@@ -1610,18 +1615,41 @@ pub fn resolve_mesh_path(
     cand.is_file().then_some(cand)
 }
 
-/// Vertices and triangles of a mesh file, read with `mesh-loader`: STL (ASCII or binary; a
-/// binary file whose 80-byte header starts with `solid` is still read as binary), Collada
-/// (`.dae`: every instanced geometry, with the document's `<unit>` and node transforms applied)
-/// or Wavefront OBJ. The format is chosen by the extension, else by the content. All meshes of
-/// the file are joined into one, and vertices with bit-identical coordinates are welded (in order
-/// of first appearance), so an STL's triangle soup becomes an indexed mesh.
-#[allow(clippy::type_complexity)]
-pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+/// One mesh of a file, placed in the file's frame \[m\].
+#[derive(Debug, Clone)]
+pub struct MeshPart {
+    /// What names it: the mesh's name (a Collada geometry's `id`, else the file's own
+    /// name), a Collada geometry's `name` and the names of the nodes that instance it.
+    pub names: Vec<String>,
+    /// Vertices \[m\], in the file's frame (node transforms and `<unit>` applied).
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles as indices into [`Self::vertices`].
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The meshes of a mesh file and what the user should know about how they were read.
+#[derive(Debug, Clone, Default)]
+pub struct MeshParts {
+    /// Every mesh of the file: for Collada, one per instanced geometry (a geometry instanced
+    /// by two nodes is two parts; a file without a visual scene gives its geometries as they
+    /// are).
+    pub parts: Vec<MeshPart>,
+    /// Collada's declared `<up_axis>`, when the file declares one.
+    pub up_axis: Option<String>,
+    /// Non-fatal problems (a Collada `<skew>`, an unresolved `<instance_node>`).
+    pub warnings: Vec<String>,
+}
+
+/// The meshes of a mesh file, read with `mesh-loader`: STL (ASCII or binary; a binary file
+/// whose 80-byte header starts with `solid` is still read as binary), Collada (`.dae`: every
+/// instanced geometry placed by its node's composed transform and scaled by the document's
+/// `<unit>`, see [`crate::environment::collada`]) or Wavefront OBJ. The format is chosen by the
+/// extension, else by the content.
+pub fn read_mesh_parts(path: &Path) -> Result<MeshParts, String> {
     // Collada is XML, parsed by a tokenizer that recurses per nesting level: refuse absurd
     // nesting before it can overflow the stack.
     let mut bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
-    let mut unit = 1.0;
+    let mut scene = None;
     if let Ok(text) = std::str::from_utf8(&bytes) {
         if text
             .trim_start_matches('\u{feff}')
@@ -1634,83 +1662,115 @@ pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> 
                      not a readable Collada mesh"
                 ));
             }
-            if let Some((in_own_unit, meter)) = collada_in_own_unit(text) {
-                (bytes, unit) = (in_own_unit.into_bytes(), meter);
-            }
+            scene = crate::environment::collada::scene(text)
+                .map_err(|e| format!("not a readable Collada mesh: {e}"))?;
         }
     }
-    let scene = mesh_loader::Loader::default()
+    if let Some(s) = &scene {
+        bytes = s.geometry_text.clone().into_bytes();
+    }
+    let loaded = mesh_loader::Loader::default()
         .load_from_slice(&bytes, path)
         .map_err(|e| format!("not a readable STL, Collada or OBJ mesh: {e}"))?;
+    let mut out = MeshParts::default();
+    for mesh in &loaded.meshes {
+        if mesh
+            .vertices
+            .iter()
+            .any(|v| !v.iter().all(|c| c.is_finite()))
+        {
+            return Err("the mesh has non-finite vertices".into());
+        }
+        let raw: Vec<[f64; 3]> = mesh.vertices.iter().map(|v| v.map(f64::from)).collect();
+        let mut triangles = Vec::with_capacity(mesh.faces.len());
+        for f in &mesh.faces {
+            if f.iter().any(|&i| i as usize >= raw.len()) {
+                return Err("the mesh has an out-of-range vertex index".into());
+            }
+            triangles.push(*f);
+        }
+        let Some(s) = &scene else {
+            out.parts.push(MeshPart {
+                names: vec![mesh.name.clone()],
+                vertices: raw,
+                triangles,
+            });
+            continue;
+        };
+        let mut names = vec![mesh.name.clone()];
+        names.extend(s.geometry_names.get(&mesh.name).cloned());
+        let uses: Vec<_> = s
+            .instances
+            .iter()
+            .filter(|i| i.geometry == mesh.name)
+            .collect();
+        if uses.is_empty() && s.instances.is_empty() {
+            let vertices = raw.iter().map(|v| v.map(|c| c * s.unit)).collect();
+            out.parts.push(MeshPart {
+                names: names.clone(),
+                vertices,
+                triangles: triangles.clone(),
+            });
+        }
+        for inst in uses {
+            let vertices = raw
+                .iter()
+                .map(|v| {
+                    let p = inst.transform.transform_point(&Point3::from(*v)) * s.unit;
+                    [p.x, p.y, p.z]
+                })
+                .collect();
+            let mut names = names.clone();
+            names.extend(inst.nodes.iter().filter(|n| !n.is_empty()).cloned());
+            out.parts.push(MeshPart {
+                names,
+                vertices,
+                triangles: triangles.clone(),
+            });
+        }
+    }
+    if let Some(s) = scene {
+        out.up_axis = s.up_axis;
+        out.warnings = s.warnings;
+    }
+    Ok(out)
+}
+
+/// Vertices and triangles of a mesh file ([`read_mesh_parts`]): all meshes of the file joined
+/// into one, and vertices with identical coordinates (as f32) welded in order of first
+/// appearance, so an STL's triangle soup becomes an indexed mesh.
+#[allow(clippy::type_complexity)]
+pub fn read_mesh(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
+    join_parts(&read_mesh_parts(path)?.parts)
+}
+
+/// The parts joined into one mesh, vertices welded (see [`read_mesh`]).
+#[allow(clippy::type_complexity)]
+pub fn join_parts(parts: &[MeshPart]) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>), String> {
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut indices: Vec<[u32; 3]> = Vec::new();
     let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
-    for mesh in &scene.meshes {
-        let mut local = Vec::with_capacity(mesh.vertices.len());
-        for v in &mesh.vertices {
-            if !v.iter().all(|c| c.is_finite()) {
-                return Err("the mesh has non-finite vertices".into());
-            }
+    for part in parts {
+        let mut local = Vec::with_capacity(part.vertices.len());
+        for v in &part.vertices {
             let next = u32::try_from(vertices.len())
                 .map_err(|_| "the mesh has more than 2³² vertices".to_string())?;
-            let id = *weld.entry(v.map(f32::to_bits)).or_insert_with(|| {
-                vertices.push(v.map(|c| f64::from(c) * unit));
-                next
-            });
+            let id = *weld
+                .entry(v.map(|c| (c as f32).to_bits()))
+                .or_insert_with(|| {
+                    vertices.push(*v);
+                    next
+                });
             local.push(id);
         }
-        for f in &mesh.faces {
-            let mut t = [0u32; 3];
-            for (slot, &i) in t.iter_mut().zip(f) {
-                *slot = *local
-                    .get(i as usize)
-                    .ok_or_else(|| "the mesh has an out-of-range vertex index".to_string())?;
-            }
-            indices.push(t);
+        for t in &part.triangles {
+            indices.push(t.map(|i| local[i as usize]));
         }
     }
     if indices.is_empty() {
         return Err("the mesh has no triangles".into());
     }
     Ok((vertices, indices))
-}
-
-/// A Collada document whose `<asset><unit meter>` is not 1, rewritten to `meter="1"`, and that
-/// unit, so that the caller scales the loaded vertices itself. mesh-loader 0.1.13 applies the
-/// unit before the nodes' transforms instead of after them, which leaves a node's
-/// `<translate>` in the file's unit (a centimetre file's `<translate>0 0 6</translate>` came out
-/// as 6 m, not 0.06 m); COLLADA's unit applies to every distance in the document. `None` for
-/// anything else (not Collada, no unit, unit 1, or a unit that does not parse, which the loader
-/// then reports).
-fn collada_in_own_unit(text: &str) -> Option<(String, f64)> {
-    if !text.contains("COLLADA") {
-        return None;
-    }
-    let opts = roxmltree::ParsingOptions {
-        allow_dtd: true,
-        ..roxmltree::ParsingOptions::default()
-    };
-    let doc = roxmltree::Document::parse_with_options(text, opts).ok()?;
-    let root = doc.root_element();
-    fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::Node<'a, 'i>> {
-        n.children()
-            .find(|c| c.is_element() && c.tag_name().name() == tag)
-    }
-    if root.tag_name().name() != "COLLADA" {
-        return None;
-    }
-    let unit = child(child(root, "asset")?, "unit")?;
-    let meter = unit.attributes().find(|a| a.name() == "meter")?;
-    let value: f64 = meter.value().trim().parse().ok()?;
-    if !(value.is_finite() && value > 0.0) || value == 1.0 {
-        return None;
-    }
-    let range = meter.range_value();
-    let mut out = String::with_capacity(text.len());
-    out.push_str(&text[..range.start]);
-    out.push('1');
-    out.push_str(&text[range.end..]);
-    Some((out, value))
 }
 
 /// Size of a wheel body about its joint axis.

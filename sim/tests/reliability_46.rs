@@ -282,7 +282,7 @@ fn finishes_or_names_the_limit(w: &World) -> Option<String> {
                 "{m}"
             );
             assert!(
-                m.contains("clearance evaluations, the planner's limit"),
+                m.contains("obstacle distance queries, the planner's limit"),
                 "{m}"
             );
             assert!(e.is_invalid_world(), "{m}");
@@ -299,7 +299,7 @@ fn a_waypoint_at_the_range_edge_ends_with_the_planners_limit() {
     let w = doorway_with(Some(ball), "[[10000.0, 10000.0]]");
     let m = finishes_or_names_the_limit(&w).expect("over the limit");
     assert!(m.contains("`goal.waypoints[0]`"), "{m}");
-    assert!(m.contains("200000 clearance evaluations"), "{m}");
+    assert!(m.contains("200000 obstacle distance queries"), "{m}");
 }
 
 /// Item 2: waypoints at ±5000 m on doorway_clutter, and the 256-waypoint cap within ±50 m:

@@ -29,7 +29,7 @@ use crate::progress::{Progress, Silent};
 use anyhow::{anyhow, Context};
 use ftcbf_sim::attacks::AttackSpec;
 use ftcbf_sim::check::check_world;
-use ftcbf_sim::obstacles::ShapeSpec;
+use ftcbf_sim::obstacles::{MeshScale, ShapeSpec};
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::world::{Dynamics, World, WorldFile};
 use rand::{Rng, SeedableRng};
@@ -246,9 +246,16 @@ fn scaled(shape: &ShapeSpec, f: f64) -> ShapeSpec {
             ..
         } => {
             if file.is_some() {
-                let mut k = scale.unwrap_or(1.0);
-                f(&mut k);
-                *scale = Some(k);
+                *scale = Some(match scale.unwrap_or(MeshScale::Uniform(1.0)) {
+                    MeshScale::Uniform(mut k) => {
+                        f(&mut k);
+                        MeshScale::Uniform(k)
+                    }
+                    MeshScale::PerAxis(mut k) => {
+                        k.iter_mut().for_each(f);
+                        MeshScale::PerAxis(k)
+                    }
+                });
             } else {
                 vertices.iter_mut().flatten().for_each(f);
             }

@@ -6,6 +6,7 @@ mod overrides;
 mod parse_error;
 pub mod ranges;
 pub mod schema;
+pub mod sdf;
 pub(crate) mod tagged;
 mod toml_limits;
 
@@ -113,6 +114,10 @@ pub struct World {
     pub patterns: Vec<Vec<usize>>,
     /// Physics ticks per control step.
     pub ticks_per_control: u32,
+    /// What `[environment] sdf` loaded (its obstacles are in `obstacles` and `file.obstacles`,
+    /// after the file's own; `sdf` and `model_paths` are taken out of `file.environment` once
+    /// loaded, so that a world edited through [`World::with_file`] does not load it twice).
+    pub environment: Option<crate::environment::EnvironmentReport>,
 }
 
 impl World {
@@ -183,7 +188,12 @@ impl World {
     /// (so `file.robot` must name the same robot — URDF, packages, wheels, limits, xacro
     /// arguments; its `start` may differ). Mesh obstacles are loaded from their files.
     pub fn with_file(&self, file: WorldFile) -> Result<World, WorldError> {
-        Self::validated(file, self.name.clone(), &self.path, self.robot.clone())
+        let mut w = Self::validated(file, self.name.clone(), &self.path, self.robot.clone())?;
+        if w.environment.is_none() {
+            // The SDF file's obstacles came along in `file.obstacles`; so does its report.
+            w.environment = self.environment.clone();
+        }
+        Ok(w)
     }
 
     /// Validates a resolved file and checks the control structure; `robot`, if given, is used
@@ -635,8 +645,16 @@ impl Validator<'_> {
                 for (k, p) in vertices.iter().enumerate() {
                     self.ranges(&format!("{shape}.vertices[{k}]"), p, r::POSITION)?;
                 }
-                if let Some(s) = scale {
-                    self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
+                match scale {
+                    Some(crate::obstacles::MeshScale::Uniform(s)) => {
+                        self.range(&format!("{shape}.scale"), s.abs(), r::MESH_SCALE)?;
+                    }
+                    Some(crate::obstacles::MeshScale::PerAxis(s)) => {
+                        for (k, v) in s.iter().enumerate() {
+                            self.range(&format!("{shape}.scale[{k}]"), v.abs(), r::MESH_SCALE)?;
+                        }
+                    }
+                    None => {}
                 }
             }
             // Never read from a world file (the loader builds it from environment.map).
@@ -782,9 +800,8 @@ impl Validator<'_> {
         Ok(())
     }
 
-    /// The obstacle of `environment.map` (named `map`), when the world has one. SDF worlds
-    /// (`environment.sdf`, `model_paths`) are not read by this build and are refused, not
-    /// ignored.
+    /// The obstacle of `environment.map` (named `map`), when the world has one (an SDF file's
+    /// obstacles are in `file.obstacles` by now, see `load_environment`).
     fn environment_map(
         &self,
         file: &WorldFile,
@@ -793,14 +810,6 @@ impl Validator<'_> {
         let Some(env) = &file.environment else {
             return Ok(None);
         };
-        if env.sdf.is_some() || !env.model_paths.is_empty() {
-            let key = if env.sdf.is_some() {
-                "environment.sdf"
-            } else {
-                "environment.model_paths"
-            };
-            return Err(self.err(key, "SDF worlds are not read by this build of ftcbf (issue #47, part A); use environment.map or [[obstacles]]"));
-        }
         let Some(map) = &env.map else {
             if env.unknown.is_some() {
                 return Err(self.err(
@@ -829,7 +838,7 @@ impl Validator<'_> {
     /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
     fn validate(
         &self,
-        file: WorldFile,
+        mut file: WorldFile,
         name: String,
         loaded: Option<RobotDescription>,
     ) -> Result<World, WorldError> {
@@ -840,7 +849,6 @@ impl Validator<'_> {
         let ticks = self.check_control(&file, plant_dt)?;
         self.finite("goal.center", &file.goal.center)?;
         self.positive("goal.radius", file.goal.radius)?;
-        let mut names = self.check_safe_sets(&file)?;
         let robot = match (&file.dynamics, &file.robot) {
             (Dynamics::Rapier, Some(r)) => {
                 let robot = match loaded {
@@ -852,6 +860,8 @@ impl Validator<'_> {
             }
             _ => None,
         };
+        let environment = self.load_environment(&mut file, base, robot.as_ref())?;
+        let mut names = self.check_safe_sets(&file)?;
         let mut obstacles = Vec::with_capacity(file.obstacles.len());
         for (i, spec) in file.obstacles.iter().enumerate() {
             let ob = Obstacle::from_spec(spec, Some(base))
@@ -880,7 +890,61 @@ impl Validator<'_> {
             patterns,
             ticks_per_control: ticks as u32,
             file,
+            environment,
         })
+    }
+
+    /// `[environment]`: the SDF file's obstacles appended to the file's own (the robot's
+    /// height decides what it can touch), and the report of what was kept and dropped.
+    fn load_environment(
+        &self,
+        file: &mut WorldFile,
+        base: &Path,
+        robot: Option<&RobotDescription>,
+    ) -> Result<Option<crate::environment::EnvironmentReport>, WorldError> {
+        let Some(env) = file.environment.as_mut() else {
+            return Ok(None);
+        };
+        // Taken out once loaded (the map, if any, stays): a world edited through
+        // `World::with_file` keeps these obstacles and does not load the file twice.
+        let Some(sdf) = env.sdf.take() else {
+            if !env.model_paths.is_empty() {
+                return Err(self.err(
+                    "environment.model_paths",
+                    "applies to an SDF file: set environment.sdf too",
+                ));
+            }
+            return Ok(None);
+        };
+        let model_paths = std::mem::take(&mut env.model_paths);
+        let opts = sdf::SdfOptions {
+            model_paths: model_paths.iter().map(|p| base.join(p)).collect(),
+            robot_height: robot.map(|r| r.height),
+            no_environment_variables: false,
+        };
+        let loaded = sdf::load(&base.join(sdf), &opts)
+            .map_err(|e| self.err("environment.sdf", e.to_string()))?;
+        let total = file.obstacles.len() + loaded.obstacles.len();
+        if total > ranges::MAX_OBSTACLES {
+            return Err(self.err(
+                "environment.sdf",
+                format!(
+                    "{} obstacles kept from the file and {} of the world's own: at most {} are \
+                     supported",
+                    loaded.obstacles.len(),
+                    file.obstacles.len(),
+                    ranges::MAX_OBSTACLES
+                ),
+            ));
+        }
+        for (i, o) in loaded.obstacles.iter().enumerate() {
+            self.check_obstacle_ranges(
+                &format!("environment.sdf: obstacle {i} (`{}`)", o.name),
+                o,
+            )?;
+        }
+        file.obstacles.extend(loaded.obstacles);
+        Ok(Some(loaded.report))
     }
 
     /// The plant: the rapier robot's `[robot]` and `[physics]`, or the linear plant's

@@ -44,8 +44,8 @@ pub struct WorldFile {
     /// Obstacles (parry shapes): colliders in physics and barriers for the controller.
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
-    /// Obstacles loaded from files robots already live in (an occupancy map); they add to
-    /// `obstacles`.
+    /// Obstacles loaded from files robots already live in (a Gazebo SDF world, an occupancy
+    /// map); they add to `obstacles`.
     pub environment: Option<EnvironmentSpec>,
     /// Sensor channels, in the order of the measurement vector y.
     pub sensors: Vec<ChannelSpec>,
