@@ -357,7 +357,7 @@ pub fn condition_4_4_at_start(setup: &ControlSetup) -> Vec<(&str, Condition44Ver
 
 /// The lines `ftcbf check` prints for [`condition_4_4_at_start`], grouped by barrier
 /// ([`group_by_barrier`]).
-/// With more than [`MAX_LISTED`] barriers, the barriers where it holds share one line (naming
+/// With more than `MAX_LISTED` barriers, the barriers where it holds share one line (naming
 /// three, the count of the rest, and the least margin), and only the others get a line each.
 pub fn condition_4_4_lines(setup: &ControlSetup) -> Vec<String> {
     let all = condition_4_4_at_start(setup);

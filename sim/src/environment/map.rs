@@ -723,7 +723,7 @@ fn edt_1d(f: &[f64], out: &mut [f64], v: &mut [usize], z: &mut [f64]) {
 }
 
 /// The exact squared Euclidean distance \[cells²\] from each cell of an `nx` × `ny` grid
-/// (row-major) to the nearest cell with `site` set; [`FAR`] or more when there is none.
+/// (row-major) to the nearest cell with `site` set; `FAR` or more when there is none.
 pub fn squared_distance_transform(site: &[bool], nx: usize, ny: usize) -> Vec<f64> {
     let mut d: Vec<f64> = site.iter().map(|&s| if s { 0.0 } else { FAR }).collect();
     let m = nx.max(ny);

@@ -1,6 +1,6 @@
 //! Environments: obstacles loaded from the files robots already live in (issue #47). A world
 //! file's `[environment] sdf = "…"` names a Gazebo SDF world or model file (read by `crate::world::sdf`); what it
-//! holds that a ground robot can touch becomes ordinary [`ObstacleSpec`]s appended to the
+//! holds that a ground robot can touch becomes ordinary [`ObstacleSpec`](crate::obstacles::ObstacleSpec)s appended to the
 //! world's own `obstacles`, so physics, barriers, planner, `check` and recording take them as
 //! they take any other obstacle. [`EnvironmentReport`] says what was kept and what was dropped
 //! and why. `[environment] map = "…"` is a ROS occupancy map ([`map`]).

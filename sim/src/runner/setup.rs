@@ -1033,7 +1033,7 @@ fn nearest_clearance(
 }
 
 /// The planner's work limit, in obstacle distance queries (one clearance evaluation queries
-/// the obstacles whose bounding rectangle could hold the nearest, [`nearest_clearance`]; the
+/// the obstacles whose bounding rectangle could hold the nearest, `nearest_clearance`; the
 /// house of the ROBOTIS TurtleBot3 worlds has 68 obstacles a burger can touch): 2·10⁵. A query costs ~5 µs for a primitive and ~15 µs for a mesh, and a
 /// world may plan twice (with the rows' stand-off, then the narrow band) in `check` and again in
 /// `run`: a refused leg costs a few seconds of one core at most. The catalogue's largest plan
