@@ -39,6 +39,10 @@ use ftcbf_sim::runner::{preflight, run, RunOptions};
 use ftcbf_sim::summary::NamedValue;
 use ftcbf_sim::world::World;
 
+#[path = "common/mesh.rs"]
+mod mesh;
+use mesh::{cube, stl_text};
+
 /// Inputs per CI run.
 const DEFAULT_INPUTS: usize = 120;
 /// Seed of the CI run.
@@ -257,36 +261,10 @@ fn waypoints(rng: &mut ChaCha8Rng) -> (Value, String) {
     (Value::Array(arr), format!("goal.waypoints: {n} {what}"))
 }
 
-/// A closed cube's triangles (outward), 0.15 m half-size, around `c`.
-fn cube(c: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
-    let h = 0.15;
-    let v: Vec<[f64; 3]> = (0..8)
-        .map(|i| {
-            let s = |b: usize| if i & b != 0 { h } else { -h };
-            [c[0] + s(1), c[1] + s(2), c[2] + s(4)]
-        })
-        .collect();
-    let t = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    (v, t)
-}
-
 /// An STL obstacle file: a cube wound outward, inward, at random per triangle, open (a face
 /// missing), degenerate, or not an STL at all; returns the file's note.
 fn stl_file(rng: &mut ChaCha8Rng, path: &Path) -> String {
-    let (v, mut t) = cube([0.0, 0.0, 0.15]);
+    let (v, mut t) = cube([0.0, 0.0, 0.15], 0.15);
     let what = match rng.random_range(0..6) {
         0 => "outward",
         1 => {
@@ -314,16 +292,7 @@ fn stl_file(rng: &mut ChaCha8Rng, path: &Path) -> String {
             return "not an STL".into();
         }
     };
-    let mut s = String::from("solid fuzz\n");
-    for tri in &t {
-        s.push_str("facet normal 0 0 0\nouter loop\n");
-        for &i in tri {
-            s.push_str(&format!("vertex {} {} {}\n", v[i][0], v[i][1], v[i][2]));
-        }
-        s.push_str("endloop\nendfacet\n");
-    }
-    s.push_str("endsolid fuzz\n");
-    let _ = std::fs::write(path, s);
+    let _ = std::fs::write(path, stl_text("fuzz", &v, &t));
     what.into()
 }
 

@@ -11,6 +11,10 @@ use ftcbf_sim::summary::{disagree, DISAGREEMENT_TOLERANCE};
 use ftcbf_sim::world::World;
 use nalgebra::Vector3;
 
+#[path = "../../tests/common/mesh.rs"]
+mod mesh;
+use mesh::{cube, stl_text};
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -31,31 +35,6 @@ fn catalogue(file: &str) -> (PathBuf, String) {
     (p, t)
 }
 
-/// A cube's 8 corners (half-size `h`, centred on `c`) and its 12 triangles wound outward.
-fn cube(c: [f64; 3], h: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let v = (0..8)
-        .map(|i| {
-            let s = |b: usize| if i & b != 0 { h } else { -h };
-            [c[0] + s(1), c[1] + s(2), c[2] + s(4)]
-        })
-        .collect();
-    let t = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    (v, t)
-}
-
 fn inward(t: &[[u32; 3]]) -> Vec<[u32; 3]> {
     t.iter().map(|x| [x[0], x[2], x[1]]).collect()
 }
@@ -69,17 +48,7 @@ fn list<T: std::fmt::Debug>(items: &[T]) -> String {
 }
 
 fn write_stl(path: &Path, v: &[[f64; 3]], t: &[[u32; 3]]) {
-    let mut s = String::from("solid cube\n");
-    for tri in t {
-        s.push_str("facet normal 0 0 0\nouter loop\n");
-        for &i in tri {
-            let p = v[i as usize];
-            s.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
-        }
-        s.push_str("endloop\nendfacet\n");
-    }
-    s.push_str("endsolid cube\n");
-    std::fs::write(path, s).expect("STL written");
+    std::fs::write(path, stl_text("cube", v, t)).expect("STL written");
 }
 
 /// doorway_clutter with one more obstacle `mesh` (the TOML shape given).
