@@ -344,8 +344,8 @@ pub fn step_crowd(
         }
         accel.push(a);
     }
+    let noise = Normal::new(0.0, model.fluctuation).ok();
     for (w, a) in crowd.iter_mut().zip(accel) {
-        let noise = Normal::new(0.0, model.fluctuation).ok();
         let mut xi = [0.0, 0.0];
         if let Some(n) = noise {
             xi = [n.sample(&mut w.rng), n.sample(&mut w.rng)];
