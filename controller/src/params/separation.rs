@@ -63,7 +63,7 @@ pub fn separation_moments(
 }
 
 /// [`separation_moments`] with a schedule: at step s filter a updates with the channels of
-/// `phases_a[s % L_a]`, filter b with `phases_b[s % L_b]` ([`UpdateSchedule::phases`]).
+/// `phases_a[s % L_a]`, filter b with `phases_b[s % L_b]` ([`UpdateSchedule::phases`](super::UpdateSchedule::phases)).
 pub fn separation_moments_scheduled(
     model: &LinearModel,
     phases_a: &[Vec<bool>],
