@@ -7,8 +7,8 @@
 //! - no import circle among a crate's modules: the modules of a crate, with an arrow from each
 //!   to every module whose items it names (`crate::…`, `super::sibling`, `self::child`; a
 //!   module naming its own ancestors is the tree, not an arrow), form no cycle;
-//! - the simulator's modules in the order a world flows ([`SIM_LAYERS`]): `world` (load and
-//!   validate) → `model` (compiled once) → `runner` (the simulation) and `analysis` (check,
+//! - the simulator's modules in the order a world flows ([`SIM_LAYERS`]): `spec` (the schema)
+//!   → `world` (load and validate) → `model` (compiled once) → `runner` (the simulation) and `analysis` (check,
 //!   liveness, expectations); no layer names one above it, and `runner` and `analysis` never
 //!   name each other.
 //!
@@ -286,10 +286,11 @@ fn last() {}
 /// A module of a crate: its path below the crate root (empty: the root itself).
 type Module = Vec<String>;
 
-/// The simulator's layers, each with the modules it must never name: a world is loaded and
-/// validated (`world`, with the physical `plant` and the leaves below), compiled once (`model`),
+/// The simulator's layers, each with the modules it must never name: a world file is read by
+/// its schema (`spec`), loaded and validated (`world`, with the physical `plant` and the leaves below), compiled once (`model`),
 /// then run (`runner`) or analysed (`analysis`).
 const SIM_LAYERS: &[(&str, &[&str])] = &[
+    ("spec", &["world", "model", "runner", "analysis", "plant"]),
     ("world", &["model", "runner", "analysis", "plant"]),
     ("plant", &["model", "runner", "analysis"]),
     ("model", &["runner", "analysis"]),

@@ -189,8 +189,8 @@ macro_rules! attack_kinds {
             $( $(#[$vmeta])* $Variant { $( $(#[$fmeta])* $field: $ty ),* } ),*
         }
 
-        // Read through `world::tagged`, so that an error names the key inside the table.
-        $crate::world::tagged::kind_tagged! {
+        // Read through `spec::tagged`, so that an error names the key inside the table.
+        $crate::spec::tagged::kind_tagged! {
             #[derive(Debug, Clone, Serialize)]
             #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
             enum RawAttack via RawAttackByKind {

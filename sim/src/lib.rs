@@ -26,6 +26,7 @@ pub mod robot;
 pub mod runner;
 pub mod safe_sets;
 pub mod sensors;
+pub mod spec;
 pub mod state;
 pub mod summary;
 pub mod world;

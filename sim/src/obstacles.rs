@@ -141,9 +141,9 @@ pub struct ObstacleSpec {
     pub shape: ShapeSpec,
 }
 
-crate::world::tagged::kind_tagged! {
+crate::spec::tagged::kind_tagged! {
 /// Obstacle shapes. Cylinders, capsules and cones stand along the obstacle frame's z axis.
-/// Written as a table tagged by `kind`, read through `world::tagged` so that an error names
+/// Written as a table tagged by `kind`, read through `spec::tagged` so that an error names
 /// the key inside the table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]

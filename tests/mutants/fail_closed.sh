@@ -134,7 +134,7 @@ mutant "loading skips the controller's structural check (check accepts what run 
   'structure::check_structure(&world).map_err(' \
   'Ok::<(), structure::StructureError>(()).map_err(' \
   every_invalid_world_is_rejected_with_a_helpful_message --test invalid_worlds
-mutant "an error inside a kind-tagged table does not name its key" sim/src/world/tagged.rs \
+mutant "an error inside a kind-tagged table does not name its key" sim/src/spec/tagged.rs \
   'D::Error::custom(format!("`{key}`: {message}"))' 'D::Error::custom(message)' \
   errors_in_nested_tables_name_the_key_path_line_and_column --test invalid_worlds
 mutant "a panic is not contained (Rust's exit 101)" src/main.rs \

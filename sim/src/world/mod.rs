@@ -1,21 +1,18 @@
 //! World files: what a run is. A [`World`] is the validated, immutable description (parsed and
 //! checked once, like MuJoCo's `mjModel`); the runner keeps the mutable state.
 
-pub mod expect;
 mod overrides;
 mod parse_error;
 pub mod ranges;
-pub mod schema;
 pub mod sdf;
 pub mod structure;
-pub(crate) mod tagged;
 mod toml_limits;
 
 use std::path::{Path, PathBuf};
 
-pub use expect::{Count, Expect, ExpectOutcome, Margin};
+pub use crate::spec::expect::{Count, Expect, ExpectOutcome, Margin};
+pub use crate::spec::schema::*;
 pub use overrides::Override;
-pub use schema::*;
 
 /// Deceleration of the safe stop's braking \[m/s²\] for a world without `[control]
 /// input_limit` (with one, the limit): the braking the safe stop's stopping distance assumes

@@ -4,7 +4,7 @@
 //!
 //! The key path comes from `serde_path_to_error` over toml's deserializer; inside a
 //! `kind`-tagged table (an obstacle's `shape`, `[[safe_sets]]`, `[[attacks]]`) the table's own
-//! deserializer adds the path inside it ([`super::tagged`]). The line and column are those of
+//! deserializer adds the path inside it ([`crate::spec::tagged`]). The line and column are those of
 //! the deepest part of that path the file contains, found in toml's spanned document.
 
 use std::ops::Range;
@@ -14,8 +14,8 @@ use serde::de::DeserializeOwned;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
-use super::tagged::{field_named, relative_path};
 use super::WorldError;
+use crate::spec::tagged::{field_named, relative_path};
 
 /// Parses `text` (the file at `path`) as `T`: a syntax error as toml reports it (line, column
 /// and the line itself), a schema error as [`WorldError::Schema`].

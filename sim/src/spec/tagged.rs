@@ -138,7 +138,7 @@ macro_rules! kind_tagged {
             $( $(#[$vmeta])* $Variant { $( $(#[$fmeta])* $field: $ty ),* } ),*
         }
 
-        /// The externally tagged mirror `Deserialize` reads through (see `world::tagged`).
+        /// The externally tagged mirror `Deserialize` reads through (see `spec::tagged`).
         // A variant the loader builds itself (`skip_deserializing`) is never read into it.
         #[allow(dead_code)]
         #[derive(serde::Deserialize)]
@@ -159,11 +159,11 @@ macro_rules! kind_tagged {
             fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
                 let kinds: Vec<String> = [$( stringify!($Variant) ),*]
                     .iter()
-                    .map(|v| $crate::world::tagged::snake_case(v))
-                    .filter(|k| !$crate::world::tagged::LOADER_ONLY.contains(&k.as_str()))
+                    .map(|v| $crate::spec::tagged::snake_case(v))
+                    .filter(|k| !$crate::spec::tagged::LOADER_ONLY.contains(&k.as_str()))
                     .collect();
                 let kinds: Vec<&str> = kinds.iter().map(String::as_str).collect();
-                $crate::world::tagged::deserialize::<D, $Mirror>(d, &kinds).map(Self::from)
+                $crate::spec::tagged::deserialize::<D, $Mirror>(d, &kinds).map(Self::from)
             }
         }
     };
