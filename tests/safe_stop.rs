@@ -148,3 +148,48 @@ fn check_gives_the_safe_stop_its_own_verdict() {
     assert!(!paper.safe_stop.in_force && !paper.safe_stop.applies);
     assert!(paper.safe_stop.line().contains("not in force"));
 }
+
+/// Liveness predicts the stop (issue #50, item 3): where Theorem 3 does not apply but the safe
+/// stop does, the liveness verdict says the robot may stop short, where, which two sources
+/// nothing tells apart and what would; the world is then not predicted live (batch and the
+/// generated-worlds sweep count it apart). With `fallback = "paper"` nothing brakes, so no stop
+/// is predicted.
+#[test]
+fn liveness_predicts_the_stop_and_names_the_pair() {
+    let r = ftcbf_sim::check::check_world(&world(None)).expect("check");
+    let line = r.liveness.line();
+    assert!(
+        line.starts_with("the robot may stop short of its goal under the declared attack (ramp on uwb1_y): near ("),
+        "{line}"
+    );
+    assert!(
+        line.contains("nothing tells whether uwb1 or uwb2 lies")
+            && line.contains("no third source")
+            && line.contains("add a channel the pair filters share: odometry or a third receiver"),
+        "{line}"
+    );
+    assert!(!r.liveness.live(), "a predicted stop is not live");
+    // The same point as the safe-stop verdict's prediction.
+    let at = line
+        .split("near ")
+        .nth(1)
+        .and_then(|s| s.split(" m along").next())
+        .expect("a point");
+    assert!(
+        r.safe_stop
+            .predicted_stop
+            .as_deref()
+            .is_some_and(|p| p.contains(at)),
+        "{at} vs {:?}",
+        r.safe_stop.predicted_stop
+    );
+    let printed = r.to_string();
+    assert!(
+        printed.contains(&format!("liveness verdict: {line}")),
+        "{printed}"
+    );
+
+    let paper = ftcbf_sim::check::check_world(&world(Some("paper"))).expect("check");
+    assert!(paper.liveness.safe_stop.is_none());
+    assert!(!paper.liveness.line().contains("may stop short"));
+}

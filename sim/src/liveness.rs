@@ -213,12 +213,18 @@ pub struct LivenessReport {
     pub skipped: Option<String>,
     /// The goal's radius \[m\] (the tracker's settling tolerance).
     pub goal_radius: f64,
+    /// Where the safe stop (`[control] fallback = "brake"`) is predicted to brake, and why, in
+    /// one phrase: set by `check` ([`crate::safe_stop::predicted_stop_line`]) when a case has
+    /// a point where no input meets every kept unit's rows and no pair filter can tell the two
+    /// sources apart. The robot may then stop short of its goal, so the report is not live.
+    pub safe_stop: Option<String>,
 }
 
 impl LivenessReport {
-    /// Every case live (a skipped prediction counts as live: nothing holds the robot).
+    /// Every case live and no safe stop predicted (a skipped prediction counts as live:
+    /// nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.cases.iter().all(LivenessCase::live)
+        self.safe_stop.is_none() && self.cases.iter().all(LivenessCase::live)
     }
 
     /// The verdict line.
@@ -227,12 +233,19 @@ impl LivenessReport {
             return format!("liveness not predicted: {why}");
         }
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
+            if let Some(stop) = &self.safe_stop {
+                return stop.clone();
+            }
             return format!(
                 "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {})",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
         };
-        let mut s = match &c.stall {
+        let mut s = self
+            .safe_stop
+            .as_ref()
+            .map_or(String::new(), |stop| format!("{stop}; besides, "));
+        s += &match &c.stall {
             Some(st) => format!(
                 "the robot will NOT reach its goal {}: {}",
                 c.name,
@@ -1552,6 +1565,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             structural: Vec::new(),
             skipped: Some("the nominal controller imposes no rows".into()),
             goal_radius: world.file.goal.radius,
+            safe_stop: None,
         };
     };
     let path_length = model.length();
@@ -1576,6 +1590,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
         structural,
         skipped: None,
         goal_radius: model.goal_radius,
+        safe_stop: None,
     }
 }
 

@@ -222,3 +222,44 @@ fn predicted_stop(liveness: &LivenessReport) -> Option<String> {
         })
     })
 }
+
+/// `A` and `B` of a Theorem-3 hypothesis about the pair filter that drops them, named
+/// "… x̂_12 (drops A ∪ B)".
+fn pair_of(name: &str) -> Option<(&str, &str)> {
+    let inside = name.rsplit_once("(drops ")?.1;
+    let inside = inside.strip_suffix(')').unwrap_or(inside);
+    inside.split_once(" ∪ ")
+}
+
+/// The liveness line's prediction of a safe stop (issue #50): with `[control] fallback =
+/// "brake"`, where a case of the liveness walk finds a point at which no input meets every kept
+/// unit's rows and a pair filter Theorem 3 could not certify leaves two sources that nothing
+/// tells apart, the robot brakes there instead of guessing, and may stop short of its goal.
+/// Names the pair and the channel that would resolve it, as a run's stop reason does. `None`
+/// when no such point or pair exists, or the stop is not in force.
+pub fn predicted_stop_line(
+    world: &World,
+    theorem3: &[Failed<'_>],
+    liveness: &LivenessReport,
+) -> Option<String> {
+    if world.file.control.fallback != FallbackSpec::Brake {
+        return None;
+    }
+    let (case, st) = liveness
+        .cases
+        .iter()
+        .find_map(|c| c.joint_infeasible.as_ref().map(|st| (c, st)))?;
+    let (a, b) = theorem3
+        .iter()
+        .filter(|h| replaced_by_the_stop(h))
+        .find_map(|h| pair_of(h.name))?;
+    let third = if world.file.fault_patterns.len() <= 2 {
+        "; no third source"
+    } else {
+        ""
+    };
+    Some(format!(
+        "the robot may stop short of its goal {}: near ({:.2}, {:.2}), {:.2} m along its path, no input meets every kept unit's rows and nothing tells whether {a} or {b} lies (their pair filter is not certified, so Step 2 cannot isolate either{third}): the safe stop brakes there instead of guessing and resumes when the rows agree; add a channel the pair filters share: odometry or a third receiver",
+        case.name, st.at[0], st.at[1], st.along
+    ))
+}
