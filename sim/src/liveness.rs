@@ -216,15 +216,15 @@ pub struct LivenessReport {
     /// Where the safe stop (`[control] fallback = "brake"`) is predicted to brake, and why, in
     /// one phrase: set by `check` ([`crate::safe_stop::predicted_stop_line`]) when a case has
     /// a point where no input meets every kept unit's rows and no pair filter can tell the two
-    /// sources apart. The robot may then stop short of its goal, so the report is not live.
+    /// sources apart. The stop is a pause: whether the robot goes on from it is the walk's
+    /// (a case that waits there and goes on stays live; one that stalls there stops short).
     pub safe_stop: Option<String>,
 }
 
 impl LivenessReport {
-    /// Every case live and no safe stop predicted (a skipped prediction counts as live:
-    /// nothing holds the robot).
+    /// Every case live (a skipped prediction counts as live: nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.safe_stop.is_none() && self.cases.iter().all(LivenessCase::live)
+        self.cases.iter().all(LivenessCase::live)
     }
 
     /// The verdict line.
@@ -232,20 +232,23 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
+        let stop = self
+            .safe_stop
+            .as_ref()
+            .map_or(String::new(), |stop| format!("; {stop}"));
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
-            if let Some(stop) = &self.safe_stop {
-                return stop.clone();
-            }
             return format!(
-                "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {})",
+                "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
         };
-        let mut s = self
-            .safe_stop
-            .as_ref()
-            .map_or(String::new(), |stop| format!("{stop}; besides, "));
-        s += &match &c.stall {
+        let mut s = match &c.stall {
+            // With the safe stop it brakes there (and says why below) rather than push on.
+            Some(st) if self.safe_stop.is_some() => format!(
+                "the robot may stop short of its goal {}: {}",
+                c.name,
+                stall_text(st)
+            ),
             Some(st) => format!(
                 "the robot will NOT reach its goal {}: {}",
                 c.name,
@@ -272,7 +275,7 @@ impl LivenessReport {
             s.push_str("; ");
             s.push_str(t);
         }
-        s
+        s + &stop
     }
 }
 

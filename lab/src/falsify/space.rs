@@ -389,6 +389,36 @@ impl Decoding<'_> {
                     },
                 )]
             }
+            Kind::Undercut | Kind::TimedRamp | Kind::Alternating | Kind::HeldOffset => {
+                self.fallback_specs()
+            }
+        }
+    }
+}
+
+impl Decoding<'_> {
+    /// The entries of a [`Family::Fallback`] kind (see [`Family`]).
+    fn fallback_specs(&self) -> Vec<AttackSpec> {
+        let (c, pattern, on) = (self.c, self.pattern, &self.on);
+        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
+        let sc = |i: usize| scale(pattern.channels[i].1);
+        let spec = |channels: Vec<String>, kind: AttackKind| AttackSpec {
+            label: None,
+            channels,
+            start: self.start,
+            end: self.end,
+            kind,
+        };
+        let per_channel = |f: &dyn Fn(usize, f64) -> AttackKind| -> Vec<AttackSpec> {
+            on.iter()
+                .map(|&(i, w)| spec(vec![pattern.channels[i].0.clone()], f(i, w)))
+                .collect()
+        };
+        let names: Vec<String> = on
+            .iter()
+            .map(|&(i, _)| pattern.channels[i].0.clone())
+            .collect();
+        match c.kind {
             Kind::Undercut => per_channel(&|i, w| AttackKind::Stealthy {
                 max_rate: round4(w.abs() * sc(i) * log_range(z(2), 0.002, 0.5)),
                 threshold: round4(0.5 + 2.5 * z(3)),
@@ -400,8 +430,8 @@ impl Decoding<'_> {
                 max_bias: Some(round4(w.abs() * sc(i) * log_range(z(4), 0.02, 3.0))),
             }),
             Kind::TimedRamp => {
-                // The window starts when the ramp does: its full offset arrives at `start +
-                // ramp_time(..)`.
+                // The window starts when the ramp does: its full offset arrives `ramp_time`
+                // later.
                 let grow = self.ramp_time.max(0.02);
                 per_channel(&|i, w| {
                     let full = w * sc(i) * log_range(z(2), 0.02, 3.0);
@@ -429,6 +459,8 @@ impl Decoding<'_> {
                     },
                 )]
             }
+            // The injector kinds.
+            _ => self.specs(),
         }
     }
 }
