@@ -104,7 +104,7 @@ fn paper_worlds_default_to_the_papers_step3_and_a_bad_value_names_the_key() {
 /// in force.
 #[test]
 fn check_gives_the_safe_stop_its_own_verdict() {
-    let r = ftcbf_sim::check::check_world(&world(None)).expect("check");
+    let r = ftcbf_sim::analysis::check::check_world(&world(None)).expect("check");
     assert!(!r.verdict.applies);
     let s = &r.safe_stop;
     assert!(s.in_force && s.applies, "{}", s.line());
@@ -133,7 +133,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
         .expect("braking hypothesis");
     assert_eq!(
         braking.status,
-        ftcbf_sim::safe_stop::Status::Holds,
+        ftcbf_sim::analysis::safe_stop::Status::Holds,
         "{}",
         braking.detail
     );
@@ -144,7 +144,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
         "the last line stays Theorem 3's: {last}"
     );
 
-    let paper = ftcbf_sim::check::check_world(&world(Some("paper"))).expect("check");
+    let paper = ftcbf_sim::analysis::check::check_world(&world(Some("paper"))).expect("check");
     assert!(!paper.safe_stop.in_force && !paper.safe_stop.applies);
     assert!(paper.safe_stop.line().contains("not in force"));
 }
@@ -158,7 +158,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
 /// nothing brakes, so no stop is predicted.
 #[test]
 fn liveness_predicts_the_stop_and_names_the_pair() {
-    let r = ftcbf_sim::check::check_world(&world(None)).expect("check");
+    let r = ftcbf_sim::analysis::check::check_world(&world(None)).expect("check");
     let line = r.liveness.line();
     let stop = line
         .split_once("; under the declared attack (ramp on uwb1_y), the safe stop may brake near (")
@@ -191,7 +191,9 @@ fn liveness_predicts_the_stop_and_names_the_pair() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let check = |rel: &str| {
         let w = World::load(&root.join(rel), &[]).unwrap_or_else(|e| panic!("{e}"));
-        ftcbf_sim::check::check_world(&w).expect("check").liveness
+        ftcbf_sim::analysis::check::check_world(&w)
+            .expect("check")
+            .liveness
     };
     let stalls = check("tests/worlds_user/user_crate_corridor.toml");
     let line = stalls.line();
@@ -212,7 +214,7 @@ fn liveness_predicts_the_stop_and_names_the_pair() {
         "{line}"
     );
 
-    let paper = ftcbf_sim::check::check_world(&world(Some("paper"))).expect("check");
+    let paper = ftcbf_sim::analysis::check::check_world(&world(Some("paper"))).expect("check");
     assert!(paper.liveness.safe_stop.is_none());
     assert!(!paper.liveness.line().contains("the safe stop may brake"));
 }

@@ -222,7 +222,7 @@ fn steps_table(res: &BatchResult, out: &mut String) {
 }
 
 /// What `check`'s liveness line says when it predicts a safe stop
-/// (`ftcbf_sim::safe_stop::predicted_stop_line`).
+/// (`ftcbf_sim::analysis::safe_stop::predicted_stop_line`).
 const PREDICTED_STOP: &str = "the safe stop may brake near";
 
 /// The safe stops (`[control] fallback = "brake"`), per controller: how many trials stopped, the
