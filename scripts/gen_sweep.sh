@@ -15,7 +15,8 @@
 # Columns: verdict = Theorem 3 applies / no / ERROR (check failed); safe, entered, settled =
 # trials of TRIALS; ω flips = mean % of control steps in which the commanded ω changes sign;
 # infeas = % of control steps with no feasible input; liveness = check's prediction (live / stall),
-# judged against "settled in >= 95 % of trials" in the closing lines.
+# judged against "settled in >= 95 % of trials" in the closing lines; the worlds where it also
+# predicts a safe stop on the way are counted apart there.
 set -euo pipefail
 
 seed=${1:-1}
@@ -49,6 +50,12 @@ while read -r file kind robot suite attack; do
     else
         live=stall
     fi
+    # a safe stop predicted on the way (a pause: live or stall is the walk's)
+    if grep -q '^liveness verdict: .*the safe stop may brake near' "$out/sweep/$name.check.txt"; then
+        stop=stop
+    else
+        stop=-
+    fi
     json="$out/sweep/$name.json"
     if [[ ${REUSE:-0} == 1 && -s $json ]] \
         || "$ftcbf" batch "$file" --trials "$trials" --controller ft-cbf-clf --out "$json" \
@@ -62,8 +69,8 @@ while read -r file kind robot suite attack; do
         stats=$'-\t-\t-\t-\t-'
         verdict="$verdict/batch-ERROR"
     fi
-    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$kind" "$robot" "$suite" "$attack" \
-        "$verdict" "$stats" "$live" >>"$rows"
+    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$name" "$kind" "$robot" "$suite" "$attack" \
+        "$verdict" "$stats" "$live" "$stop" >>"$rows"
 done < <(tail -n +3 "$out/sweep/gen.txt") # the listing's header and rule first
 
 report="$out/sweep/report.txt"
@@ -99,6 +106,7 @@ BEGIN {
         judged++
         outcome = ($9 >= 0.95 * n) ? "live" : "stall"
         if ($12 == outcome) matched++
+        if ($13 == "stop") { predicted_stop++; stop_trials += n; stop_trials_settled += $9 }
         if ($12 == "live") {
             predicted_live++; live_trials += n; live_trials_settled += $9
             if (outcome == "live") live_settled++
@@ -111,6 +119,7 @@ END {
     totals("kind", "per kind", "room corridor doorway clutter l_turn")
     totals("all", "total", "all")
     printf "\nliveness: predicted live in %d of %d worlds, %d of them settled in >= 95 %% of trials; the prediction (live = settles in >= 95 %%) matches the outcome in %d of %d worlds\n", predicted_live, judged, live_settled, matched, judged
+    printf "a safe stop predicted on the way in %d worlds: %d of %d trials settled\n", predicted_stop, stop_trials_settled, stop_trials
     printf "in the worlds predicted live, %d of %d trials settled (%.1f %%)\n", live_trials_settled, live_trials, live_trials ? 100 * live_trials_settled / live_trials : 0
     printf "Theorem 3 applies in %d worlds; unsafe trials in %d of them\n", applies_worlds, unsafe_applies
 }

@@ -11,6 +11,7 @@
 #   finish an interrupted measurement, or to measure a world added to the catalogue since: its
 #   commands then record the commit they ran at). Run from the repository root.
 #
+# Also searches the safe stop's worlds (tests/worlds_safe_stop/) with `--family fallback`.
 # Writes results/batch/*.json, results/falsify/*.json and results/stamp.toml (the invocation,
 # commit, date, machine and every command exactly as run, with its wall time), then runs
 # `ftcbf report`, which renders book/src/results/ from them. `ftcbf report --check` (CI)
@@ -38,6 +39,9 @@ alone=(tests/worlds_guarantees/paper_turtlebot_receivers_garbage
     tests/worlds_user/user_living_room tests/worlds_user/user_l_corridor
     tests/worlds_user/user_clutter_waffle tests/worlds_user/user_crate_corridor)
 if [[ $# -gt 0 ]]; then falsify=("$@"); else falsify=("${catalogue[@]}"); fi
+# The safe stop's worlds (issue #50: two sources nothing can tell apart), FT-CBF-CLF searched
+# with the attacks aimed at the safe stop (`--family fallback`).
+safe_stop=(pair_ramp_corridor gen3_066_corridor user_pair_doorway)
 
 stamp=results/stamp.toml
 if [[ ${RESUME:-0} != 1 || ! -f $stamp ]]; then
@@ -105,6 +109,11 @@ for w in "${falsify[@]}"; do
     run "results/falsify/$w.json" falsify "worlds/$w.toml" --controller ft-cbf-clf \
         --budget "$budget" --jobs "$jobs" --no-record --out "runs/falsify/$w.toml" \
         --json "results/falsify/$w.json"
+done
+for w in "${safe_stop[@]}"; do
+    run "results/falsify/fallback_$w.json" falsify "tests/worlds_safe_stop/$w.toml" \
+        --controller ft-cbf-clf --family fallback --budget "$budget" --jobs "$jobs" --no-record \
+        --out "runs/falsify/fallback_$w.toml" --json "results/falsify/fallback_$w.json"
 done
 
 "$ftcbf" report

@@ -576,6 +576,7 @@ fn the_library_search_advances_the_callers_progress_once_per_run() {
             seed: 1,
             jobs: Some(2),
             compare_random,
+            family: ftcbf_lab::falsify::Family::Injectors,
         };
         let count = Count::default();
         let report = falsify(&template, &settings, &count).expect("search");

@@ -148,3 +148,73 @@ fn check_gives_the_safe_stop_its_own_verdict() {
     assert!(!paper.safe_stop.in_force && !paper.safe_stop.applies);
     assert!(paper.safe_stop.line().contains("not in force"));
 }
+
+/// Liveness predicts the stop (issue #50, item 3): where Theorem 3 does not apply but the safe
+/// stop does, the liveness verdict says where the robot may brake, which two sources nothing
+/// tells apart and what would, and whether the walk goes on from there. The stop is a pause:
+/// on this corridor the walk waits and goes on (the batch: 198 of 200 settled); where the walk
+/// stalls at it (the crate corridor, whose bias never ends) the robot may stop short of its
+/// goal; where the attack's window closes, the world stays live. With `fallback = "paper"`
+/// nothing brakes, so no stop is predicted.
+#[test]
+fn liveness_predicts_the_stop_and_names_the_pair() {
+    let r = ftcbf_sim::analysis::check::check_world(&world(None)).expect("check");
+    let line = r.liveness.line();
+    let stop = line
+        .split_once("; under the declared attack (ramp on uwb1_y), the safe stop may brake near (")
+        .map(|(_, s)| s)
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(
+        stop.contains("nothing tells whether uwb1 or uwb2 lies")
+            && stop.contains("no third source")
+            && stop.contains("the walk waits")
+            && stop.contains("then goes on")
+            && stop.ends_with("add a channel the pair filters share: odometry or a third receiver"),
+        "{stop}"
+    );
+    // The same point as the safe-stop verdict's prediction.
+    let at = stop.split(" m along").next().expect("a point");
+    assert!(
+        r.safe_stop
+            .predicted_stop
+            .as_deref()
+            .is_some_and(|p| p.contains(at)),
+        "{at} vs {:?}",
+        r.safe_stop.predicted_stop
+    );
+    let printed = r.to_string();
+    assert!(
+        printed.contains(&format!("liveness verdict: {line}")),
+        "{printed}"
+    );
+
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let check = |rel: &str| {
+        let w = World::load(&root.join(rel), &[]).unwrap_or_else(|e| panic!("{e}"));
+        ftcbf_sim::analysis::check::check_world(&w)
+            .expect("check")
+            .liveness
+    };
+    let stalls = check("tests/worlds_user/user_crate_corridor.toml");
+    let line = stalls.line();
+    assert!(!stalls.live());
+    assert!(
+        line.starts_with("the robot may stop short of its goal under the declared attack (bias on b_y): stalls at")
+            && line.contains("nothing tells whether a or b lies")
+            && line.contains("the walk does not get past it"),
+        "{line}"
+    );
+    let ends = check("tests/worlds_liveness/crate_corridor_bias_ends.toml");
+    let line = ends.line();
+    assert!(ends.live(), "{line}");
+    assert!(
+        line.starts_with("live: ")
+            && line.contains("the safe stop may brake near")
+            && line.contains("then goes on"),
+        "{line}"
+    );
+
+    let paper = ftcbf_sim::analysis::check::check_world(&world(Some("paper"))).expect("check");
+    assert!(paper.liveness.safe_stop.is_none());
+    assert!(!paper.liveness.line().contains("the safe stop may brake"));
+}

@@ -80,6 +80,10 @@ pub struct FalsifyJson {
     pub world_file: String,
     /// Controller under test.
     pub controller: String,
+    /// The attacks searched (`injectors` or `fallback`; absent in reports written before
+    /// `--family`: the injectors).
+    #[serde(default)]
+    pub family: Option<String>,
     /// The CEM, then random search (when run).
     pub methods: Vec<FalsifyMethod>,
     /// Both methods' best attacks on the same held-out seeds.
@@ -751,7 +755,7 @@ fn falsify_page(inputs: &Inputs) -> String {
         out,
         "|---|---|---:|---:|---:|---:|---:|---:|---|---|---|---|"
     );
-    for (_, f) in &inputs.falsify {
+    for (_, f) in inputs.falsify.iter().filter(|(_, f)| !f.aims_at_fallback()) {
         let batch = t3.get(f.world_file.as_str()).copied();
         let cem = f.methods.iter().find(|m| m.method == "cem");
         let random = f.methods.iter().find(|m| m.method == "random");
@@ -777,7 +781,7 @@ fn falsify_page(inputs: &Inputs) -> String {
         listed(&unsafe_any, "none")
     );
     let _ = writeln!(out, "The worst attack each method found:\n");
-    for (_, f) in &inputs.falsify {
+    for (_, f) in inputs.falsify.iter().filter(|(_, f)| !f.aims_at_fallback()) {
         for m in &f.methods {
             let _ = writeln!(
                 out,
@@ -794,9 +798,97 @@ fn falsify_page(inputs: &Inputs) -> String {
         }
     }
     let _ = writeln!(out);
+    fallback_section(&mut out, inputs);
     let runs: Vec<&StampedRun> = inputs.falsify.iter().map(|(r, _)| r).collect();
     commands(&mut out, stamp, &runs);
     out
+}
+
+impl FalsifyJson {
+    /// Searched with `--family fallback` (attacks aimed at the safe stop).
+    fn aims_at_fallback(&self) -> bool {
+        self.family.as_deref() == Some("fallback")
+    }
+}
+
+/// The searches with `--family fallback`: one row per world and method, then their worst
+/// attacks. Nothing when there are none.
+fn fallback_section(out: &mut String, inputs: &Inputs) {
+    let searched: Vec<&FalsifyJson> = inputs
+        .falsify
+        .iter()
+        .map(|(_, f)| f)
+        .filter(|f| f.aims_at_fallback())
+        .collect();
+    if searched.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "## Attacks aimed at the safe stop (`--family fallback`)\n\nWorlds where two sources \
+         cannot be told apart, so the safe stop (`[control] fallback = \"brake\"`) is what keeps \
+         the robot safe, searched with attacks aimed at its weak spots: a stealthy bias whose \
+         detector threshold straddles the evidence test's edge, a ramp that reaches its full \
+         offset at a moment the search chooses and is held, a slow alternation (the rows \
+         conflict, agree, conflict again), and an offset held between the two estimates \
+         ([The safe stop](../theory/safe-stop.md)). The objective is ρ, as above.\n"
+    );
+    let _ = writeln!(
+        out,
+        "| world | method | runs | unsafe runs | worst ρ (binding) | best attack on held-out \
+         seeds: mean ρ (unsafe) | no attack: held-out mean ρ |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|");
+    for f in &searched {
+        for m in &f.methods {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} ({}) | {} | {} |",
+                f.world,
+                if m.method == "cem" { "CEM" } else { "random" },
+                m.runs,
+                m.unsafe_runs,
+                rho(&m.witness.robustness),
+                m.witness.robustness.binding,
+                held_out(&m.finalists[0]),
+                f.attack_free.as_ref().map_or("—".to_string(), |a| a
+                    .mean
+                    .map_or("−∞".to_string(), |v| format!("{v:.4}")))
+            );
+        }
+    }
+    let total: usize = searched
+        .iter()
+        .flat_map(|f| &f.methods)
+        .map(|m| m.runs)
+        .sum();
+    let unsafe_runs: usize = searched
+        .iter()
+        .flat_map(|f| &f.methods)
+        .map(|m| m.unsafe_runs)
+        .sum();
+    let _ = writeln!(
+        out,
+        "\n**Unsafe runs under attacks aimed at the safe stop**: {unsafe_runs} of {total}.\n\nThe \
+         worst run of each search:\n"
+    );
+    for f in &searched {
+        for m in &f.methods {
+            let _ = writeln!(
+                out,
+                "- `{}`, {}: {} (ρ = {})",
+                f.world,
+                if m.method == "cem" {
+                    "CEM"
+                } else {
+                    "random search"
+                },
+                m.witness.description,
+                rho(&m.witness.robustness)
+            );
+        }
+    }
+    let _ = writeln!(out);
 }
 
 /// One world's row of the falsify table.

@@ -249,5 +249,6 @@ fn liveness_dict<'py>(py: Python<'py>, l: &LivenessReport) -> PyResult<Bound<'py
         "fix": fix,
         "structural": &l.structural,
         "skipped": &l.skipped,
+        "safe_stop": &l.safe_stop,
     }))
 }

@@ -12,7 +12,9 @@ use serde::Serialize;
 use ftcbf_lab::falsify::search::MIN_BUDGET;
 
 use crate::bars::RunsBar;
-use ftcbf_lab::falsify::{falsify, ReplayInfo, Report, Robustness, Settings, WorldTemplate};
+use ftcbf_lab::falsify::{
+    falsify, Family, ReplayInfo, Report, Robustness, Settings, WorldTemplate,
+};
 
 /// Search for the worst attack inside the world's threat model.
 ///
@@ -67,6 +69,14 @@ pub struct FalsifyArgs {
     /// Skip the random-search comparison (halves the runs).
     #[arg(long)]
     pub no_random: bool,
+    /// The attacks searched: `injectors` (every injector kind over its whole range) or
+    /// `fallback` (attacks aimed at the safe stop, `[control] fallback = "brake"`: a stealthy
+    /// bias at the edge of its evidence test, a ramp timed to reach its full offset at a chosen
+    /// moment, a slow alternation, a held offset between the two estimates); the objective is
+    /// ρ either way.
+    #[arg(long, value_name = "FAMILY", default_value = "injectors", value_parser = parse_family,
+          conflicts_with = "scenario")]
+    pub family: Family,
     /// Scenario search: also vary the world (obstacles, start, goal, sensor noise, attack onset)
     /// within the ranges of its [falsify] table and --range, keep the variants `ftcbf check`
     /// accepts (Theorem 3 applies, robot predicted live), attack them, and report every unsafe
@@ -82,6 +92,14 @@ pub struct FalsifyArgs {
     /// (and its worst run, unless --out says where).
     #[arg(long, value_name = "DIR", requires = "scenario")]
     pub defects: Option<PathBuf>,
+}
+
+/// `--family`: `injectors` or `fallback`.
+fn parse_family(s: &str) -> Result<Family, String> {
+    [Family::Injectors, Family::Fallback]
+        .into_iter()
+        .find(|f| f.name() == s)
+        .ok_or_else(|| format!("`{s}`: expected `injectors` or `fallback`"))
 }
 
 /// A command-line value out of range (exit 64, as clap's own usage errors).
@@ -312,6 +330,7 @@ pub fn command(args: &FalsifyArgs) -> anyhow::Result<()> {
             .transpose()
             .context("--jobs is too large for this machine")?,
         compare_random: !args.no_random,
+        family: args.family,
     };
     for w in ftcbf_lab::falsify::model_warnings(&template.world) {
         eprintln!("warning: {w}");

@@ -221,10 +221,20 @@ fn steps_table(res: &BatchResult, out: &mut String) {
     out.push_str(&render(&headers, &align, &rows));
 }
 
+/// What `check`'s liveness line says when it predicts a safe stop
+/// (`ftcbf_sim::analysis::safe_stop::predicted_stop_line`).
+const PREDICTED_STOP: &str = "the safe stop may brake near";
+
 /// The safe stops (`[control] fallback = "brake"`), per controller: how many trials stopped, the
-/// braking steps, and the first stopped trial's reason (nothing when no trial stopped).
+/// braking steps, whether liveness predicted a stop and how many trials settled, and the first
+/// stopped trial's reason (nothing when no trial stopped and none was predicted).
 fn stops_table(res: &BatchResult, out: &mut String) {
-    if res.records.iter().all(|r| r.first_stop_t.is_none()) {
+    let predicted = res
+        .plan
+        .liveness
+        .as_deref()
+        .is_some_and(|l| l.contains(PREDICTED_STOP));
+    if !predicted && res.records.iter().all(|r| r.first_stop_t.is_none()) {
         return;
     }
     out.push_str(
@@ -236,8 +246,17 @@ fn stops_table(res: &BatchResult, out: &mut String) {
         let stopped = mine().filter(|r| r.first_stop_t.is_some()).count();
         let _ = writeln!(
             out,
-            "{}: {stopped} of {n} trials stopped, {} braking steps in all",
-            s.controller, s.steps.safe_stop
+            "{}: {stopped} of {n} trials stopped, {} braking steps in all; {}",
+            s.controller,
+            s.steps.safe_stop,
+            if predicted {
+                format!(
+                    "liveness predicted a stop: {} of {n} trials settled",
+                    s.settled
+                )
+            } else {
+                "liveness predicted no stop".to_string()
+            }
         );
         if let Some(r) = mine().find(|r| r.first_stop_t.is_some()) {
             let _ = writeln!(

@@ -70,7 +70,7 @@ use serde::Serialize;
 
 pub use robustness::{Robustness, CLEARANCE};
 pub use search::{Method, MethodResult, Plan, SeedRun};
-pub use space::{Candidate, Kind, SearchSpace};
+pub use space::{Candidate, Family, Kind, SearchSpace};
 pub use template::{ReplayInfo, WorldTemplate};
 
 use crate::progress::Progress;
@@ -90,6 +90,8 @@ pub struct Settings {
     pub jobs: Option<usize>,
     /// Also run random search with the same budget, for comparison.
     pub compare_random: bool,
+    /// The attacks searched ([`Family::Injectors`] unless aimed at the safe stop).
+    pub family: Family,
 }
 
 impl Settings {
@@ -126,6 +128,8 @@ pub struct Report {
     pub controller: String,
     /// Base seed.
     pub seed: u64,
+    /// The attacks searched.
+    pub family: Family,
     /// How each method spent its budget.
     pub plan: Plan,
     /// The fault patterns searched (one per candidate, never combined).
@@ -312,7 +316,9 @@ pub fn falsify(
 ) -> anyhow::Result<Report> {
     let world = &template.world;
     progress.start(settings.runs()?, &world.name);
-    let space = SearchSpace::new(world).with_context(|| format!("world `{}`", world.name))?;
+    let space = SearchSpace::new(world)
+        .with_context(|| format!("world `{}`", world.name))?
+        .with_family(settings.family);
     let plan = Plan::new(settings.budget)?;
     let methods = settings.methods();
     let pool = worker_pool(settings.jobs)?;
@@ -350,6 +356,7 @@ pub fn falsify(
         world_file: template.path.display().to_string(),
         controller: settings.controller.name().to_string(),
         seed: settings.seed,
+        family: settings.family,
         plan,
         threat_model: format!(
             "every candidate attacks channels of ONE declared fault pattern ({}); patterns are never combined",
@@ -390,6 +397,15 @@ impl Report {
             self.world, self.controller, self.seed, p.budget
         );
         let _ = writeln!(s, "threat model: {}.", self.threat_model);
+        if self.family != Family::Injectors {
+            let kinds: Vec<&str> = self.family.kinds().iter().map(|k| k.name()).collect();
+            let _ = writeln!(
+                s,
+                "family: {} ({}), attacks aimed at the safe stop's weak spots; the objective is still ρ.",
+                self.family.name(),
+                kinds.join(", ")
+            );
+        }
         for w in &self.warnings {
             let _ = writeln!(s, "warning: {w}");
         }

@@ -12,6 +12,10 @@
 //! | 4 | the kind's third parameter (phase, cap, largest bias, recording length) |
 //! | 5 + i | weight wᵢ = 2 z − 1 of the pattern's i-th channel: the channel is attacked iff \|wᵢ\| ≥ 0.2 (if none is, the largest \|wᵢ\|), with sign sign(wᵢ) and relative size \|wᵢ\| / maxⱼ \|wⱼ\| |
 //!
+//! The [`Family::Fallback`] kinds read the same z with their own meanings (see [`Family`]);
+//! `timed_ramp` reads z₀, z₁ and z₃ as the moment of its full offset, its growth time and its
+//! hold.
+//!
 //! Channel scale: 1 m for x and y; 0.5 m/s for vx and vy; 0.2 m/s for a (wheel-odometry) speed;
 //! 0.5 rad for a heading and 0.5 rad/s for a yaw rate; 6 rad/s for a wheel encoder (0.2 m/s on a
 //! TurtleBot3 wheel). A stealthy attacker on a channel the filters do not read directly (a speed
@@ -60,9 +64,20 @@ pub enum Kind {
     Stealthy,
     /// Channels spoofed consistently along a path.
     Coordinated,
+    /// Fallback family: a stealthy bias whose detector threshold sits around the edge of the
+    /// safe stop's evidence test, held at a size.
+    Undercut,
+    /// Fallback family: a ramp timed to reach its full offset at a chosen moment, then held.
+    TimedRamp,
+    /// Fallback family: a slow sinusoid, so the rows conflict, agree and conflict again.
+    Alternating,
+    /// Fallback family: the pattern's channels spoofed along one direction up to a held offset
+    /// (the two estimates kept a chosen distance apart).
+    HeldOffset,
 }
 
-/// Every kind, in a fixed order (the categorical distribution's index).
+/// Every injector kind, in a fixed order (the categorical distribution's index): the
+/// [`Family::Injectors`] family.
 pub const KINDS: [Kind; 12] = [
     Kind::Bias,
     Kind::Ramp,
@@ -78,8 +93,71 @@ pub const KINDS: [Kind; 12] = [
     Kind::Coordinated,
 ];
 
+/// The [`Family::Fallback`] family, aimed at the safe stop's weak spots (see [`Family`]).
+pub const FALLBACK_KINDS: [Kind; 4] = [
+    Kind::Undercut,
+    Kind::TimedRamp,
+    Kind::Alternating,
+    Kind::HeldOffset,
+];
+
+/// Which attacks a search draws from.
+///
+/// - `Injectors` (the default): every injector kind of the simulator over its whole range.
+/// - `Fallback`: attacks aimed at the safe stop (`[control] fallback = "brake"`, issue #50),
+///   which brakes where the kept units' rows conflict and the residues are no evidence. Its
+///   weak spots are a liar that stays under the evidence test while it misleads the rows, an
+///   offset that keeps two estimates just close enough for the saturated rule to weigh the
+///   lying row instead of braking, a ramp whose full offset arrives when the robot is at its
+///   closest to a wall, and a conflict that comes and goes (each resume starts from the honest
+///   estimate's margin less the braking distance). Each kind puts one of these regions inside
+///   [0, 1]^D, so the CEM and CMA-ES can reach it:
+///   - `undercut`: `stealthy` with its detector threshold in [0.5, 3] σ (the evidence test's
+///     z_α = 4.753 over a 1 s window is reached by a steady 1.35 σ per reading at 100 readings a
+///     second, two channels at 50 Hz, and by 2.2 σ at 10), its largest rate log-uniform in
+///     [0.002, 0.5]·scale and always capped (log-uniform in [0.02, 3]·scale);
+///   - `timed_ramp`: `ramp` capped at its full offset (log-uniform in [0.02, 3]·scale), which
+///     it reaches at t_full = (0.05 + 0.9·z₀)·T after growing for a share z₁ of t_full (at
+///     least 0.5 s), held until `end` (z₃; 1.25·z₃·(T − t_full) after t_full, "forever" past T);
+///   - `alternating`: `sinusoid` of amplitude log-uniform in [0.02, 3]·scale and frequency
+///     log-uniform in [0.005, 0.2] Hz (a period of 5 to 200 s), phase 2π·z₄;
+///   - `held_offset`: `coordinated` at a speed log-uniform in [0.002, 0.2]·scale per channel,
+///     always capped at a norm log-uniform in [0.02, 2]·scale.
+///
+/// The objective is the same as the injectors' ([`super::Robustness`]): the run's ρ, the
+/// minimum over time of the true clearance and of h(x_true); the family decides where the
+/// search looks, not what it minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Family {
+    /// Every injector kind ([`KINDS`]).
+    #[default]
+    Injectors,
+    /// The attacks aimed at the safe stop ([`FALLBACK_KINDS`]).
+    Fallback,
+}
+
+impl Family {
+    /// The kinds of the family, in the categorical distribution's order.
+    pub fn kinds(self) -> &'static [Kind] {
+        match self {
+            Family::Injectors => &KINDS,
+            Family::Fallback => &FALLBACK_KINDS,
+        }
+    }
+
+    /// The `--family` value.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Injectors => "injectors",
+            Family::Fallback => "fallback",
+        }
+    }
+}
+
 impl Kind {
-    /// The world file's `kind` string.
+    /// The search's name of the kind (the world file's `kind` string for an injector kind; a
+    /// [`Family::Fallback`] kind names the shape it gives an injector, see [`Kind::injector`]).
     pub fn name(self) -> &'static str {
         match self {
             Kind::Bias => "bias",
@@ -94,6 +172,21 @@ impl Kind {
             Kind::Absurd => "absurd",
             Kind::Stealthy => "stealthy",
             Kind::Coordinated => "coordinated",
+            Kind::Undercut => "undercut",
+            Kind::TimedRamp => "timed_ramp",
+            Kind::Alternating => "alternating",
+            Kind::HeldOffset => "held_offset",
+        }
+    }
+
+    /// The world file's `kind` string of the entries the kind decodes to.
+    pub fn injector(self) -> &'static str {
+        match self {
+            Kind::Undercut => "stealthy",
+            Kind::TimedRamp => "ramp",
+            Kind::Alternating => "sinusoid",
+            Kind::HeldOffset => "coordinated",
+            k => k.name(),
         }
     }
 }
@@ -138,6 +231,8 @@ pub struct SearchSpace {
     pub duration: f64,
     /// Length of z.
     pub dim: usize,
+    /// The attacks searched.
+    pub family: Family,
 }
 
 /// Why a world cannot be searched.
@@ -184,6 +279,8 @@ struct Decoding<'a> {
     on: Vec<(usize, f64)>,
     start: f64,
     end: Option<f64>,
+    /// How long a [`Kind::TimedRamp`] grows before its full offset (0 for other kinds) \[s\].
+    ramp_time: f64,
 }
 
 impl Decoding<'_> {
@@ -292,8 +389,93 @@ impl Decoding<'_> {
                     },
                 )]
             }
+            Kind::Undercut | Kind::TimedRamp | Kind::Alternating | Kind::HeldOffset => {
+                self.fallback_specs()
+            }
         }
     }
+}
+
+impl Decoding<'_> {
+    /// The entries of a [`Family::Fallback`] kind (see [`Family`]).
+    fn fallback_specs(&self) -> Vec<AttackSpec> {
+        let (c, pattern, on) = (self.c, self.pattern, &self.on);
+        let z = |i: usize| c.z.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
+        let sc = |i: usize| scale(pattern.channels[i].1);
+        let spec = |channels: Vec<String>, kind: AttackKind| AttackSpec {
+            label: None,
+            channels,
+            start: self.start,
+            end: self.end,
+            kind,
+        };
+        let per_channel = |f: &dyn Fn(usize, f64) -> AttackKind| -> Vec<AttackSpec> {
+            on.iter()
+                .map(|&(i, w)| spec(vec![pattern.channels[i].0.clone()], f(i, w)))
+                .collect()
+        };
+        let names: Vec<String> = on
+            .iter()
+            .map(|&(i, _)| pattern.channels[i].0.clone())
+            .collect();
+        match c.kind {
+            Kind::Undercut => per_channel(&|i, w| AttackKind::Stealthy {
+                max_rate: round4(w.abs() * sc(i) * log_range(z(2), 0.002, 0.5)),
+                threshold: round4(0.5 + 2.5 * z(3)),
+                direction: if w < 0.0 {
+                    Direction::Negative
+                } else {
+                    Direction::Positive
+                },
+                max_bias: Some(round4(w.abs() * sc(i) * log_range(z(4), 0.02, 3.0))),
+            }),
+            Kind::TimedRamp => {
+                // The window starts when the ramp does: its full offset arrives `ramp_time`
+                // later.
+                let grow = self.ramp_time.max(0.02);
+                per_channel(&|i, w| {
+                    let full = w * sc(i) * log_range(z(2), 0.02, 3.0);
+                    AttackKind::Ramp {
+                        rate: round4(full / grow),
+                        cap: Some(round4(full.abs())),
+                    }
+                })
+            }
+            Kind::Alternating => per_channel(&|i, w| AttackKind::Sinusoid {
+                amplitude: round4(w * sc(i) * log_range(z(2), 0.02, 3.0)),
+                frequency_hz: round4(log_range(z(3), 0.005, 0.2)),
+                phase: round4(2.0 * PI * z(4)),
+            }),
+            Kind::HeldOffset => {
+                let velocity = on
+                    .iter()
+                    .map(|&(i, w)| round4(w * sc(i) * log_range(z(2), 0.002, 0.2)))
+                    .collect();
+                vec![spec(
+                    names,
+                    AttackKind::Coordinated {
+                        velocity,
+                        cap: Some(round4(sc(on[0].0) * log_range(z(4), 0.02, 2.0))),
+                    },
+                )]
+            }
+            // The injector kinds.
+            _ => self.specs(),
+        }
+    }
+}
+
+/// The window of a [`Kind::TimedRamp`] candidate in a run of `t_end` seconds: `(start, end,
+/// growth time)`. The full offset arrives at t_full = (0.05 + 0.9·z₀)·T after a growth of
+/// max(0.5 s, z₁·t_full) (at most t_full); it is held for 1.25·z₃·(T − t_full), "forever"
+/// (`None`) when that reaches T.
+fn timed_window(z: &dyn Fn(usize) -> f64, t_end: f64) -> (f64, Option<f64>, f64) {
+    let t_full = (0.05 + 0.9 * z(0)) * t_end;
+    let grow = (z(1) * t_full).max(0.5).min(t_full);
+    let start = round4(t_full - grow);
+    let end_raw = t_full + 1.25 * z(3) * (t_end - t_full);
+    let end = (end_raw < t_end).then(|| round4(end_raw.max(start + 0.02)));
+    (start, end, t_full - start)
 }
 
 /// The channel scale used for magnitudes and rates [unit].
@@ -343,7 +525,18 @@ impl SearchSpace {
             patterns,
             duration: f.duration,
             dim: HEAD + widest,
+            family: Family::Injectors,
         })
+    }
+
+    /// The same space searching `family`'s attacks.
+    pub fn with_family(self, family: Family) -> Self {
+        Self { family, ..self }
+    }
+
+    /// The kinds searched, in the categorical distribution's order.
+    pub fn kinds(&self) -> &'static [Kind] {
+        self.family.kinds()
     }
 
     /// The `[[attacks]]` entries of `c`: all on channels of pattern `c.pattern` (never of two
@@ -359,12 +552,18 @@ impl SearchSpace {
         let start = round4(start);
         let end_raw = start + 1.25 * z(1) * (t_end - start);
         let end = (end_raw < t_end).then(|| round4(end_raw.max(start + 0.02)));
+        let (start, end, ramp_time) = if c.kind == Kind::TimedRamp {
+            timed_window(&z, t_end)
+        } else {
+            (start, end, 0.0)
+        };
         Decoding {
             pattern,
             c,
             on: attacked_channels(pattern, &z),
             start,
             end,
+            ramp_time,
         }
         .specs()
     }
@@ -451,6 +650,7 @@ mod tests {
             ],
             duration: 20.0,
             dim: HEAD + 2,
+            family: Family::Injectors,
         }
     }
 
@@ -463,7 +663,7 @@ mod tests {
             vec![0.5; 7],
             vec![0.3, 0.9, 0.7, 0.1, 0.8, 0.95, 0.05],
         ];
-        for kind in KINDS {
+        for kind in KINDS.into_iter().chain(FALLBACK_KINDS) {
             for pattern in 0..2 {
                 for z in &zs {
                     let c = Candidate {
@@ -479,10 +679,11 @@ mod tests {
                         .map(|(n, _)| n.as_str())
                         .collect();
                     for sp in &specs {
-                        assert_eq!(sp.kind.name(), kind.name());
+                        assert_eq!(sp.kind.name(), kind.injector());
                         assert!(!sp.channels.is_empty());
                         assert!(sp.channels.iter().all(|n| allowed.contains(&n.as_str())));
-                        assert!((0.0..=15.0).contains(&sp.start), "{sp:?}");
+                        let latest = if kind == Kind::TimedRamp { 19.0 } else { 15.0 };
+                        assert!((0.0..=latest).contains(&sp.start), "{sp:?}");
                         if let Some(e) = sp.end {
                             assert!(e > sp.start && e < 20.0, "{sp:?}");
                         }
@@ -531,6 +732,70 @@ mod tests {
                 rate: 0.002,
                 cap: None
             }
+        );
+    }
+
+    /// The fallback family's kinds put their regions where the docs say: a timed ramp's full
+    /// offset arrives at t_full and is held; the undercut's threshold straddles the evidence
+    /// edge (≈ 1.35 σ at 100 readings a second) and its bias is capped; the alternation is
+    /// slow; the held offset is always capped.
+    #[test]
+    fn fallback_kinds_decode_to_their_regions() {
+        let s = space().with_family(Family::Fallback);
+        assert_eq!(s.kinds(), &FALLBACK_KINDS[..]);
+        let c = |kind, z: Vec<f64>| Candidate {
+            pattern: 0,
+            kind,
+            z,
+        };
+        // t_full = (0.05 + 0.9 · 0.5) · 20 = 10 s, grown for 0.4 · 10 = 4 s, offset
+        // 0.02 · 150^0.5 = 0.2449 m on g1x (weight +1), held forever (z₃ = 1).
+        let specs = s.decode(&c(Kind::TimedRamp, vec![0.5, 0.4, 0.5, 1.0, 0.5, 1.0, 0.5]));
+        assert_eq!(specs.len(), 1);
+        assert_eq!((specs[0].start, specs[0].end), (6.0, None));
+        let AttackKind::Ramp {
+            rate,
+            cap: Some(cap),
+        } = specs[0].kind
+        else {
+            panic!("{specs:?}");
+        };
+        assert_eq!(cap, 0.2449);
+        assert!((rate * 4.0 - cap).abs() < 1e-3, "{rate} · 4 s vs {cap}");
+        // A short growth is at least 0.5 s; the hold ends before T when z₃ < 1.
+        let specs = s.decode(&c(Kind::TimedRamp, vec![0.0, 0.0, 0.0, 0.2, 0.5, 0.0, 0.5]));
+        assert_eq!(specs[0].start, 0.5);
+        assert_eq!(specs[0].end, Some(round4(1.0 + 0.25 * 19.0)));
+        assert!(
+            matches!(specs[0].kind, AttackKind::Ramp { rate, cap: Some(cap) }
+            if rate == -0.04 && cap == 0.02)
+        );
+        for (z3, want) in [(0.0, 0.5), (0.34, 1.35), (1.0, 3.0)] {
+            let specs = s.decode(&c(Kind::Undercut, vec![0.1, 1.0, 0.5, z3, 0.0, 1.0, 0.5]));
+            assert!(
+                matches!(specs[0].kind, AttackKind::Stealthy { threshold, max_bias: Some(b), .. }
+                if threshold == want && b == 0.02),
+                "{specs:?}"
+            );
+        }
+        let specs = s.decode(&c(
+            Kind::Alternating,
+            vec![0.1, 1.0, 1.0, 0.0, 0.25, 0.0, 0.5],
+        ));
+        assert!(
+            matches!(specs[0].kind, AttackKind::Sinusoid { amplitude, frequency_hz, .. }
+            if amplitude == -3.0 && frequency_hz == 0.005),
+            "{specs:?}"
+        );
+        let specs = s.decode(&c(
+            Kind::HeldOffset,
+            vec![0.1, 1.0, 0.0, 0.5, 1.0, 1.0, 0.0],
+        ));
+        assert_eq!(specs.len(), 1);
+        assert!(
+            matches!(&specs[0].kind, AttackKind::Coordinated { velocity, cap: Some(cap) }
+            if velocity == &vec![0.002, -0.002] && *cap == 2.0),
+            "{specs:?}"
         );
     }
 

@@ -442,6 +442,8 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
         })
         .collect();
     let safe_stop = crate::analysis::safe_stop::verdict(world, &failed, &liveness);
+    let mut liveness = liveness;
+    liveness.safe_stop = crate::analysis::safe_stop::predicted_stop_line(world, &failed, &liveness);
     CheckReport {
         environment: environment_lines(world),
         world: world.name.clone(),

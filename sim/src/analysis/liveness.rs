@@ -213,6 +213,12 @@ pub struct LivenessReport {
     pub skipped: Option<String>,
     /// The goal's radius \[m\] (the tracker's settling tolerance).
     pub goal_radius: f64,
+    /// Where the safe stop (`[control] fallback = "brake"`) is predicted to brake, and why, in
+    /// one phrase: set by `check` ([`crate::analysis::safe_stop::predicted_stop_line`]) when a case has
+    /// a point where no input meets every kept unit's rows and no pair filter can tell the two
+    /// sources apart. The stop is a pause: whether the robot goes on from it is the walk's
+    /// (a case that waits there and goes on stays live; one that stalls there stops short).
+    pub safe_stop: Option<String>,
 }
 
 impl LivenessReport {
@@ -226,13 +232,23 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
+        let stop = self
+            .safe_stop
+            .as_ref()
+            .map_or(String::new(), |stop| format!("; {stop}"));
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
             return format!(
-                "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {})",
+                "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
         };
         let mut s = match &c.stall {
+            // With the safe stop it brakes there (and says why below) rather than push on.
+            Some(st) if self.safe_stop.is_some() => format!(
+                "the robot may stop short of its goal {}: {}",
+                c.name,
+                stall_text(st)
+            ),
             Some(st) => format!(
                 "the robot will NOT reach its goal {}: {}",
                 c.name,
@@ -259,7 +275,7 @@ impl LivenessReport {
             s.push_str("; ");
             s.push_str(t);
         }
-        s
+        s + &stop
     }
 }
 
@@ -1545,6 +1561,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             structural: Vec::new(),
             skipped: Some("the nominal controller imposes no rows".into()),
             goal_radius: world.file.goal.radius,
+            safe_stop: None,
         };
     };
     let path_length = model.length();
@@ -1569,6 +1586,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
         structural,
         skipped: None,
         goal_radius: model.goal_radius,
+        safe_stop: None,
     }
 }
 

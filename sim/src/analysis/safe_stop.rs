@@ -221,3 +221,52 @@ fn predicted_stop(liveness: &LivenessReport) -> Option<String> {
         })
     })
 }
+
+/// `A` and `B` of a Theorem-3 hypothesis about the pair filter that drops them, named
+/// "… x̂_12 (drops A ∪ B)".
+fn pair_of(name: &str) -> Option<(&str, &str)> {
+    let inside = name.rsplit_once("(drops ")?.1;
+    let inside = inside.strip_suffix(')').unwrap_or(inside);
+    inside.split_once(" ∪ ")
+}
+
+/// The liveness line's prediction of a safe stop (issue #50): with `[control] fallback =
+/// "brake"`, where a case of the liveness walk finds a point at which no input meets every kept
+/// unit's rows and a pair filter Theorem 3 could not certify leaves two sources that nothing
+/// tells apart, the robot brakes there instead of guessing. The stop is a pause: the walk says
+/// whether the robot goes on (it waits for the rows to agree) or stops short there (a stall).
+/// Names the pair and the channel that would resolve it, as a run's stop reason does. `None`
+/// when no such point or pair exists, or the stop is not in force.
+pub fn predicted_stop_line(
+    world: &World,
+    theorem3: &[Failed<'_>],
+    liveness: &LivenessReport,
+) -> Option<String> {
+    if world.file.control.fallback != FallbackSpec::Brake {
+        return None;
+    }
+    let (case, st) = liveness
+        .cases
+        .iter()
+        .find_map(|c| c.joint_infeasible.as_ref().map(|st| (c, st)))?;
+    let (a, b) = theorem3
+        .iter()
+        .filter(|h| replaced_by_the_stop(h))
+        .find_map(|h| pair_of(h.name))?;
+    let third = if world.file.fault_patterns.len() <= 2 {
+        "; no third source"
+    } else {
+        ""
+    };
+    let after = match (&case.stall, case.waited) {
+        (Some(_), _) => "; the walk does not get past it".to_string(),
+        (None, Some((w, _))) => {
+            format!("; the walk waits {w:.1} s for the rows to agree, then goes on")
+        }
+        (None, None) => String::new(),
+    };
+    Some(format!(
+        "{}, the safe stop may brake near ({:.2}, {:.2}), {:.2} m along its path: no input meets every kept unit's rows there and nothing tells whether {a} or {b} lies (their pair filter is not certified, so Step 2 cannot isolate either{third}); it brakes instead of guessing and resumes when the rows agree{after}; to resolve it, add a channel the pair filters share: odometry or a third receiver",
+        case.name, st.at[0], st.at[1], st.along
+    ))
+}
