@@ -32,12 +32,12 @@ mkdir -p "$out"
 
 # name | environment table | start x y θ | goal x y
 pairs=(
-    "sdf_world_0|sdf = \"$gazebo/worlds/turtlebot3_world.world\"\nmodel_paths = [\"$gazebo/models\"]|-2.0 -0.5 0.0|2.0 0.5"
-    "sdf_world_1|sdf = \"$gazebo/worlds/turtlebot3_world.world\"\nmodel_paths = [\"$gazebo/models\"]|-1.6 0.5 0.0|1.6 -0.5"
     "map_world_0|map = \"$navmap\"|-2.0 -0.5 0.0|2.0 0.5"
-    "map_world_1|map = \"$navmap\"|-2.0 0.5 0.0|0.6 -1.6"
-    "map_office_0|map = \"$repo/tests/worlds_map/office.yaml\"|-1.815 3.119 0.2|2.635 3.817"
+    "sdf_world_0|sdf = \"$gazebo/worlds/turtlebot3_world.world\"\nmodel_paths = [\"$gazebo/models\"]|-2.0 -0.5 0.0|2.0 0.5"
     "map_office_1|map = \"$repo/tests/worlds_map/office.yaml\"|0.251 0.477 0.2|3.483 2.152"
+    "map_world_1|map = \"$navmap\"|-2.0 0.5 0.0|0.6 -1.6"
+    "sdf_world_1|sdf = \"$gazebo/worlds/turtlebot3_world.world\"\nmodel_paths = [\"$gazebo/models\"]|-1.6 0.5 0.0|1.6 -0.5"
+    "map_office_0|map = \"$repo/tests/worlds_map/office.yaml\"|-1.815 3.119 0.2|2.635 3.817"
 )
 
 world_file() { # name env sx sy st gx gy
@@ -66,6 +66,40 @@ wilson() {
         printf "[%.3f, %.3f]", lo, hi }'
 }
 
+page() {
+    commit=$(git rev-parse --short HEAD)
+    dirty=$(git diff --quiet HEAD -- . ':!book/src/results' && echo "" || echo " (with local changes)")
+    {
+        echo "# Worlds robots live in: an SDF world and occupancy maps"
+        echo
+        echo "Written by \`scripts/real_worlds.sh ROBOTIS_DIR OUT_DIR $trials\` (do not edit by hand): the"
+        echo "ROBOTIS TurtleBot3 world (\`turtlebot3_gazebo/worlds/turtlebot3_world.world\` with its"
+        echo "\`models/\`) and the nav2 map of that world (\`turtlebot3_navigation2/map/map.yaml\`), read"
+        echo "unchanged from checkouts of ROBOTIS' repositories, and the map fixture"
+        echo "\`tests/worlds_map/office.yaml\` (7 m × 5 m at 5 cm, origin turned 0.2 rad, a doorway, a"
+        echo "pillar, a desk and a diagonal cabinet). Each world file holds only \`[environment]\`, the"
+        echo "burger, start, goal, the quick start's sensors (two receivers, wheel odometry, compass) and"
+        echo "attack (receiver b's y biased by 0.4 m from t = 3 s). \`ftcbf check\`, then"
+        echo "\`ftcbf batch --trials $trials --controller ft-cbf-clf\`. Commit $commit$dirty, $(date +%F),"
+        echo "$(uname -m), $(nproc) cores."
+        echo
+        echo "Intervals are 95 % Wilson intervals. \`check\` predicts live when the rows leave a forward"
+        echo "input along the planned path and hold the robot in its goal; the prediction matches when"
+        echo "it said live and ≥ 95 % of trials settled, or said stall and fewer did."
+        echo
+        echo "| world | start → goal | Theorem 3 | safe | settled | check predicts | matches | batch time |"
+        echo "|---|---|---|---:|---:|---|---|---:|"
+        while IFS=$'\t' read -r name verdict live safe settled n secs s g; do
+            if [[ $live == live ]]; then
+                ok=$(awk -v k="$settled" -v n="$n" 'BEGIN { print (k >= 0.95 * n) ? "yes" : "no" }')
+            else
+                ok=$(awk -v k="$settled" -v n="$n" 'BEGIN { print (k < 0.95 * n) ? "yes" : "no" }')
+            fi
+            echo "| $name | ($s) → ($g) | $verdict | $safe/$n $(wilson "$safe" "$n") | $settled/$n $(wilson "$settled" "$n") | $live | $ok | ${secs} s |"
+        done <"$rows"
+    } >"$out/real-worlds.md"
+}
+
 rows="$out/rows.tsv"
 : >"$rows"
 for entry in "${pairs[@]}"; do
@@ -84,37 +118,7 @@ for entry in "${pairs[@]}"; do
     read -r safe settled n < <(jq -r '.results[0].summaries[0] | [.safe, .settled, .trials] | @tsv' "$out/$name.json")
     printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s %s\t%s %s\n' "$name" "$verdict" "$live" "$safe" "$settled" "$n" "$secs" \
         "$sx" "$sy" "$gx" "$gy" >>"$rows"
+    page # after each pair, so a run stopped half-way leaves the pairs it finished
 done
-
-commit=$(git rev-parse --short HEAD)
-dirty=$(git diff --quiet HEAD -- . ':!book/src/results' && echo "" || echo " (with local changes)")
-{
-    echo "# Worlds robots live in: an SDF world and occupancy maps"
-    echo
-    echo "Written by \`scripts/real_worlds.sh ROBOTIS_DIR OUT_DIR $trials\` (do not edit by hand): the"
-    echo "ROBOTIS TurtleBot3 world (\`turtlebot3_gazebo/worlds/turtlebot3_world.world\` with its"
-    echo "\`models/\`) and the nav2 map of that world (\`turtlebot3_navigation2/map/map.yaml\`), read"
-    echo "unchanged from checkouts of ROBOTIS' repositories, and the map fixture"
-    echo "\`tests/worlds_map/office.yaml\` (7 m × 5 m at 5 cm, origin turned 0.2 rad, a doorway, a"
-    echo "pillar, a desk and a diagonal cabinet). Each world file holds only \`[environment]\`, the"
-    echo "burger, start, goal, the quick start's sensors (two receivers, wheel odometry, compass) and"
-    echo "attack (receiver b's y biased by 0.4 m from t = 3 s). \`ftcbf check\`, then"
-    echo "\`ftcbf batch --trials $trials --controller ft-cbf-clf\`. Commit $commit$dirty, $(date +%F),"
-    echo "$(uname -m), $(nproc) cores."
-    echo
-    echo "Intervals are 95 % Wilson intervals. \`check\` predicts live when the rows leave a forward"
-    echo "input along the planned path and hold the robot in its goal; the prediction matches when"
-    echo "it said live and ≥ 95 % of trials settled, or said stall and fewer did."
-    echo
-    echo "| world | start → goal | Theorem 3 | safe | settled | check predicts | matches | batch time |"
-    echo "|---|---|---|---:|---:|---|---|---:|"
-    while IFS=$'\t' read -r name verdict live safe settled n secs s g; do
-        if [[ $live == live ]]; then
-            ok=$(awk -v k="$settled" -v n="$n" 'BEGIN { print (k >= 0.95 * n) ? "yes" : "no" }')
-        else
-            ok=$(awk -v k="$settled" -v n="$n" 'BEGIN { print (k < 0.95 * n) ? "yes" : "no" }')
-        fi
-        echo "| $name | ($s) → ($g) | $verdict | $safe/$n $(wilson "$safe" "$n") | $settled/$n $(wilson "$settled" "$n") | $live | $ok | ${secs} s |"
-    done <"$rows"
-} >"$out/real-worlds.md"
 cat "$out/real-worlds.md"
+
