@@ -117,7 +117,7 @@ for entry in "${pairs[@]}"; do
     secs=$(($(date +%s) - start_s))
     read -r safe settled n < <(jq -r '.results[0].summaries[0] | [.safe, .settled, .trials] | @tsv' "$out/$name.json")
     printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s %s\t%s %s\n' "$name" "$verdict" "$live" "$safe" "$settled" "$n" "$secs" \
-        "$sx" "$sy" "$gx" "$gy" >>"$rows"
+        "$sx," "$sy" "$gx," "$gy" >>"$rows"
     page # after each pair, so a run stopped half-way leaves the pairs it finished
 done
 cat "$out/real-worlds.md"
