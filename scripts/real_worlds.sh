@@ -29,6 +29,9 @@ for f in "$gazebo/worlds/turtlebot3_world.world" "$navmap"; do
     [[ -f $f ]] || { echo "real_worlds.sh: $f not found (ROBOTIS_DIR = $robotis)" >&2; exit 1; }
 done
 mkdir -p "$out"
+# the commit the run starts from (a page rewritten later still names it)
+commit=$(git rev-parse --short HEAD)
+dirty=$(git diff --quiet HEAD -- . ':!book/src/results' && echo "" || echo " (with local changes)")
 
 # name | environment table | start x y θ | goal x y
 pairs=(
@@ -67,8 +70,6 @@ wilson() {
 }
 
 page() {
-    commit=$(git rev-parse --short HEAD)
-    dirty=$(git diff --quiet HEAD -- . ':!book/src/results' && echo "" || echo " (with local changes)")
     {
         echo "# Worlds robots live in: an SDF world and occupancy maps"
         echo
