@@ -484,3 +484,54 @@ fn the_map_barriers_are_its_pieces_and_keep_the_robot_off_the_boxes() {
     }
     assert!(checked > 100, "{checked} free points");
 }
+
+/// The office fixture (a P5 map as map_saver writes it, unknown cells outside the walls, its
+/// origin at (−2, −1) turned 0.2 rad): the desk and the pillar become one convex polygon each,
+/// placed within 1 cm of where the map's origin and yaw put them (computed by hand).
+#[test]
+fn the_office_map_places_its_desk_and_pillar_within_a_centimetre() {
+    use ftcbf_sim::environment::outline::{outlines, DEFAULT_TOLERANCE_CELLS};
+    let grid = OccupancyGrid::load(&fixture("office.yaml")).unwrap();
+    let pieces = outlines(&grid, UnknownCells::Obstacle, DEFAULT_TOLERANCE_CELLS);
+    let (s, c) = 0.2f64.sin_cos();
+    let world = |x: f64, y: f64| [-2.0 + c * x - s * y, -1.0 + s * x + c * y];
+    let centroid = |pts: &[nalgebra::Vector2<f64>]| {
+        pts.iter().fold(nalgebra::Vector2::zeros(), |a, p| a + p) / pts.len() as f64
+    };
+    let nearest = |target: [f64; 2]| {
+        pieces
+            .iter()
+            .filter(|p| p.is_polygon())
+            .min_by(|a, b| {
+                let t = nalgebra::Vector2::from(target);
+                (centroid(&a.points) - t)
+                    .norm()
+                    .total_cmp(&(centroid(&b.points) - t).norm())
+            })
+            .unwrap()
+    };
+    // The desk: cells whose centres lie in |x − 5.2| ≤ 0.4, |y − 1.2| ≤ 0.25 (map frame), so
+    // its squares span x ∈ [4.8, 5.6], y ∈ [0.95, 1.45].
+    let desk = nearest(world(5.2, 1.2));
+    assert_eq!(desk.points.len(), 4, "{:?}", desk.points);
+    for corner in [(4.8, 0.95), (5.6, 0.95), (5.6, 1.45), (4.8, 1.45)] {
+        let want = nalgebra::Vector2::from(world(corner.0, corner.1));
+        let got = desk
+            .points
+            .iter()
+            .map(|p| (p - want).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!(got < 0.01, "desk corner {corner:?}: {got} m off");
+    }
+    // The pillar: a disc of radius 0.2 m at (1.8, 3.2); its cells' hull is centred there.
+    let pillar = nearest(world(1.8, 3.2));
+    let centre = nalgebra::Vector2::from(world(1.8, 3.2));
+    assert!((centroid(&pillar.points) - centre).norm() < 0.01);
+    for p in &pillar.points {
+        let r = (p - centre).norm();
+        assert!(
+            (0.19..=0.25).contains(&r),
+            "pillar vertex {r} m from the centre"
+        );
+    }
+}

@@ -7,9 +7,8 @@ use std::path::Path;
 use ftcbf_sim::runner::setup::{obstacle_barrier_config, planned_path, route_notes};
 use ftcbf_sim::world::World;
 
-/// A burger at (0, 0) heading for (3, 0) behind a wall x ∈ [1.4, 1.6] from y = −9 to 9 with a
-/// 0.4 m gap at y ∈ [−0.2, 0.2] and the `extra` obstacles.
-fn world(walls: &[(&str, f64, f64)]) -> World {
+/// A burger at (0, 0) heading for (3, 0) among box walls (name, x0, x1, y0, y1) 0.6 m high.
+fn world(walls: &[(&str, f64, f64, f64, f64)]) -> World {
     let mut text = String::from(
         r#"name = "gap"
 duration = 20.0
@@ -22,10 +21,12 @@ sensors = [{ name = "a_x", measures = "x", noise_std = 0.03 }, { name = "a_y", m
 fault_patterns = [{ name = "a", channels = ["a_x", "a_y"] }, { name = "b", channels = ["b_x", "b_y"] }]
 "#,
     );
-    for (name, y0, y1) in walls {
+    for (name, x0, x1, y0, y1) in walls {
         text.push_str(&format!(
-            "[[obstacles]]\nname = \"{name}\"\nposition = [1.5, {}, 0.3]\nshape = {{ kind = \"cuboid\", half_extents = [0.1, {}, 0.3] }}\n",
+            "[[obstacles]]\nname = \"{name}\"\nposition = [{}, {}, 0.3]\nshape = {{ kind = \"cuboid\", half_extents = [{}, {}, 0.3] }}\n",
+            0.5 * (x0 + x1),
             0.5 * (y0 + y1),
+            0.5 * (x1 - x0),
             0.5 * (y1 - y0)
         ));
     }
@@ -49,7 +50,14 @@ fn crossings(start: [f64; 2], pts: &[[f64; 2]]) -> Vec<f64> {
 
 #[test]
 fn with_no_route_check_names_the_narrowest_gap_and_the_obstacles_that_make_it() {
-    let w = world(&[("south", -9.0, -0.2), ("north", 0.2, 9.0)]);
+    // a room x ∈ [−1, 1.6], y ∈ [−1, 1] whose only way out is a 0.4 m gap in its east wall
+    let w = world(&[
+        ("west", -1.2, -1.0, -1.2, 1.2),
+        ("top", -1.0, 1.6, 1.0, 1.2),
+        ("bottom", -1.0, 1.6, -1.2, -1.0),
+        ("south", 1.4, 1.6, -1.0, -0.2),
+        ("north", 1.4, 1.6, 0.2, 1.0),
+    ]);
     let notes = route_notes(&w);
     assert_eq!(notes.len(), 1, "{notes:?}");
     let n = &notes[0];
@@ -104,10 +112,15 @@ fn with_no_route_check_names_the_narrowest_gap_and_the_obstacles_that_make_it() 
 
 #[test]
 fn the_plan_takes_a_wider_gap_rather_than_one_the_robot_cannot_pass() {
+    // a wall x ∈ [1.4, 1.6] with the 0.4 m gap at y ∈ [−0.2, 0.2] and a 1 m one at
+    // y ∈ [1.5, 2.5]; beyond y = ±5 it is closed by walls back to x = −1
     let w = world(&[
-        ("south", -9.0, -0.2),
-        ("post", 0.2, 1.5),
-        ("north", 2.5, 9.0),
+        ("south", 1.4, 1.6, -5.0, -0.2),
+        ("post", 1.4, 1.6, 0.2, 1.5),
+        ("north", 1.4, 1.6, 2.5, 5.0),
+        ("top", -1.0, 1.6, 5.0, 5.2),
+        ("bottom", -1.0, 1.6, -5.2, -5.0),
+        ("west", -1.2, -1.0, -5.2, 5.2),
     ]);
     assert!(route_notes(&w).is_empty(), "{:?}", route_notes(&w));
     let bcfg = obstacle_barrier_config(&w);

@@ -437,12 +437,23 @@ mod tests {
 
     #[test]
     fn a_diagonal_staircase_wall_becomes_a_few_segments() {
-        // free below the diagonal j < i of a 40 × 40 map, blocked above
+        // free on and below the diagonal j ≤ i of a 40 × 40 map, blocked above it and beyond
+        // the map's edge: the free triangle's outline, three walls, one a staircase
+        let g = grid(40, 40, &|i, j| j > i);
+        let pieces = outlines(&g, UnknownCells::Obstacle, DEFAULT_TOLERANCE_CELLS);
+        assert!(pieces.iter().all(|p| !p.is_polygon()));
+        assert!((3..=6).contains(&pieces.len()), "{} pieces", pieces.len());
+        assert!(pieces.iter().all(|p| p.inflate <= 0.05 + 1e-12));
+    }
+
+    #[test]
+    fn a_blob_within_a_cell_of_its_hull_is_one_polygon() {
+        // the blocked triangle above the diagonal, free beyond the map: its staircase side lies
+        // within a cell of the hull
         let g = grid(40, 40, &|i, j| j > i);
         let pieces = outlines(&g, UnknownCells::Free, DEFAULT_TOLERANCE_CELLS);
-        assert!(pieces.iter().all(|p| !p.is_polygon()));
-        assert!(pieces.len() <= 6, "{} pieces", pieces.len());
-        assert!(pieces.iter().all(|p| p.inflate <= 0.05 + 1e-12));
+        assert_eq!(pieces.len(), 1);
+        assert!(pieces[0].is_polygon());
     }
 
     /// On random maps every free point's distance to the pieces is at most its distance to the
