@@ -11,8 +11,8 @@ use crate::state::TruthState;
 use crate::summary::{disagree, CollisionEvent, Disagreement, NamedValue, ViolationEvent};
 use crate::world::{GoalMetric, World};
 
-use super::plant::Plant;
-use super::setup::ControlSetup;
+use crate::model::setup::ControlSetup;
+use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.
 pub(super) struct Monitor {
@@ -58,7 +58,7 @@ impl Monitor {
             clearance_exact: Vec::new(),
             min_clearance: None,
             geometry: {
-                let bcfg = super::setup::obstacle_barrier_config(world);
+                let bcfg = crate::world::structure::obstacle_barrier_config(world);
                 world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
             },
             disagreement: None,
