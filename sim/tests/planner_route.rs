@@ -4,7 +4,8 @@
 
 use std::path::Path;
 
-use ftcbf_sim::runner::setup::{obstacle_barrier_config, planned_path, route_notes};
+use ftcbf_sim::model::setup::{planned_path, route_notes};
+use ftcbf_sim::world::structure::obstacle_barrier_config;
 use ftcbf_sim::world::World;
 
 /// A burger at (0, 0) heading for (3, 0) among box walls (name, x0, x1, y0, y1) 0.6 m high.
