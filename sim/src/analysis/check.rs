@@ -43,10 +43,11 @@
 
 use std::fmt;
 
-use ftcbf_controller::conditions::{condition_4_4, Condition44Verdict};
+use ftcbf_controller::conditions::{
+    check_lemma1, check_theorem5, condition_4_4, Condition44Verdict,
+};
 use ftcbf_controller::params::{
-    check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
-    Detectability,
+    detectability, pair_slot, steady_state_gain_product, Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
