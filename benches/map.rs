@@ -2,7 +2,8 @@
 //! in the style of the TurtleBot3 world's nav2 map (a ring wall around a free room, nine round
 //! pillars, unknown cells outside): building the distance field (two exact distance transforms
 //! and the G/κ bounds), merging the blocked cells into the physics' boxes, and 10,000 field
-//! lookups (the per-step cost of the barrier, which does not grow with the map).
+//! lookups (what `check` reads from it), and tracing and simplifying the blocked cells' outline
+//! into the controller's barrier pieces (once per world load).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ftcbf_sim::environment::map::Cell;
@@ -44,6 +45,15 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("distance_field", |b| {
         b.iter(|| MapField::new(&grid, UnknownCells::Obstacle))
+    });
+    g.bench_function("outline_pieces", |b| {
+        b.iter(|| {
+            ftcbf_sim::environment::outline::outlines(
+                &grid,
+                UnknownCells::Obstacle,
+                ftcbf_sim::environment::outline::DEFAULT_TOLERANCE_CELLS,
+            )
+        })
     });
     g.bench_function("physics_boxes", |b| {
         b.iter(|| grid.compound(UnknownCells::Obstacle))

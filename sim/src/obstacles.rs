@@ -74,6 +74,7 @@ use parry3d::math::{Pose, Vector};
 use parry3d::shape::{SharedShape, TriMeshFlags};
 use serde::{Deserialize, Serialize};
 
+use crate::environment::outline::{outlines, Outline, DEFAULT_TOLERANCE_CELLS};
 use crate::environment::{MapField, OccupancyGrid};
 use crate::robot::RobotDescription;
 
@@ -313,6 +314,9 @@ pub struct Obstacle {
     pub note: Option<String>,
     /// An occupancy map's distance field (its signed distance comes from here, not parry).
     grid: Option<Arc<MapField>>,
+    /// An occupancy map's barrier pieces ([`crate::environment::outline`]): the controller
+    /// gets one row per piece, not one on the field.
+    outlines: Arc<[Outline]>,
 }
 
 fn iso(position: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
@@ -838,6 +842,7 @@ impl Obstacle {
             closed,
             note,
             grid: None,
+            outlines: Arc::new([]),
         })
     }
 
@@ -856,15 +861,23 @@ impl Obstacle {
                 file: path.display().to_string(),
             })?;
         let field = MapField::new(grid, unknown);
+        let pieces: Arc<[Outline]> = outlines(grid, unknown, DEFAULT_TOLERANCE_CELLS).into();
+        let polygons = pieces.iter().filter(|p| p.is_polygon()).count();
         let note = format!(
-            "obstacle `{}` is the occupancy map {} ({} × {} cells of {} m): its distance field \
-             is below the true distance by at most {:.3} m (3 cells/√2), on the safe side",
+            "obstacle `{}` is the occupancy map {} ({} × {} cells of {} m): the controller keeps \
+             it with {} barriers, {polygons} convex polygons round blobs and {} segments along \
+             the walls, simplified within {} cell(s) ({:.3} m), so the robot may keep up to {:.3} \
+             m further from the cells than it needs to",
             spec.name,
             path.display(),
             grid.width,
             grid.height,
             grid.resolution,
-            field.error_bound()
+            pieces.len(),
+            pieces.len() - polygons,
+            DEFAULT_TOLERANCE_CELLS,
+            DEFAULT_TOLERANCE_CELLS * grid.resolution,
+            2.0 * DEFAULT_TOLERANCE_CELLS * grid.resolution,
         );
         Ok(Self {
             name: spec.name.clone(),
@@ -874,12 +887,18 @@ impl Obstacle {
             closed: None,
             note: Some(note),
             grid: Some(Arc::new(field)),
+            outlines: pieces,
         })
     }
 
     /// The distance field of an occupancy-map obstacle.
     pub fn map_field(&self) -> Option<&MapField> {
         self.grid.as_deref()
+    }
+
+    /// An occupancy map's barrier pieces (empty for any other obstacle).
+    pub fn outlines(&self) -> &[Outline] {
+        &self.outlines
     }
 
     /// Validates a list of specs; names must be unique.
@@ -997,7 +1016,28 @@ impl Obstacle {
             obstacle: Arc::new(self.clone()),
             cfg: *cfg,
             map_band,
+            piece: None,
         }
+    }
+
+    /// The barriers the controller keeps for this obstacle: one per piece of an occupancy map
+    /// (named `obstacle:NAME#k`), else the one of [`Obstacle::barrier`].
+    pub fn barriers(&self, cfg: &BarrierConfig) -> Vec<ObstacleBarrier> {
+        if self.outlines.is_empty() {
+            return vec![self.barrier(cfg)];
+        }
+        let shared = Arc::new(self.clone());
+        self.outlines
+            .iter()
+            .enumerate()
+            .map(|(k, piece)| ObstacleBarrier {
+                name: format!("obstacle:{}#{k}", self.name),
+                obstacle: shared.clone(),
+                cfg: *cfg,
+                map_band: None,
+                piece: Some(piece.clone()),
+            })
+            .collect()
     }
 }
 
@@ -1074,6 +1114,8 @@ pub struct ObstacleBarrier {
     /// An occupancy map's gradient and curvature bounds over the band of its field around
     /// this barrier's zero level.
     map_band: Option<MapBand>,
+    /// One piece of an occupancy map: the barrier is the distance to it, not the field.
+    piece: Option<Outline>,
 }
 
 /// How far beyond the band where an occupancy map's lifted barrier can be zero its bounds G
@@ -1101,6 +1143,11 @@ impl ObstacleBarrier {
     /// shape). `None` for a point robot and any other shape: the distance to an edge or vertex
     /// has unbounded curvature, so no h̄_γ bound exists for the lifted barrier.
     pub fn curvature_bound(&self) -> Option<f64> {
+        if let Some(piece) = &self.piece {
+            // distance to a convex set: ‖∇²d‖ ≤ 1/ρ, and ρ ≥ r + δ where the disc is clear
+            let rho = self.cfg.robot_radius + piece.inflate;
+            return (rho > 0.0).then(|| 1.0 / rho);
+        }
         if let Some(b) = &self.map_band {
             return Some(b.kappa);
         }
@@ -1123,12 +1170,18 @@ impl ObstacleBarrier {
 
     /// Clearance d(p) = sd − r of the robot disc at planar position p \[m\] (no margin, no lift).
     pub fn clearance(&self, p: Vector2<f64>) -> f64 {
+        if let Some(piece) = &self.piece {
+            return piece.distance_terms(p).0 - self.cfg.robot_radius;
+        }
         self.obstacle
             .signed_distance(Vector3::new(p.x, p.y, self.cfg.centre_height))
             - self.cfg.robot_radius
     }
 
     fn grad2(&self, p: Vector2<f64>) -> Vector2<f64> {
+        if let Some(piece) = &self.piece {
+            return piece.distance_terms(p).1;
+        }
         let (_, g) = self
             .obstacle
             .sd_and_grad(Vector3::new(p.x, p.y, self.cfg.centre_height));
@@ -1155,6 +1208,19 @@ impl ObstacleBarrier {
     ) -> (f64, Vector2<f64>, Matrix2<f64>, Matrix2<f64>) {
         let z = self.cfg.centre_height;
         let r = self.cfg.robot_radius;
+        if let Some(piece) = &self.piece {
+            let (d, g, m) = piece.distance_terms(p);
+            let dmv = if m == Matrix2::zeros() {
+                m
+            } else {
+                // round at a vertex: the same derivative as a ball's, at ρ = d + δ
+                let rho = d + piece.inflate;
+                let s = g.dot(&v);
+                let w = m * v;
+                -(s * m + g * w.transpose() + w * g.transpose()) / rho
+            };
+            return (d - r, g, m, dmv);
+        }
         let p3 = Vector3::new(p.x, p.y, z);
         let round = match self.obstacle.closed {
             Some(Closed::HalfSpace { n, p0 }) => {

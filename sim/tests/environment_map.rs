@@ -423,3 +423,115 @@ fn the_nearest_blocked_cell_is_found() {
     let n = field.nearest_blocked(g.cell_centre(6, 5)).unwrap();
     assert_eq!(n.cell, (6, 5));
 }
+
+/// The controller keeps a map with one barrier per piece of its outline (issue #47: the field's
+/// single barrier had κ ≈ 39 1/m and the robot stalled): each piece's clearance is never above
+/// the robot disc's true clearance from the physics' boxes (parry) and at most two cells below
+/// it, and each gets the convex obstacles' curvature bound 1/(r + δ), not the field's.
+#[test]
+fn the_map_barriers_are_its_pieces_and_keep_the_robot_off_the_boxes() {
+    use ftcbf_sim::obstacles::BarrierConfig;
+    let dir = fixture("");
+    let text = format!(
+        "{}\n[environment]\nmap = \"room.yaml\"\n",
+        include_str!("../../tests/worlds_map/room_world_base.toml")
+    );
+    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
+    let grid = OccupancyGrid::load(&dir.join("room.yaml")).unwrap();
+    let cfg = BarrierConfig {
+        robot_radius: 0.1,
+        centre_height: 0.1,
+        margin: 0.02,
+        k: 0.5,
+        v_max: 0.22,
+        fd_step: 2e-3,
+    };
+    let pieces = map.barriers(&cfg);
+    assert_eq!(pieces.len(), map.outlines().len());
+    assert!(pieces.len() >= 4, "{} pieces", pieces.len());
+    for (b, o) in pieces.iter().zip(map.outlines()) {
+        let kappa = b.curvature_bound().unwrap();
+        assert!((kappa - 1.0 / (0.1 + o.inflate)).abs() < 1e-12, "{kappa}");
+        assert!(o.inflate <= grid.resolution + 1e-12);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let mut checked = 0;
+    for _ in 0..400 {
+        let q = [rng.random_range(0.5..19.5), rng.random_range(0.5..15.5)];
+        let p = grid.to_world(q[0], q[1]);
+        let proj = map.shape().project_point(
+            map.shape_pose(),
+            parry3d::math::Vector::new(p[0] as f32, p[1] as f32, 0.1),
+            false,
+        );
+        if proj.is_inside {
+            continue;
+        }
+        let truth = ((proj.point.x as f64 - p[0]).powi(2) + (proj.point.y as f64 - p[1]).powi(2))
+            .sqrt()
+            - 0.1;
+        let least = pieces
+            .iter()
+            .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
+            .fold(f64::INFINITY, f64::min);
+        assert!(least <= truth + 1e-4, "{least} > {truth} at {q:?}");
+        assert!(
+            truth - least <= 2.0 * grid.resolution + 1e-4,
+            "{truth} vs {least} at {q:?}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 100, "{checked} free points");
+}
+
+/// The office fixture (a P5 map as map_saver writes it, unknown cells outside the walls, its
+/// origin at (−2, −1) turned 0.2 rad): the desk and the pillar become one convex polygon each,
+/// placed within 1 cm of where the map's origin and yaw put them (computed by hand).
+#[test]
+fn the_office_map_places_its_desk_and_pillar_within_a_centimetre() {
+    use ftcbf_sim::environment::outline::{outlines, DEFAULT_TOLERANCE_CELLS};
+    let grid = OccupancyGrid::load(&fixture("office.yaml")).unwrap();
+    let pieces = outlines(&grid, UnknownCells::Obstacle, DEFAULT_TOLERANCE_CELLS);
+    let (s, c) = 0.2f64.sin_cos();
+    let world = |x: f64, y: f64| [-2.0 + c * x - s * y, -1.0 + s * x + c * y];
+    let centroid = |pts: &[nalgebra::Vector2<f64>]| {
+        pts.iter().fold(nalgebra::Vector2::zeros(), |a, p| a + p) / pts.len() as f64
+    };
+    let nearest = |target: [f64; 2]| {
+        pieces
+            .iter()
+            .filter(|p| p.is_polygon())
+            .min_by(|a, b| {
+                let t = nalgebra::Vector2::from(target);
+                (centroid(&a.points) - t)
+                    .norm()
+                    .total_cmp(&(centroid(&b.points) - t).norm())
+            })
+            .unwrap()
+    };
+    // The desk: cells whose centres lie in |x − 5.2| ≤ 0.4, |y − 1.2| ≤ 0.25 (map frame), so
+    // its squares span x ∈ [4.8, 5.6], y ∈ [0.95, 1.45].
+    let desk = nearest(world(5.2, 1.2));
+    assert_eq!(desk.points.len(), 4, "{:?}", desk.points);
+    for corner in [(4.8, 0.95), (5.6, 0.95), (5.6, 1.45), (4.8, 1.45)] {
+        let want = nalgebra::Vector2::from(world(corner.0, corner.1));
+        let got = desk
+            .points
+            .iter()
+            .map(|p| (p - want).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!(got < 0.01, "desk corner {corner:?}: {got} m off");
+    }
+    // The pillar: a disc of radius 0.2 m at (1.8, 3.2); its cells' hull is centred there.
+    let pillar = nearest(world(1.8, 3.2));
+    let centre = nalgebra::Vector2::from(world(1.8, 3.2));
+    assert!((centroid(&pillar.points) - centre).norm() < 0.01);
+    for p in &pillar.points {
+        let r = (p - centre).norm();
+        assert!(
+            (0.19..=0.25).contains(&r),
+            "pillar vertex {r} m from the centre"
+        );
+    }
+}

@@ -562,10 +562,11 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
     for ob in &world.obstacles {
         match ob.spec.shape {
             ShapeSpec::HalfSpace { .. } => flat += 1,
-            ShapeSpec::Cuboid { .. }
-            | ShapeSpec::ConvexHull { .. }
-            | ShapeSpec::TriMesh { .. }
-            | ShapeSpec::OccupancyMap { .. } => cornered += 1,
+            ShapeSpec::Cuboid { .. } | ShapeSpec::ConvexHull { .. } | ShapeSpec::TriMesh { .. } => {
+                cornered += 1
+            }
+            // one barrier per piece of its outline
+            ShapeSpec::OccupancyMap { .. } => cornered += ob.outlines().len().max(1),
             ShapeSpec::Ball { .. }
             | ShapeSpec::Cylinder { .. }
             | ShapeSpec::Capsule { .. }
@@ -1432,10 +1433,9 @@ fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
     }
     for ob in &world.obstacles {
         let detail = match ob.map_field() {
-            Some(f) => format!(
-                "lifted signed distance of the map's field: ∂H/∂v = k∇d with ‖∇d‖ ≤ G = {:.3} and κ ≤ {:.1} 1/m over the cells that reach free space; ∇d vanishes where the nearest obstacles pull equally (midway between them, the field's medial axis), so Λ ≠ 0 is assumed there, not shown; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see the same nearest obstacle",
-                f.gradient_bound(),
-                f.curvature_bound()
+            Some(_) => format!(
+                "one lifted barrier per piece of the map's outline ({} pieces: convex polygons round blobs, segments along walls): the distance to a convex piece, ∂H/∂v = k∇d with ‖∇d‖ = 1, so Λ ≠ 0 for each filter; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see each piece on the same side",
+                ob.outlines().len()
             ),
             None => format!(
                 "lifted signed distance: ∂H/∂v = k∇d with ‖∇d‖ = 1, so Λ ≠ 0 for each filter; estimates within θ̄ = {theta_bar:.4} m of each other are assumed to see the obstacle on the same side"

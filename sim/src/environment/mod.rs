@@ -7,6 +7,7 @@
 
 pub mod collada;
 pub mod map;
+pub mod outline;
 
 pub use map::{MapError, MapField, OccupancyGrid, UnknownCells};
 

@@ -338,7 +338,9 @@ impl ControlSetup {
         let mut barriers = safe_set_barriers(world);
         let safe_sets = barriers.len();
         for ob in &world.obstacles {
-            barriers.push(Arc::new(ob.barrier(&bcfg)));
+            for b in ob.barriers(&bcfg) {
+                barriers.push(Arc::new(b));
+            }
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let params = parameters(world, &model, &patterns, &ch.sensor_of_channel);
@@ -496,8 +498,7 @@ pub fn planned_path(
         pts.push(goal.center);
         return Ok(pts);
     }
-    let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(bcfg)).collect();
-    let boxes: Vec<Option<[f64; 4]>> = world.obstacles.iter().map(planar_box).collect();
+    let (barriers, boxes) = planner_barriers(world, bcfg);
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     // The budget is in obstacle distance queries (far obstacles are not queried).
     let max_evaluations = PLANNER_QUERIES;
@@ -598,8 +599,7 @@ pub fn route_notes(world: &World) -> Vec<String> {
         return Vec::new();
     }
     let bcfg = obstacle_barrier_config(world);
-    let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect();
-    let boxes: Vec<Option<[f64; 4]>> = world.obstacles.iter().map(planar_box).collect();
+    let (barriers, boxes) = planner_barriers(world, &bcfg);
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     let cfg = PlannerConfig {
         inflate: bcfg.margin + HOLD_BAND,
@@ -614,9 +614,7 @@ pub fn route_notes(world: &World) -> Vec<String> {
     for to in stops {
         match leg_route(from, to, &clear, &cfg) {
             Ok(Some(_)) => {}
-            Ok(None) => out.push(no_route_note(
-                world, &barriers, &bcfg, &cfg, from, to, &clear,
-            )),
+            Ok(None) => out.push(no_route_note(&barriers, &bcfg, &cfg, from, to, &clear)),
             Err(_) => break,
         }
         from = to;
@@ -626,7 +624,6 @@ pub fn route_notes(world: &World) -> Vec<String> {
 
 /// The note of one leg without a route (see [`route_notes`]).
 fn no_route_note(
-    world: &World,
     barriers: &[crate::obstacles::ObstacleBarrier],
     bcfg: &BarrierConfig,
     cfg: &PlannerConfig,
@@ -664,8 +661,13 @@ fn no_route_note(
     let q = nalgebra::Vector2::new(worst.1[0], worst.1[1]);
     let mut near: Vec<(f64, &str)> = barriers
         .iter()
-        .zip(&world.obstacles)
-        .map(|(b, o)| (b.clearance(q), o.name.as_str()))
+        .map(|b| {
+            let name = b.name();
+            (
+                b.clearance(q),
+                name.strip_prefix("obstacle:").unwrap_or(name),
+            )
+        })
         .collect();
     near.sort_by(|a, b| a.0.total_cmp(&b.0));
     let names: Vec<&str> = near.iter().take(2).map(|n| n.1).collect();
@@ -676,6 +678,30 @@ fn no_route_note(
         worst.1[1],
         names.join(" and ")
     )
+}
+
+/// The barriers the planner plans against — the controller's (an occupancy map's pieces, not
+/// its field), so a route keeps the clearance the rows keep — with their bounding rectangles.
+#[allow(clippy::type_complexity)]
+pub fn planner_barriers(
+    world: &World,
+    bcfg: &BarrierConfig,
+) -> (
+    Vec<crate::obstacles::ObstacleBarrier>,
+    Vec<Option<[f64; 4]>>,
+) {
+    let mut barriers = Vec::new();
+    let mut boxes = Vec::new();
+    for o in &world.obstacles {
+        if o.outlines().is_empty() {
+            barriers.push(o.barrier(bcfg));
+            boxes.push(planar_box(o));
+        } else {
+            barriers.extend(o.barriers(bcfg));
+            boxes.extend(o.outlines().iter().map(|p| Some(p.bounds())));
+        }
+    }
+    (barriers, boxes)
 }
 
 /// An obstacle's bounding rectangle in the plane (x_min, y_min, x_max, y_max) \[m\], world
