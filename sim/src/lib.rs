@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+pub mod active;
 pub mod attacks;
 pub mod check;
 pub mod drive;

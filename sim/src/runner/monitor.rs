@@ -30,6 +30,8 @@ pub(super) struct Monitor {
     /// Each obstacle's barrier geometry (distance without margin or lift), to hold the
     /// physics' clearances against.
     geometry: Vec<ObstacleBarrier>,
+    /// Each obstacle's bounding box (world frame).
+    regions: Vec<parry3d::bounding_volume::Aabb>,
     /// The first instant the barrier geometry and the physics disagreed (see
     /// [`crate::summary::disagree`]).
     pub(super) disagreement: Option<Disagreement>,
@@ -61,6 +63,11 @@ impl Monitor {
                 let bcfg = super::setup::obstacle_barrier_config(world);
                 world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
             },
+            regions: world
+                .obstacles
+                .iter()
+                .map(|o| o.shape().compute_aabb(o.shape_pose()))
+                .collect(),
             disagreement: None,
             first_collision: None,
             first_violation: None,
@@ -199,6 +206,12 @@ impl Monitor {
             .zip(&self.clearance_exact)
             .enumerate()
             .find_map(|(i, (((g, &c), o), &exact))| {
+                // A far obstacle (its physics clearance a lower bound above the tolerance) with
+                // p outside its box: sd > 0 and c > tol, so neither clause of `disagree` can
+                // hold; its geometry is not queried (issue #52).
+                if !exact && outside(&self.regions[i], p) {
+                    return None;
+                }
                 let d = g.clearance(at);
                 let centre = d + g.config().robot_radius;
                 disagree(centre, d, c).then(|| Disagreement {
@@ -227,6 +240,15 @@ impl Monitor {
             })
             .collect()
     }
+}
+
+/// Whether the planar point `p` is outside the xy extent of `b` (by more than f32 rounding).
+fn outside(b: &parry3d::bounding_volume::Aabb, p: [f64; 2]) -> bool {
+    let pad = crate::active::REGION_PAD;
+    p[0] < b.mins.x as f64 - pad
+        || p[0] > b.maxs.x as f64 + pad
+        || p[1] < b.mins.y as f64 - pad
+        || p[1] > b.maxs.y as f64 + pad
 }
 
 fn goal_distance(world: &World, t: &TruthState) -> f64 {
