@@ -306,7 +306,8 @@ pub struct ControlOutput {
     pub decision: DecisionRecord,
     /// Rejected readings.
     pub rejected: RejectedReadings,
-    /// h(x̂) per filter of the bank and barrier, index `filter * barriers + barrier`.
+    /// h(x̂) per filter of the bank and barrier, index `filter * barriers + barrier`; NaN for
+    /// a barrier out of reach (not evaluated: [`crate::reach`]).
     pub h_values: Vec<f64>,
     /// V(x̂) per filter of the bank.
     pub v_values: Vec<f64>,
