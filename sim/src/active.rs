@@ -25,7 +25,8 @@
 //! (unbounded), triangle meshes (not convex: the normal jumps across the medial axis),
 //! occupancy maps (one obstacle spanning the map), and closed-form safe sets.
 
-use ftcbf_controller::reach::{BarrierIndex, FarBounds};
+use ftcbf_controller::reach::{BarrierIndex, FarBounds, ReachTerms};
+use ftcbf_controller::{ControllerConfig, State, StateMatrix};
 use parry3d::bounding_volume::Aabb;
 use parry3d::math::Vector;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
@@ -173,4 +174,54 @@ impl BarrierIndex for ObstacleIndex {
             out.push(leaf as usize);
         }
     }
+}
+
+/// Which of `cfg`'s barriers are out of reach ([`ftcbf_controller::reach`]) of the estimate
+/// `x` of a unit with gain terms `m` (K c̄), `n` (Kν̄ν̄ᵀKᵀ), error bound γ and class-K gain κ:
+/// every input of the box satisfies their rows, so a caller that looks for the inputs the rows
+/// allow (liveness) may leave them out. Empty (nothing out of reach) without an index, without
+/// an input box, or when the radius is not finite.
+pub fn out_of_reach(
+    cfg: &ControllerConfig,
+    x: &State,
+    (m, n): (&StateMatrix, &StateMatrix),
+    gamma: f64,
+    kappa: f64,
+) -> Vec<bool> {
+    let (Some(index), Some(limit)) = (cfg.barrier_index.as_deref(), cfg.input_limit) else {
+        return Vec::new();
+    };
+    let h_bar = cfg
+        .barriers
+        .iter()
+        .enumerate()
+        .filter(|(b, _)| index.covers(*b))
+        .map(|(_, b)| b.h_bar(gamma))
+        .fold(0.0_f64, f64::max);
+    let g_norm = cfg.model.g.norm();
+    let terms = ReachTerms::new(
+        &cfg.model.f,
+        g_norm,
+        limit.norm(),
+        x,
+        m,
+        n,
+        gamma,
+        kappa,
+        h_bar,
+        cfg.delta,
+    );
+    let radius = terms.radius(index);
+    if !(radius.is_finite() && x[0].is_finite() && x[1].is_finite()) {
+        return Vec::new();
+    }
+    let mut far: Vec<bool> = (0..cfg.barriers.len()).map(|b| index.covers(b)).collect();
+    let mut near = Vec::new();
+    index.near([x[0], x[1]], radius, &mut near);
+    for b in near {
+        if let Some(f) = far.get_mut(b) {
+            *f = false;
+        }
+    }
+    far
 }
