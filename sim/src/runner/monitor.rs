@@ -32,6 +32,9 @@ pub(super) struct Monitor {
     geometry: Vec<ObstacleBarrier>,
     /// Each obstacle's bounding box (world frame).
     regions: Vec<parry3d::bounding_volume::Aabb>,
+    /// The obstacles' index when the controller has one (issue #52): a barrier whose certified
+    /// lower bound on the truth is at or above its least value so far is not evaluated.
+    index: Option<crate::active::ObstacleIndex>,
     /// The first instant the barrier geometry and the physics disagreed (see
     /// [`crate::summary::disagree`]).
     pub(super) disagreement: Option<Disagreement>,
@@ -68,6 +71,11 @@ impl Monitor {
                 .iter()
                 .map(|o| o.shape().compute_aabb(o.shape_pose()))
                 .collect(),
+            index: setup.config.barrier_index.as_ref().map(|_| {
+                let bcfg = super::setup::obstacle_barrier_config(world);
+                let n = setup.config.barriers.len();
+                crate::active::ObstacleIndex::new(&world.obstacles, setup.safe_sets, n, &bcfg)
+            }),
             disagreement: None,
             first_collision: None,
             first_violation: None,
@@ -155,11 +163,25 @@ impl Monitor {
     }
 
     /// After the control step's last tick: obstacle barriers and clearances on the truth, and
-    /// h(x_true) of every barrier into `barrier_truth`.
+    /// h(x_true) of every barrier into `barrier_truth` (NaN for a far obstacle whose certified
+    /// lower bound, [`crate::active`], is at or above its least value so far: its minimum
+    /// cannot change, so it is not evaluated and not logged).
     pub(super) fn after_step(&mut self, plant: &Plant, world: &World, barrier_truth: &mut [f64]) {
+        use ftcbf_controller::reach::BarrierIndex;
         let truth = plant.truth();
         let x = truth.planar();
+        let speed = x[2].hypot(x[3]);
         for (j, b) in self.barriers.iter().enumerate() {
+            if let Some(ix) = &self.index {
+                let lower = ix
+                    .distance(j, [x[0], x[1]])
+                    .map(|d| ix.far_bounds(d, speed).h_lower);
+                // NaN (a non-finite state) compares false: evaluated.
+                if lower.is_some_and(|l| l >= self.min_barrier[j]) {
+                    barrier_truth[j] = f64::NAN;
+                    continue;
+                }
+            }
             let h = b.eval(&x).value;
             barrier_truth[j] = h;
             note_non_finite(&mut self.non_finite, &self.names[j], h, truth.t);
