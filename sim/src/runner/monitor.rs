@@ -11,8 +11,8 @@ use crate::state::TruthState;
 use crate::summary::{disagree, CollisionEvent, Disagreement, NamedValue, ViolationEvent};
 use crate::world::{GoalMetric, World};
 
-use super::plant::Plant;
-use super::setup::ControlSetup;
+use crate::model::setup::ControlSetup;
+use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.
 pub(super) struct Monitor {
@@ -63,7 +63,7 @@ impl Monitor {
             clearance_exact: Vec::new(),
             min_clearance: None,
             geometry: {
-                let bcfg = super::setup::obstacle_barrier_config(world);
+                let bcfg = crate::world::structure::obstacle_barrier_config(world);
                 world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
             },
             regions: world
@@ -72,7 +72,7 @@ impl Monitor {
                 .map(|o| o.shape().compute_aabb(o.shape_pose()))
                 .collect(),
             index: setup.config.barrier_index.as_ref().map(|_| {
-                let bcfg = super::setup::obstacle_barrier_config(world);
+                let bcfg = crate::world::structure::obstacle_barrier_config(world);
                 let n = setup.config.barriers.len();
                 crate::active::ObstacleIndex::new(&world.obstacles, setup.safe_sets, n, &bcfg)
             }),

@@ -5,7 +5,7 @@
 //! Checked, in order:
 //! 1. **Disjoint patterns** (§3.1): F(r_i) ∩ F(r_j) = ∅.
 //! 2. **Invertible R̄** for every filter (§4.1): the smallest variance of the channels it keeps
-//!    (a channel declared noise-free is floored at [`crate::runner::setup::MIN_VARIANCE`]).
+//!    (a channel declared noise-free is floored at [`crate::world::structure::MIN_VARIANCE`]).
 //! 3. **Detectability** of (F, c̄) for every single-drop filter x̂_i and pair-drop filter x̂_ij
 //!    (PBH test, [`ftcbf_controller::params::detectability`]), with the unobservable directions
 //!    named in state terms.
@@ -43,21 +43,25 @@
 
 use std::fmt;
 
-use ftcbf_controller::conditions::{condition_4_4, Condition44Verdict};
+use ftcbf_controller::conditions::{
+    check_lemma1, check_theorem5, condition_4_4, Condition44Verdict,
+};
 use ftcbf_controller::params::{
-    check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
-    Detectability,
+    detectability, pair_slot, steady_state_gain_product, Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
-use crate::liveness::{self, LivenessReport};
-use crate::runner::setup::{
-    channel_mask, ellipse_prop1, heading_fusion, heading_hold, heading_sensor, initial_covariance,
-    process_model, process_noise, rest_hold, sensor_dependents, speed_bound, turn_rate_bound,
-    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
+use crate::analysis::liveness::{self, LivenessReport};
+use crate::model::setup::{
+    channel_mask, ellipse_prop1, initial_covariance, process_model, process_noise, rest_hold,
+    ControlSetup, NoiseSource,
 };
-use crate::runner::{CompiledWorld, RunError};
+use crate::model::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
+use crate::world::structure::{
+    heading_fusion, heading_hold, heading_sensor, sensor_dependents, speed_bound, turn_rate_bound,
+    Conversion, MIN_VARIANCE,
+};
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
 /// Outcome of one hypothesis.
@@ -215,9 +219,9 @@ pub struct CheckReport {
     /// The verdict.
     pub verdict: Verdict,
     /// The second verdict: the safe stop's guarantee (`[control] fallback = "brake"`;
-    /// [`crate::safe_stop`]).
-    pub safe_stop: crate::safe_stop::SafeStopVerdict,
-    /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
+    /// [`crate::analysis::safe_stop`]).
+    pub safe_stop: crate::analysis::safe_stop::SafeStopVerdict,
+    /// Will the robot move and settle (not part of Theorem 3; [`crate::analysis::liveness`]).
     pub liveness: LivenessReport,
     /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
     /// barrier they name are printed once, listing the barriers ([`group_by_barrier`]).
@@ -428,16 +432,16 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     check_departures(world, &mut found); // 11
 
     let applies = found.reasons.is_empty();
-    let failed: Vec<crate::safe_stop::Failed<'_>> = found
+    let failed: Vec<crate::analysis::safe_stop::Failed<'_>> = found
         .hypotheses
         .iter()
         .filter(|h| h.status == Status::Fails)
-        .map(|h| crate::safe_stop::Failed {
+        .map(|h| crate::analysis::safe_stop::Failed {
             name: &h.name,
             detail: &h.detail,
         })
         .collect();
-    let safe_stop = crate::safe_stop::verdict(world, &failed, &liveness);
+    let safe_stop = crate::analysis::safe_stop::verdict(world, &failed, &liveness);
     CheckReport {
         environment: environment_lines(world),
         world: world.name.clone(),
@@ -791,7 +795,7 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
             ),
         });
     }
-    let v_max = crate::runner::setup::obstacle_barrier_config(world).v_max;
+    let v_max = crate::world::structure::obstacle_barrier_config(world).v_max;
     if let Some(line) = active_barriers_line(setup, &p.ft.gamma, v_max) {
         context.push(line);
     }
@@ -1206,7 +1210,7 @@ fn check_white_noise(world: &World, setup: &ControlSetup, found: &mut Findings) 
 /// 4a. The sensors' rates and dropouts γ, θ and η are computed for ([`sensor_timing`]): reported,
 /// with the longest gap chosen from ε.
 ///
-/// [`sensor_timing`]: crate::runner::setup::sensor_timing
+/// [`sensor_timing`]: crate::world::structure::sensor_timing
 fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, found: &mut Findings) {
     let timing = &setup.params.timing;
     let name = "γ, θ, η for the sensors' rates and dropouts".to_string();
@@ -1315,7 +1319,7 @@ fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Find
 
 /// 6b. The filters' model is true of the rapier robot: they predict with the acceleration the
 /// drive realised and cover the rest with q, identified from inputs held 0.2–1 s (see
-/// `runner::identify`). The paper form's QP switches its input at every step (bang-bang), which
+/// `model::identify`). The paper form's QP switches its input at every step (bang-bang), which
 /// the wheel motors do not follow: measured on paper_turtlebot without its attack, the honest
 /// filters left γ in 12 of 12 runs (3.1 γ) with the paper's q = 1e-3, and in 13 of 20 (1.2 γ)
 /// with q identified under one-step holds (2.4e-2). (4.5) is then not what the robot does.
@@ -1828,7 +1832,7 @@ fn environment_lines(world: &World) -> Vec<String> {
         return Vec::new();
     };
     let mut out = env.lines();
-    out.extend(crate::runner::setup::route_notes(world));
+    out.extend(crate::model::setup::route_notes(world));
     let (r, z) = world
         .robot
         .as_ref()
@@ -1900,9 +1904,9 @@ impl fmt::Display for CheckReport {
             writeln!(f, "hypotheses of the safe stop (besides Theorem 3's, less the pair filters' certification and case (i)):")?;
             for h in &self.safe_stop.hypotheses {
                 let status = match h.status {
-                    crate::safe_stop::Status::Holds => Status::Holds,
-                    crate::safe_stop::Status::Fails => Status::Fails,
-                    crate::safe_stop::Status::Assumed => Status::Assumed,
+                    crate::analysis::safe_stop::Status::Holds => Status::Holds,
+                    crate::analysis::safe_stop::Status::Fails => Status::Fails,
+                    crate::analysis::safe_stop::Status::Assumed => Status::Assumed,
                 };
                 writeln!(f, "  [{}] {}: {}", status.tag(), h.name, h.detail)?;
             }
@@ -2153,7 +2157,7 @@ pub fn suggest(world: &World) -> Result<Suggestion, RunError> {
         });
     }
     let c = &world.file.control;
-    let kmax = liveness::kappa_max(world);
+    let kmax = world.kappa_max();
     let kappas: Vec<f64> = liveness::KAPPA_CANDIDATES
         .iter()
         .copied()
@@ -2309,7 +2313,7 @@ mod grouping_tests {
 /// an index: how many barriers it covers, the rule, and the reach radius at rest and at v_max
 /// before the filters' robustness and Itô terms (each step adds them to A and B).
 fn active_barriers_line(
-    setup: &crate::runner::setup::ControlSetup,
+    setup: &crate::model::setup::ControlSetup,
     gamma: &[f64],
     v_max: f64,
 ) -> Option<String> {
