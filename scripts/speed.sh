@@ -17,8 +17,8 @@
 # bench-profile build is made). Times are whole processes: wall clock and CPU (user + system,
 # from /usr/bin/time), best of R. On a shared machine read the CPU column.
 #
-# Occupancy-map hook: when the map branch lands, add its point by defining MAP_WORLD below (a
-# world on a 384×384, 5 cm map, same robot and path); `clutter_row` measures it like the rest.
+# The sweep: 1, 16, 69 and 201 obstacles, the same world on a generated 384×384 map of 5 cm
+# cells, and the 68-obstacle house of benches/worlds/house.toml.
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -64,8 +64,32 @@ for n in (1, 16, 69, 201):
         y = (3.5 + 0.5 * (row // 2)) * (1 if row % 2 == 0 else -1)
         s += f'\n[[obstacles]]\nname = "c{i}"\nposition = [{-2.0 + 0.4 * col:.2f}, {y:.2f}, 0.3]\nshape = {{ kind = "cylinder", radius = 0.1, half_height = 0.3 }}\n'
     open(f"{work}/clutter_{n}.toml", "w").write(s)
+# The map point: the one-obstacle world on a generated 384 x 384 map of 5 cm cells (19.2 m
+# square, centred on the path): a border wall and 40 seeded blocks at least 2 m from the path.
+import random
+rng = random.Random(52)
+N, res, org = 384, 0.05, -9.6
+img = bytearray([254]) * (N * N)
+def block(x0, y0, x1, y1):
+    for j in range(max(0, int((y0 - org) / res)), min(N, int((y1 - org) / res) + 1)):
+        for i in range(max(0, int((x0 - org) / res)), min(N, int((x1 - org) / res) + 1)):
+            img[(N - 1 - j) * N + i] = 0
+block(org, org, -org, org + 0.2); block(org, -org - 0.2, -org, -org)
+block(org, org, org + 0.2, -org); block(-org - 0.2, org, -org, -org)
+placed = 0
+while placed < 40:
+    x, y = rng.uniform(-9.0, 9.0), rng.uniform(-9.0, 9.0)
+    w, h = rng.uniform(0.2, 1.0), rng.uniform(0.2, 1.0)
+    if -2.5 < x < 5.5 + w and -2.0 - h < y < 2.75:
+        continue
+    block(x, y, x + w, y + h)
+    placed += 1
+open(f"{work}/map.pgm", "wb").write(f"P5\n{N} {N}\n255\n".encode() + bytes(img))
+open(f"{work}/map.yaml", "w").write(f"image: map.pgm\nresolution: {res}\norigin: [{org}, {org}, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+one = open(f"{work}/clutter_1.toml").read()
+open(f"{work}/map_world.toml", "w").write(one.replace("[[obstacles]]", '[environment]\nmap = "map.yaml"\n\n[[obstacles]]', 1))
 EOF
-MAP_WORLD=""   # occupancy-map hook (see the header)
+MAP_WORLD="$work/map_world.toml"   # the 384 x 384 map point
 
 # best of $repeat: "wall cpu" in seconds
 measure() {
@@ -84,13 +108,24 @@ rows="$work/rows"
 clutter_row() { # label world
   local label="$1" w="$2"
   "$new_bin" run "$w" --no-record > /dev/null 2>&1 || true   # warm the q cache
-  "$base_bin" run "$w" --no-record > /dev/null 2>&1 || true
   read -r nw nc < <(measure "$new_bin" run "$w" --no-record)
-  read -r bw bc < <(measure "$base_bin" run "$w" --no-record)
+  # the previous release may not read every world (maps came later): then "-"
+  if "$base_bin" run "$w" --no-record > /dev/null 2>&1; then
+    read -r bw bc < <(measure "$base_bin" run "$w" --no-record)
+  else
+    bw="-"; bc="-"
+  fi
   echo "clutter|$label|$nw|$nc|$bw|$bc" >> "$rows"
 }
 for n in 1 16 69 201; do clutter_row "$n" "$work/clutter_$n.toml"; done
 if [[ -n "$MAP_WORLD" ]]; then clutter_row "384×384 map" "$MAP_WORLD"; fi
+
+# the house (benches/worlds/house.toml, scripts/house_world.py): 68 obstacles, 90 s simulated
+house="$root/benches/worlds/house.toml"
+"$new_bin" run "$house" --no-record > /dev/null 2>&1 || true
+read -r nw nc < <(measure "$new_bin" run "$house" --no-record)
+read -r bw bc < <(measure "$base_bin" run "$house" --no-record)
+echo "house|68|$nw|$nc|$bw|$bc" >> "$rows"
 
 read -r nw nc < <(measure "$new_bin" check "$root/worlds/quickstart.toml")
 read -r bw bc < <(measure "$base_bin" check "$root/worlds/quickstart.toml")
@@ -150,9 +185,22 @@ L.append("The README's world (burger, two receivers, odometry, compass, one box;
 L.append("| obstacles | wall | CPU | × one obstacle (CPU) | real time (CPU) | previous: CPU | × one obstacle | this / previous |")
 L.append("|---:|---:|---:|---:|---:|---:|---:|---:|")
 for _, n, nw, nc, bw, bc in cl:
-    nc, bc = float(nc), float(bc)
-    L.append(f"| {n} | {nw} s | {nc:.2f} s | {nc / one_new:.2f} | {30 / nc:.0f}× | {bc:.2f} s | {bc / one_base:.2f} | {nc / bc:.2f} |")
+    nc = float(nc)
+    if bc == "-":
+        prev = "— (cannot read this world) | — | —"
+    else:
+        bc = float(bc)
+        prev = f"{bc:.2f} s | {bc / one_base:.2f} | {nc / bc:.2f}"
+    L.append(f"| {n} | {nw} s | {nc:.2f} s | {nc / one_new:.2f} | {30 / nc:.0f}× | {prev} |")
 L.append("")
+L.append("The map point is the one-obstacle world on a generated 384 × 384 map of 5 cm cells (a border "
+         "wall and 40 seeded blocks at least 2 m from the path). Target (#52): ≤ 2× the one-obstacle world.\n")
+for r in R:
+    if r[0] == "house":
+        _, n, nw, nc, bw, bc = r
+        L.append(f"The house (`benches/worlds/house.toml`: {n} obstacles, walls as thin boxes, furniture; 90 s "
+                 f"simulated, an 8.8 m path): {nw} s wall, {float(nc):.2f} s CPU, **{90 / float(nc):.0f}× real time** (CPU); "
+                 f"previous release {float(bc):.2f} s CPU ({90 / float(bc):.0f}×). Target (#52): ≥ 100×.\n")
 for r in R:
     if r[0] == "check":
         _, _, nw, nc, bw, bc = r

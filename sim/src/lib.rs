@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+pub mod active;
 pub mod analysis;
 pub mod attacks;
 pub mod drive;

@@ -976,7 +976,13 @@ impl<'a> Model<'a> {
                 }
             }
             let x = State::new(p[0] + off[0], p[1] + off[1], 0.0, 0.0);
+            // Rows out of reach hold for every input of the box: they change neither the best
+            // acceleration nor the rows that demand a push (issue #52, crate::active).
+            let far = crate::active::out_of_reach(cfg, &x, (&u.m, &u.n), u.gamma, kappa);
             for (bi, b) in cfg.barriers.iter().enumerate() {
+                if far.get(bi) == Some(&true) {
+                    continue;
+                }
                 let eval = b.eval(&x);
                 let h_bar = b.h_bar(u.gamma);
                 if eval.value - h_bar >= cfg.delta {
