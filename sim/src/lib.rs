@@ -12,7 +12,7 @@
 pub mod active;
 pub mod analysis;
 pub mod attacks;
-pub mod drive;
+pub mod drivetrain;
 pub mod environment;
 pub mod model;
 pub mod movers;
