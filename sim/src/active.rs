@@ -94,7 +94,7 @@ impl ObstacleIndex {
         let mut next = offset;
         for o in obstacles {
             let at = next;
-            next += o.outlines().len().max(1);
+            next += o.barrier_count();
             if !o.outlines().is_empty() {
                 continue;
             }

@@ -566,7 +566,7 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
                 cornered += 1
             }
             // one barrier per piece of its outline
-            ShapeSpec::OccupancyMap { .. } => cornered += ob.outlines().len().max(1),
+            ShapeSpec::OccupancyMap { .. } => cornered += ob.barrier_count(),
             ShapeSpec::Ball { .. }
             | ShapeSpec::Cylinder { .. }
             | ShapeSpec::Capsule { .. }

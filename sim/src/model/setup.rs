@@ -721,11 +721,10 @@ pub fn planner_barriers(
     let mut barriers = Vec::new();
     let mut boxes = Vec::new();
     for o in &world.obstacles {
+        barriers.extend(o.barriers(bcfg));
         if o.outlines().is_empty() {
-            barriers.push(o.barrier(bcfg));
             boxes.push(planar_box(o));
         } else {
-            barriers.extend(o.barriers(bcfg));
             boxes.extend(o.outlines().iter().map(|p| Some(p.bounds())));
         }
     }
