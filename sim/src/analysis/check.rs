@@ -238,45 +238,6 @@ fn fmt_list(v: &[f64]) -> String {
         .join(", ")
 }
 
-/// Which pattern's channels (sensor indices) contain every attacked channel, if one does.
-fn attacked_pattern(world: &World) -> Result<Option<usize>, String> {
-    let names: Vec<&str> = world.file.sensors.iter().map(|s| s.name.as_str()).collect();
-    let mut attacked: Vec<usize> = Vec::new();
-    for a in &world.file.attacks {
-        for c in &a.channels {
-            if let Some(i) = names.iter().position(|n| n == c) {
-                if !attacked.contains(&i) {
-                    attacked.push(i);
-                }
-            }
-        }
-    }
-    if attacked.is_empty() {
-        return Ok(None);
-    }
-    for (pi, p) in world.patterns.iter().enumerate() {
-        if attacked.iter().all(|c| p.contains(c)) {
-            return Ok(Some(pi));
-        }
-    }
-    let mut touched: Vec<String> = Vec::new();
-    for &c in &attacked {
-        match world.patterns.iter().position(|p| p.contains(&c)) {
-            Some(pi) => {
-                let n = &world.file.fault_patterns[pi].name;
-                if !touched.contains(n) {
-                    touched.push(n.clone());
-                }
-            }
-            None => touched.push(format!("{} (in no pattern)", names[c])),
-        }
-    }
-    Err(format!(
-        "the declared attacks touch {}; Theorem 3 covers one fault pattern at a time",
-        touched.join(" and ")
-    ))
-}
-
 /// The names the report uses: sensors, controller channels (by the sensor they read) and
 /// fault patterns.
 struct Names<'a> {
@@ -756,14 +717,14 @@ fn context_filters(world: &World) -> Result<String, RunError> {
 fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<String>) {
     let f = &world.file;
     let p = &setup.params;
-    match &p.computed {
+    match &p.derivation {
         Some(c) => {
             context.push(format!(
                 "parameters computed for ε = {} (\"auto\", bounds = \"{}\"):",
                 p.epsilon,
                 f.control.bounds.as_str()
             ));
-            for line in c.to_string().lines() {
+            for line in c.report(&setup.config.ft).lines() {
                 context.push(format!("  {line}"));
             }
         }
@@ -771,9 +732,9 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
     }
     context.push(format!(
         "in force: γ_i = [{}], γ_baseline = {:.6}, θ_ij = [{}], δ = {}{}",
-        fmt_list(&p.ft.gamma),
-        p.ft.gamma_baseline,
-        fmt_list(&p.ft.theta),
+        fmt_list(&setup.config.ft.gamma),
+        setup.config.ft.gamma_baseline,
+        fmt_list(&setup.config.ft.theta),
         if p.delta == f64::INFINITY {
             "none (the barrier rows are imposed at every step)".to_string()
         } else {
@@ -799,16 +760,16 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
         });
     }
     let v_max = crate::world::structure::obstacle_barrier_config(world).v_max;
-    if let Some(line) = active_barriers_line(setup, &p.ft.gamma, v_max) {
+    if let Some(line) = active_barriers_line(setup, &setup.config.ft.gamma, v_max) {
         context.push(line);
     }
     for b in &setup.config.barriers {
-        let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
+        let hb: Vec<f64> = setup.config.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
         context.push(format!(
             "h̄_γ({}) per fault-pattern filter = [{}], baseline = {:.6}",
             b.name(),
             fmt_list(&hb),
-            b.h_bar(p.ft.gamma_baseline)
+            b.h_bar(setup.config.ft.gamma_baseline)
         ));
     }
 }
@@ -985,9 +946,9 @@ fn check_filters(
     }
     let mut filters = Vec::new();
     for d in &drops {
-        let gamma = setup.params.computed.as_ref().map(|c| match d[..] {
+        let gamma = setup.params.derivation.as_ref().map(|c| match d[..] {
             [i, j] => pair_slot(m, i, j).map_or(f64::NAN, |k| c.gamma_pair[k]),
-            _ => c.ft.gamma[d[0]],
+            _ => setup.config.ft.gamma[d[0]],
         });
         filters.push(check_filter(world, setup, names, d, gamma, found));
     }
@@ -1289,21 +1250,26 @@ fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, foun
 /// Finite γ_i and θ_ij (and whether they were derived from ε).
 fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let p = &setup.params;
-    let horizon = world.file.duration;
-    let finite = p.ft.gamma.iter().chain(&p.ft.theta).all(|v| v.is_finite())
-        && p.ft.gamma_baseline.is_finite();
+    let finite = setup
+        .config
+        .ft
+        .gamma
+        .iter()
+        .chain(&setup.config.ft.theta)
+        .all(|v| v.is_finite())
+        && setup.config.ft.gamma_baseline.is_finite();
     found.hypotheses.push(Hypothesis {
         name: "finite γ_i and θ_ij".into(),
         status: if finite { Status::Holds } else { Status::Fails },
         detail: format!(
             "γ_i = [{}], θ_ij = [{}]{}",
-            fmt_list(&p.ft.gamma),
-            fmt_list(&p.ft.theta),
-            match &p.computed {
+            fmt_list(&setup.config.ft.gamma),
+            fmt_list(&setup.config.ft.theta),
+            match &p.derivation {
                 Some(c) => format!(
                     ", per-sample ε' = {:.3e} (union bound over the {} samples of the run and each sample's events)",
                     c.eps_per_sample,
-                    (horizon / world.control_dt()).ceil(),
+                    world.horizon_ticks(),
                 ),
                 None => " (given in the world file; not derived from ε)".to_string(),
             }
@@ -1312,7 +1278,7 @@ fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Find
     if !finite {
         found.reasons.push("γ or θ is not finite".to_string());
     }
-    if p.computed.is_none() {
+    if p.derivation.is_none() {
         found.assumptions.push(
             "γ and θ are given in the world file: (4.5) holds only if they bound the errors"
                 .to_string(),
@@ -1350,7 +1316,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
     use ftcbf_controller::params::{
         chi_square_quantile, horizon_posterior_max_scheduled, BoundMethod,
     };
-    let Some(c) = setup.params.computed.as_ref() else {
+    let Some(c) = setup.params.derivation.as_ref() else {
         return;
     };
     if c.method != BoundMethod::Paper {
@@ -1360,12 +1326,13 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
     let patterns = &setup.config.fault_patterns;
     let q = model.channels();
     let dt = world.control_dt();
-    let n = (world.file.duration / dt).ceil().max(1.0) as usize;
+    let n = world.horizon_ticks();
     let chi = chi_square_quantile(4, 1.0 - c.eps_per_sample);
     let p0 = initial_covariance(world);
     let mut worst: Option<(String, f64, f64)> = None;
     // The filters Theorem 3's (4.5) is about: x̂_i, each without one fault pattern.
-    let singles = (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], c.ft.gamma[i]));
+    let singles =
+        (0..patterns.len()).map(|i| (format!("x̂_{}", i + 1), vec![i], setup.config.ft.gamma[i]));
     for (label, drop, gamma) in singles {
         let uses = channel_mask(q, patterns, &drop);
         let phases = setup.params.timing.schedule.phases(&uses);
@@ -1402,8 +1369,7 @@ fn check_transient(world: &World, setup: &ControlSetup, found: &mut Findings) {
 
 /// 5. Condition 1 of Theorem 3 for every safe set (decided) and obstacle (assumed).
 fn check_condition1(world: &World, setup: &ControlSetup, found: &mut Findings) {
-    let p = &setup.params;
-    let theta_bar = p.ft.theta.iter().copied().fold(0.0, f64::max);
+    let theta_bar = setup.config.ft.theta.iter().copied().fold(0.0, f64::max);
     for s in &world.file.safe_sets {
         match s {
             SafeSetSpec::HalfPlane { name, a, .. } => {
@@ -1551,7 +1517,7 @@ fn check_ellipse(
 
 /// 7. The declared attacks stay inside one fault pattern.
 fn check_attacks(world: &World, names: &Names, found: &mut Findings) {
-    match attacked_pattern(world) {
+    match crate::world::structure::attacked_pattern(world).map_err(|e| e.to_string()) {
         Ok(Some(pi)) => found.hypotheses.push(Hypothesis {
             name: "attacks inside one fault pattern".into(),
             status: Status::Holds,
@@ -1592,7 +1558,7 @@ fn goal_holding(world: &World, setup: &ControlSetup, filters: &[FilterCheck]) ->
                     world,
                     &setup.config.model,
                     &setup.config.fault_patterns,
-                    setup.params.ft.gamma[i],
+                    setup.config.ft.gamma[i],
                     i,
                     &*setup.config.barriers[bi],
                     &av,
@@ -1935,7 +1901,7 @@ fn single_filter_gains(
             let mask = channel_mask(model.channels(), &setup.config.fault_patterns, &[i]);
             (
                 fc.label.clone(),
-                setup.params.ft.gamma[i],
+                setup.config.ft.gamma[i],
                 steady_state_gain_product(model, &mask, dt),
             )
         })

@@ -447,7 +447,7 @@ fn unit(world: &World, setup: &ControlSetup, mask: Vec<bool>, gamma: f64) -> Uni
     let (prior, post) = if steady {
         (ss.prior, ss.posterior)
     } else {
-        let n = (world.file.duration / dt).ceil() as usize;
+        let n = world.horizon_ticks();
         let post = horizon_posterior_max(model, &mask, dt, &initial_covariance(world), n);
         let d = model.discretize(dt);
         let prior = d.phi * post * d.phi.transpose() + d.qd;
@@ -469,14 +469,14 @@ fn unit(world: &World, setup: &ControlSetup, mask: Vec<bool>, gamma: f64) -> Uni
 fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
     let scheduled = pair_slot(m, i, j).and_then(|slot| {
         setup
-            .params
+            .config
             .ft
             .theta_schedule
             .as_ref()
             .and_then(|s| s.at(slot, t))
     });
     scheduled
-        .or_else(|| FtParams::per_pair(&setup.params.ft.theta, m, i, j))
+        .or_else(|| FtParams::per_pair(&setup.config.ft.theta, m, i, j))
         .unwrap_or(f64::INFINITY)
 }
 
@@ -489,7 +489,7 @@ fn theta_at(setup: &ControlSetup, m: usize, i: usize, j: usize, t: f64) -> f64 {
 /// 0. An offset on a velocity or speed channel moves the position the filters integrate by the
 /// offset times the attacked time, one on a heading by `speed`·sin(offset) times it (θ then
 /// decides whether Step 2 drops it). Outside an attack's window: 0.
-pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> Reach {
+pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> AttackReach {
     let f = &world.file;
     let mut reach: f64 = 0.0;
     let mut axes = [false, false];
@@ -574,12 +574,12 @@ pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> Reac
             reach = reach.max(r);
         }
     }
-    Reach { reach, axes, exact }
+    AttackReach { reach, axes, exact }
 }
 
 /// What [`declared_reach`] found.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Reach {
+pub struct AttackReach {
     /// The largest offset of a position fix \[m\].
     pub reach: f64,
     /// The axes it can move (x, y).
@@ -600,14 +600,14 @@ impl<'a> Model<'a> {
             ControllerKind::FtCbfClf => (0..m)
                 .map(|i| {
                     let mask = channel_mask(q, &cfg.fault_patterns, &[i]);
-                    unit(world, setup, mask, setup.params.ft.gamma[i])
+                    unit(world, setup, mask, setup.config.ft.gamma[i])
                 })
                 .collect(),
             ControllerKind::Baseline => vec![unit(
                 world,
                 setup,
                 vec![true; q],
-                setup.params.ft.gamma_baseline,
+                setup.config.ft.gamma_baseline,
             )],
         };
         let x0 = cfg.x0;
@@ -628,7 +628,7 @@ impl<'a> Model<'a> {
             .map(|p| p[0].abs().max(p[1].abs()))
             .fold(0.0, f64::max);
         // The declared attack: which pattern, which units it moves (those that read it).
-        let attacked = attacked_pattern_of(world, setup);
+        let attacked = crate::world::structure::attacked_pattern(world).unwrap_or_else(|e| e.first);
         let axes = declared_reach(world, 0.0, 0.0, max_coord).axes;
         let speed = match &cfg.form {
             ProblemForm::SafetyFilter { tracker, .. } => tracker.cruise_speed,
@@ -701,7 +701,7 @@ impl<'a> Model<'a> {
             })
             .collect::<Option<Vec<_>>>()?;
         let dt = self.world.control_dt();
-        let n = (f.duration / dt).ceil() as usize + 1;
+        let n = self.world.horizon_ticks() + 1;
         let phi = cfg.model.discretize(dt).phi;
         let q = cfg.model.channels();
         let mut e = vec![State::zeros(); gains.len()];
@@ -1134,7 +1134,7 @@ impl Model<'_> {
         START_DELAY + along / self.speed.max(1e-3)
     }
 
-    /// The spoofed estimates' offset at time `t` \[m\] (see [`Reach::exact`]).
+    /// The spoofed estimates' offset at time `t` \[m\] (see [`AttackReach::exact`]).
     fn reach_at(&self, t: f64) -> f64 {
         let r = declared_reach(self.world, t, self.speed, self.max_coord);
         if r.exact {
@@ -1163,33 +1163,6 @@ impl Model<'_> {
 /// A position or velocity fix the filters read directly (no conversion).
 fn direct_fix(q: Quantity) -> bool {
     matches!(q, Quantity::X | Quantity::Y | Quantity::Vx | Quantity::Vy)
-}
-
-/// The declared attack's pattern (the one containing every attacked channel), if any.
-fn attacked_pattern_of(world: &World, setup: &ControlSetup) -> Option<usize> {
-    let f = &world.file;
-    let mut attacked: Vec<usize> = Vec::new();
-    for a in &f.attacks {
-        for c in &a.channels {
-            if let Some(si) = f.sensors.iter().position(|s| &s.name == c) {
-                for (ch, &s) in setup.sensor_of_channel.iter().enumerate() {
-                    if s == si && !attacked.contains(&ch) {
-                        attacked.push(ch);
-                    }
-                }
-            }
-        }
-    }
-    if attacked.is_empty() {
-        return None;
-    }
-    let pats = &setup.config.fault_patterns;
-    pats.iter()
-        .position(|p| attacked.iter().all(|c| p.contains(c)))
-        .or_else(|| {
-            pats.iter()
-                .position(|p| attacked.iter().any(|c| p.contains(c)))
-        })
 }
 
 /// The largest `dir·u` over `{u : rows, |u_k| ≤ L_k}` (None: empty), by vertex enumeration.
