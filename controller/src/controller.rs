@@ -559,8 +559,7 @@ struct Reach {
     covered: Vec<bool>,
     /// Per unit, the largest h̄_γ over the covered barriers.
     h_bar: Vec<f64>,
-    /// ‖G‖_F and ‖L‖₂ of the input box.
-    g_norm: f64,
+    /// ‖L‖₂ of the input box.
     limit_norm: f64,
     /// The barriers found near an estimate (capacity: every barrier).
     near: Vec<usize>,
@@ -604,7 +603,6 @@ impl Reach {
             index,
             covered,
             h_bar,
-            g_norm: cfg.model.g.norm(),
             limit_norm: limit.norm(),
             near: Vec::with_capacity(nb),
             radius: 0.0,
@@ -630,7 +628,7 @@ impl Reach {
     ) -> f64 {
         let terms = ReachTerms::new(
             &model.f,
-            self.g_norm,
+            &model.g,
             self.limit_norm,
             x,
             m,
