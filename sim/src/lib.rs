@@ -16,6 +16,7 @@ pub mod environment;
 pub mod expectations;
 pub mod liveness;
 pub mod movers;
+pub mod moving;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;

@@ -12,7 +12,9 @@ use ftcbf_controller::params::{
     gain_product, steady_state_riccati, BoundMethod, FtParameters, FtParams, UpdateSchedule,
 };
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
-use ftcbf_controller::{Barrier, Fallback, Input, ProblemForm, State, StateMatrix, TrackerConfig};
+use ftcbf_controller::{
+    Barrier, Fallback, Input, MovingBarrier, ProblemForm, State, StateMatrix, TrackerConfig,
+};
 use nalgebra::{Matrix2, RowVector4};
 
 use crate::obstacles::BarrierConfig;
@@ -639,8 +641,21 @@ impl ControlSetup {
         check_h_bar_inputs(world, &bcfg)?;
         let mut barriers = safe_set_barriers(world);
         let safe_sets = barriers.len();
+        let mut mover = 0;
         for ob in &world.obstacles {
-            barriers.push(Arc::new(ob.barrier(&bcfg)));
+            if ob.spec.motion.is_none() {
+                barriers.push(Arc::new(ob.barrier(&bcfg)));
+                continue;
+            }
+            // A moving obstacle's barrier at its start, moved by its reading; its h̄_γ bound
+            // is for the relative speed (the robot's bound plus the obstacle's).
+            let cfg = BarrierConfig {
+                v_max: bcfg.v_max + crate::moving::max_speed(&ob.spec),
+                ..bcfg
+            };
+            let base: Arc<dyn Barrier> = Arc::new(ob.barrier(&cfg));
+            barriers.push(Arc::new(MovingBarrier::new(base, mover)));
+            mover += 1;
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let params = parameters(world, &model, &patterns, &ch.sensor_of_channel);
@@ -798,8 +813,10 @@ pub fn planned_path(
         pts.push(goal.center);
         return Ok(pts);
     }
-    let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(bcfg)).collect();
-    let boxes: Vec<Option<[f64; 4]>> = world.obstacles.iter().map(planar_box).collect();
+    // The path is planned around the obstacles that stand still (movers are avoided by their
+    // rows as they come).
+    let barriers: Vec<_> = statics(world).map(|o| o.barrier(bcfg)).collect();
+    let boxes: Vec<Option<[f64; 4]>> = statics(world).map(planar_box).collect();
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     // The budget is in obstacle distance queries (far obstacles are not queried).
     let max_evaluations = PLANNER_QUERIES;
@@ -900,8 +917,8 @@ pub fn route_notes(world: &World) -> Vec<String> {
         return Vec::new();
     }
     let bcfg = obstacle_barrier_config(world);
-    let barriers: Vec<_> = world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect();
-    let boxes: Vec<Option<[f64; 4]>> = world.obstacles.iter().map(planar_box).collect();
+    let barriers: Vec<_> = statics(world).map(|o| o.barrier(&bcfg)).collect();
+    let boxes: Vec<Option<[f64; 4]>> = statics(world).map(planar_box).collect();
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     let cfg = PlannerConfig {
         inflate: bcfg.margin + HOLD_BAND,
@@ -966,7 +983,7 @@ fn no_route_note(
     let q = nalgebra::Vector2::new(worst.1[0], worst.1[1]);
     let mut near: Vec<(f64, &str)> = barriers
         .iter()
-        .zip(&world.obstacles)
+        .zip(statics(world))
         .map(|(b, o)| (b.clearance(q), o.name.as_str()))
         .collect();
     near.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -982,6 +999,11 @@ fn no_route_note(
 
 /// An obstacle's bounding rectangle in the plane (x_min, y_min, x_max, y_max) \[m\], world
 /// frame; `None` for a half-space (unbounded).
+/// The world's obstacles that stand still (the planner's).
+fn statics(world: &World) -> impl Iterator<Item = &crate::obstacles::Obstacle> {
+    world.obstacles.iter().filter(|o| o.spec.motion.is_none())
+}
+
 fn planar_box(o: &crate::obstacles::Obstacle) -> Option<[f64; 4]> {
     if o.is_half_space() {
         return None;

@@ -712,6 +712,7 @@ fn spec_of(o: &text::Obstacle) -> ObstacleSpec {
             },
             Shape::Ball { radius } => ShapeSpec::Ball { radius },
         },
+        motion: None,
     }
 }
 
@@ -948,6 +949,7 @@ mod tests {
             shape: ShapeSpec::Cuboid {
                 half_extents: [0.05, half_y, 0.2],
             },
+            motion: None,
         };
         Obstacle::from_spec(&spec, None).unwrap_or_else(|e| panic!("{e}"))
     }
@@ -1006,6 +1008,7 @@ mod tests {
                 shape: ShapeSpec::Cuboid {
                     half_extents: [0.05, 25.0, 0.2],
                 },
+                motion: None,
             };
             Obstacle::from_spec(&spec, None).unwrap_or_else(|e| panic!("{e}"))
         };
