@@ -17,6 +17,7 @@ pub mod expectations;
 pub mod liveness;
 pub mod movers;
 pub mod moving;
+pub mod moving_check;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;

@@ -213,12 +213,16 @@ pub struct LivenessReport {
     pub skipped: Option<String>,
     /// The goal's radius \[m\] (the tracker's settling tolerance).
     pub goal_radius: f64,
+    /// Moving obstacles that stop across the path: the robot is blocked for good (issue #51).
+    pub movers_blocked: Vec<String>,
+    /// Moving obstacles the robot may wait for (they cross the path and move on).
+    pub movers_wait: Vec<String>,
 }
 
 impl LivenessReport {
     /// Every case live (a skipped prediction counts as live: nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.cases.iter().all(LivenessCase::live)
+        self.cases.iter().all(LivenessCase::live) && self.movers_blocked.is_empty()
     }
 
     /// The verdict line.
@@ -226,11 +230,19 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
+        if let Some(b) = self.movers_blocked.first() {
+            return format!("the robot will NOT reach its goal: {b}");
+        }
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
-            return format!(
+            let mut s = format!(
                 "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {})",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
+            for w in &self.movers_wait {
+                s.push_str("; ");
+                s.push_str(w);
+            }
+            return s;
         };
         let mut s = match &c.stall {
             Some(st) => format!(
@@ -960,7 +972,12 @@ impl<'a> Model<'a> {
                 }
             }
             let x = State::new(p[0] + off[0], p[1] + off[1], 0.0, 0.0);
+            // A moving obstacle's rows are not a place on the path: whether the robot waits
+            // for it or is blocked for good is `crate::moving_check`'s.
             for (bi, b) in cfg.barriers.iter().enumerate() {
+                if b.mover().is_some() {
+                    continue;
+                }
                 let eval = b.eval(&x);
                 let h_bar = b.h_bar(u.gamma);
                 if eval.value - h_bar >= cfg.delta {
@@ -1028,6 +1045,7 @@ impl Model<'_> {
             .config
             .barriers
             .iter()
+            .filter(|b| b.mover().is_none())
             .all(|b| b.eval(&x).value >= 0.0)
     }
 }
@@ -1552,6 +1570,8 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             structural: Vec::new(),
             skipped: Some("the nominal controller imposes no rows".into()),
             goal_radius: world.file.goal.radius,
+            movers_blocked: Vec::new(),
+            movers_wait: Vec::new(),
         };
     };
     let path_length = model.length();
@@ -1567,7 +1587,11 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
     if !live {
         structural_notes(&model, &cases, &mut structural);
     }
+    let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
+    let (movers_blocked, movers_wait) = crate::moving_check::liveness(world, setup, &points);
     LivenessReport {
+        movers_blocked,
+        movers_wait,
         kappa: cfg.cbf_gain,
         path_length,
         samples: n_samples,
