@@ -1588,7 +1588,19 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
         structural_notes(&model, &cases, &mut structural);
     }
     let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
-    let (movers_blocked, movers_wait) = crate::moving_check::liveness(world, setup, &points);
+    let inputs = crate::moving::LiveInputs {
+        obstacles: &world.obstacles,
+        barriers: &cfg.barriers,
+        gamma: cfg
+            .ft
+            .gamma
+            .iter()
+            .copied()
+            .fold(cfg.ft.gamma_baseline, f64::max),
+        duration: world.file.duration,
+        goal: world.file.goal.center,
+    };
+    let (movers_blocked, movers_wait) = crate::moving::liveness(&inputs, &points);
     LivenessReport {
         movers_blocked,
         movers_wait,

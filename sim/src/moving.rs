@@ -13,7 +13,7 @@
 //! acceleration bound is the social force's driving term's, (v_des + v_cap)/τ, which does not
 //! cover the repulsion when it is close to another body (stated, not proven).
 
-use ftcbf_controller::MoverState;
+use ftcbf_controller::{Barrier, MoverState, State};
 use rand::RngCore;
 
 use crate::movers::{
@@ -141,7 +141,8 @@ impl Surroundings for Statics {
         for b in &self.barriers {
             let at = |x: f64, y: f64| b.clearance(nalgebra::Vector2::new(x, y));
             let d = at(p[0], p[1]);
-            if !(d < range) {
+            // NaN (a non-finite position) is not near: skipped
+            if d.partial_cmp(&range) != Some(std::cmp::Ordering::Less) {
                 continue;
             }
             let g = [
@@ -297,6 +298,121 @@ impl MoverSet {
     pub fn is_walker(&self, k: usize) -> bool {
         matches!(self.motions.get(k), Some(Motion::Walker(_)))
     }
+}
+
+/// Where a scripted mover ends its motion, if it does (`once`, or a zero velocity).
+fn parks_at(t: &Trajectory) -> Option<[f64; 2]> {
+    match t {
+        Trajectory::Waypoints(p) if p.repeat == Repeat::Once => p.points.last().copied(),
+        Trajectory::Velocity { origin, velocity } if velocity == &[0.0, 0.0] => Some(*origin),
+        _ => None,
+    }
+}
+
+/// Whether the robot at rest at `p` is kept out by mover barrier `b` standing with
+/// displacement `d` (its value below h̄ at the largest γ).
+fn keeps_out(b: &dyn Barrier, gamma: f64, p: [f64; 2], d: [f64; 2], n: usize) -> bool {
+    let mut states = vec![MoverState::default(); n];
+    if let Some(m) = b.mover() {
+        if let Some(s) = states.get_mut(m) {
+            s.displacement = d;
+        }
+    }
+    let x = State::new(p[0], p[1], 0.0, 0.0);
+    b.eval_moving(&x, &states).0.value < b.h_bar(gamma)
+}
+
+/// What liveness with movers is decided over: the world's obstacles, the controller's
+/// barriers (a mover's found by its [`Barrier::mover`] number), the largest error bound γ, the
+/// run's duration \[s\] and the goal's centre \[m\].
+pub struct LiveInputs<'a> {
+    /// The world's obstacles.
+    pub obstacles: &'a [Obstacle],
+    /// The controller's barriers.
+    pub barriers: &'a [std::sync::Arc<dyn Barrier>],
+    /// The largest γ of the filters whose rows run.
+    pub gamma: f64,
+    /// The run's duration \[s\].
+    pub duration: f64,
+    /// The goal's centre \[m\].
+    pub goal: [f64; 2],
+}
+
+/// Liveness with movers along `path` (points every few cm): the movers that block it for good
+/// (a line each: one that stops across the path, or is over the goal when the run ends) and
+/// those the robot may wait for (they cross the path and move on).
+pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec<String>) {
+    let movers = mover_indices(inputs.obstacles);
+    let (mut blocked, mut waits) = (Vec::new(), Vec::new());
+    if movers.is_empty() {
+        return (blocked, waits);
+    }
+    let gamma = inputs.gamma;
+    let n = movers.len();
+    let barriers = inputs.barriers;
+    for (k, &i) in movers.iter().enumerate() {
+        let o = &inputs.obstacles[i];
+        let Some(b) = barriers.iter().find(|b| b.mover() == Some(k)) else {
+            continue;
+        };
+        let origin = [o.spec.position[0], o.spec.position[1]];
+        let traj = trajectory(&o.spec).ok().flatten();
+        if let Some(end) = traj.as_ref().and_then(parks_at) {
+            let d = [end[0] - origin[0], end[1] - origin[1]];
+            if let Some(p) = path
+                .iter()
+                .find(|&&p| keeps_out(b.as_ref(), gamma, p, d, n))
+            {
+                blocked.push(format!(
+                    "mover `{}` stops at ({:.2}, {:.2}) and stays there, across the path at ({:.2}, {:.2}): the robot is blocked for good",
+                    o.name, end[0], end[1], p[0], p[1]
+                ));
+                continue;
+            }
+        }
+        // Is it over the goal when the run ends (the robot cannot settle there)?
+        let goal = inputs.goal;
+        let duration = inputs.duration;
+        let end_window = crate::summary::SETTLE_WINDOW + 1.0;
+        if let Some(t) = &traj {
+            let over = (0..=(end_window / 0.1).ceil() as usize)
+                .map(|s| duration - s as f64 * 0.1)
+                .find(|&tau| {
+                    let (q, _) = t.state(tau);
+                    keeps_out(
+                        b.as_ref(),
+                        gamma,
+                        goal,
+                        [q[0] - origin[0], q[1] - origin[1]],
+                        n,
+                    )
+                });
+            if let Some(tau) = over {
+                blocked.push(format!(
+                    "mover `{}` is over the goal at t = {tau:.1} s, within the run's last {end_window} s: the robot cannot settle there",
+                    o.name
+                ));
+                continue;
+            }
+        }
+        // Does it ever come onto the path? Sampled every 0.1 s over the run.
+        let steps = (duration / 0.1).ceil() as usize;
+        let crosses = match &traj {
+            Some(t) => (0..=steps).any(|s| {
+                let (q, _) = t.state(s as f64 * 0.1);
+                let d = [q[0] - origin[0], q[1] - origin[1]];
+                path.iter().any(|&p| keeps_out(b.as_ref(), gamma, p, d, n))
+            }),
+            None => true,
+        };
+        if crosses {
+            waits.push(match traj {
+                Some(_) => format!("the robot may wait for mover `{}` to pass (it crosses the path and moves on)", o.name),
+                None => format!("the robot may wait for walker `{}` to pass (its walk is not predicted; it never stops)", o.name),
+            });
+        }
+    }
+    (blocked, waits)
 }
 
 #[cfg(test)]

@@ -11,14 +11,12 @@
 //! velocity jumps at a path's corners (the row does not see them coming), and a walker's
 //! acceleration bound, which covers the social force's driving term only.
 //!
-//! **Liveness.** A mover that ends its motion (`repeat = "once"`, or a zero velocity) where the
-//! robot's path passes blocks it for good; a mover that crosses the path and goes on makes the
-//! robot wait for it to pass.
+//! **Liveness** with movers is [`crate::moving::liveness`] (in the liveness prediction): a mover
+//! that ends its motion (`repeat = "once"`, or a zero velocity) where the robot's path passes,
+//! or stands over the goal when the run ends, blocks it for good; a mover that crosses the path
+//! and goes on makes the robot wait for it to pass.
 
-use ftcbf_controller::{Barrier, MoverState, State};
-
-use crate::movers::{Repeat, Trajectory};
-use crate::moving::{max_speed, mover_indices, trajectory};
+use crate::moving::{max_speed, mover_indices};
 use crate::obstacles::MotionSpec;
 use crate::runner::setup::{obstacle_barrier_config, ControlSetup};
 use crate::world::World;
@@ -122,112 +120,4 @@ pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
         detail: "no mover pins the robot against another obstacle or mover (the rows of several barriers at once), and the drive turns to the escape direction in time: not decided".into(),
     });
     out
-}
-
-/// Where a scripted mover ends its motion, if it does (`once`, or a zero velocity).
-fn parks_at(t: &Trajectory) -> Option<[f64; 2]> {
-    match t {
-        Trajectory::Waypoints(p) if p.repeat == Repeat::Once => p.points.last().copied(),
-        Trajectory::Velocity { origin, velocity } if velocity == &[0.0, 0.0] => Some(*origin),
-        _ => None,
-    }
-}
-
-/// Whether the robot at rest at `p` is kept out by mover barrier `b` standing with
-/// displacement `d` (its value below h̄ at the largest γ).
-fn keeps_out(b: &dyn Barrier, gamma: f64, p: [f64; 2], d: [f64; 2], n: usize) -> bool {
-    let mut states = vec![MoverState::default(); n];
-    if let Some(m) = b.mover() {
-        if let Some(s) = states.get_mut(m) {
-            s.displacement = d;
-        }
-    }
-    let x = State::new(p[0], p[1], 0.0, 0.0);
-    b.eval_moving(&x, &states).0.value < b.h_bar(gamma)
-}
-
-/// Liveness with movers along `path` (points every few cm): the movers that block it for good
-/// (a line each) and those the robot may wait for.
-pub fn liveness(
-    world: &World,
-    setup: &ControlSetup,
-    path: &[[f64; 2]],
-) -> (Vec<String>, Vec<String>) {
-    let movers = mover_indices(&world.obstacles);
-    let (mut blocked, mut waits) = (Vec::new(), Vec::new());
-    if movers.is_empty() {
-        return (blocked, waits);
-    }
-    let gamma = setup
-        .config
-        .ft
-        .gamma
-        .iter()
-        .copied()
-        .fold(setup.config.ft.gamma_baseline, f64::max);
-    let n = movers.len();
-    let barriers = &setup.config.barriers;
-    for (k, &i) in movers.iter().enumerate() {
-        let o = &world.obstacles[i];
-        let Some(b) = barriers.iter().find(|b| b.mover() == Some(k)) else {
-            continue;
-        };
-        let origin = [o.spec.position[0], o.spec.position[1]];
-        let traj = trajectory(&o.spec).ok().flatten();
-        if let Some(end) = traj.as_ref().and_then(parks_at) {
-            let d = [end[0] - origin[0], end[1] - origin[1]];
-            if let Some(p) = path
-                .iter()
-                .find(|&&p| keeps_out(b.as_ref(), gamma, p, d, n))
-            {
-                blocked.push(format!(
-                    "mover `{}` stops at ({:.2}, {:.2}) and stays there, across the path at ({:.2}, {:.2}): the robot is blocked for good",
-                    o.name, end[0], end[1], p[0], p[1]
-                ));
-                continue;
-            }
-        }
-        // Is it over the goal when the run ends (the robot cannot settle there)?
-        let goal = world.file.goal.center;
-        let duration = world.file.duration;
-        let end_window = crate::summary::SETTLE_WINDOW + 1.0;
-        if let Some(t) = &traj {
-            let over = (0..=(end_window / 0.1).ceil() as usize)
-                .map(|s| duration - s as f64 * 0.1)
-                .find(|&tau| {
-                    let (q, _) = t.state(tau);
-                    keeps_out(
-                        b.as_ref(),
-                        gamma,
-                        goal,
-                        [q[0] - origin[0], q[1] - origin[1]],
-                        n,
-                    )
-                });
-            if let Some(tau) = over {
-                blocked.push(format!(
-                    "mover `{}` is over the goal at t = {tau:.1} s, within the run's last {end_window} s: the robot cannot settle there",
-                    o.name
-                ));
-                continue;
-            }
-        }
-        // Does it ever come onto the path? Sampled every 0.1 s over the run.
-        let steps = (duration / 0.1).ceil() as usize;
-        let crosses = match &traj {
-            Some(t) => (0..=steps).any(|s| {
-                let (q, _) = t.state(s as f64 * 0.1);
-                let d = [q[0] - origin[0], q[1] - origin[1]];
-                path.iter().any(|&p| keeps_out(b.as_ref(), gamma, p, d, n))
-            }),
-            None => true,
-        };
-        if crosses {
-            waits.push(match traj {
-                Some(_) => format!("the robot may wait for mover `{}` to pass (it crosses the path and moves on)", o.name),
-                None => format!("the robot may wait for walker `{}` to pass (its walk is not predicted; it never stops)", o.name),
-            });
-        }
-    }
-    (blocked, waits)
 }
