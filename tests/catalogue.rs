@@ -7,7 +7,7 @@ mod common;
 use std::path::PathBuf;
 
 use ftcbf_lab::regress::Plan;
-use ftcbf_sim::expectations::collect_world_files;
+use ftcbf_sim::analysis::expectations::collect_world_files;
 
 fn worlds() -> Vec<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("worlds");

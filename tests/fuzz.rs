@@ -33,8 +33,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use toml_edit::{DocumentMut, Item, Value};
 
-use ftcbf_sim::check::check_world;
-use ftcbf_sim::expectations::{expectation_for, failures_of_run};
+use ftcbf_sim::analysis::check::check_world;
+use ftcbf_sim::analysis::expectations::{expectation_for, failures_of_run};
 use ftcbf_sim::runner::{preflight, run, RunOptions};
 use ftcbf_sim::summary::NamedValue;
 use ftcbf_sim::world::World;

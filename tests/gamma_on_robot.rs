@@ -11,8 +11,8 @@
 use std::path::{Path, PathBuf};
 
 use ftcbf_lab::batch::{run_batch, BatchPlan, Execution, TrialRunner, CONFIDENCE};
-use ftcbf_sim::check;
-use ftcbf_sim::expectations::collect_world_files;
+use ftcbf_sim::analysis::check;
+use ftcbf_sim::analysis::expectations::collect_world_files;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ControllerKindSpec, World};

@@ -10,7 +10,7 @@ mod common;
 use std::collections::BTreeSet;
 
 use ftcbf_lab::batch::trial_seed;
-use ftcbf_sim::check::check_world;
+use ftcbf_sim::analysis::check::check_world;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ControllerKindSpec, World};

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use ftcbf_sim::check::{check_world, CovarianceBound, Status};
+use ftcbf_sim::analysis::check::{check_world, CovarianceBound, Status};
 use ftcbf_sim::runner::{RunOptions, Simulation};
 use ftcbf_sim::world::World;
 
@@ -294,7 +294,7 @@ fn guarantee_worlds_meet_their_expectations() {
 /// The goal the safety filter's tracker aims for in the world `name`.
 fn tracker_goal(name: &str) -> [f64; 2] {
     use ftcbf_sim::ftcbf_controller::ProblemForm;
-    use ftcbf_sim::runner::setup::ControlSetup;
+    use ftcbf_sim::model::setup::ControlSetup;
     use ftcbf_sim::world::ControllerKindSpec;
     let s = ControlSetup::new(&world(name), ControllerKindSpec::FtCbfClf).expect("setup");
     match &s.config.form {
@@ -336,7 +336,7 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
         .find(|f| f.label.starts_with("x̂_12"))
         .expect("pair filter");
     assert_eq!(x12.channels, vec!["wheel_speed→vx", "wheel_speed→vy"]);
-    let odo = |r: &ftcbf_sim::check::CheckReport| {
+    let odo = |r: &ftcbf_sim::analysis::check::CheckReport| {
         r.hypotheses
             .iter()
             .find(|h| h.name.starts_with("odometry wheel_speed → world velocity"))
@@ -379,7 +379,7 @@ fn converted_wheel_odometry_keeps_the_patterns_disjoint_only_with_its_heading() 
     );
     // But the drive turns u into wheel speeds about that compass, outside every filter: a fault
     // in gnss1 would misapply u, so the theorem does not cover it.
-    let drive = |r: &ftcbf_sim::check::CheckReport| {
+    let drive = |r: &ftcbf_sim::analysis::check::CheckReport| {
         r.hypotheses
             .iter()
             .find(|h| h.name.starts_with("the drive's heading is trusted"))
@@ -433,7 +433,7 @@ fn world_velocity_needs_a_speed_channel() {
 
 /// The odometry's R for each axis: σ_v² + v_max²·σ_θ² (+ the compass bias terms).
 fn odometry_variance(w: &World, name: &str) -> f64 {
-    use ftcbf_sim::runner::setup::ControlSetup;
+    use ftcbf_sim::model::setup::ControlSetup;
     use ftcbf_sim::world::ControllerKindSpec;
     let s = ControlSetup::new(w, ControllerKindSpec::FtCbfClf).expect("setup");
     let si = w
@@ -502,7 +502,7 @@ fn encoder_odometry_variance_is_the_quantisation() {
         .iter()
         .position(|c| c.name == "odom")
         .expect("odom");
-    let sigma = ftcbf_sim::runner::setup::speed_std(&w, si);
+    let sigma = ftcbf_sim::world::structure::speed_std(&w, si);
     let q = std::f64::consts::TAU / (4096.0 * 0.02);
     let want = 0.033 / 2.0 * (2.0 * q * q / 6.0).sqrt();
     assert!((sigma - want).abs() < 1e-6 * want, "{sigma} vs {want}");
@@ -611,9 +611,9 @@ fn a_narrow_corridor_fails_case_i_jointly_although_each_wall_passes() {
 
 /// The hypothesis of `r` whose name starts with `prefix`.
 fn hypothesis<'a>(
-    r: &'a ftcbf_sim::check::CheckReport,
+    r: &'a ftcbf_sim::analysis::check::CheckReport,
     prefix: &str,
-) -> &'a ftcbf_sim::check::Hypothesis {
+) -> &'a ftcbf_sim::analysis::check::Hypothesis {
     r.hypotheses
         .iter()
         .find(|h| h.name.starts_with(prefix))
@@ -678,7 +678,8 @@ fn a_compass_bias_is_named_with_its_dead_reckoning_drift() {
 /// variance carries (ω_max·age)², and the white-noise hypothesis fails, naming the compass.
 #[test]
 fn a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise() {
-    use ftcbf_sim::runner::setup::{heading_hold, ControlSetup};
+    use ftcbf_sim::model::setup::ControlSetup;
+    use ftcbf_sim::world::structure::heading_hold;
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/worlds_check/slow_compass.toml");
     let slow = World::load(&p, &[]).unwrap_or_else(|e| panic!("{e}"));
     let hold = heading_hold(&slow).expect("odometry is turned with the compass");
@@ -711,7 +712,7 @@ fn a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise()
         let c = s
             .conversion
             .iter()
-            .position(|c| *c != ftcbf_sim::runner::setup::Conversion::Direct)
+            .position(|c| *c != ftcbf_sim::world::structure::Conversion::Direct)
             .expect("a converted channel");
         s.config.model.r[c]
     };
@@ -740,7 +741,7 @@ fn a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise()
 /// η_12 grows by a third, and `check` prints the schedule. Before, the rate and the dropouts were ignored.
 #[test]
 fn a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap() {
-    use ftcbf_sim::runner::setup::ControlSetup;
+    use ftcbf_sim::model::setup::ControlSetup;
     let p = path("corridor_spoof.toml");
     let text = std::fs::read_to_string(&p).expect("world");
     let slow = ["gnss1_x", "gnss1_y"].iter().fold(text.clone(), |t, n| {

@@ -6,9 +6,11 @@
 //!   named phases, one concern per function;
 //! - no import circle among a crate's modules: the modules of a crate, with an arrow from each
 //!   to every module whose items it names (`crate::…`, `super::sibling`, `self::child`; a
-//!   module naming its own ancestors is the tree, not an arrow), form no cycle — apart from the
-//!   one the simulator is known to have, listed in [`KNOWN_CIRCLES`] until the
-//!   spec → world → model → runner/analysis restructuring removes it.
+//!   module naming its own ancestors is the tree, not an arrow), form no cycle;
+//! - the simulator's modules in the order a world flows ([`SIM_LAYERS`]): `world` (load and
+//!   validate) → `model` (compiled once) → `runner` (the simulation) and `analysis` (check,
+//!   liveness, expectations); no layer names one above it, and `runner` and `analysis` never
+//!   name each other.
 //!
 //! A function's length is counted from the line of its `fn` keyword to the line of its body's
 //! closing brace, both included, so nested items and closures count towards the function that
@@ -284,23 +286,16 @@ fn last() {}
 /// A module of a crate: its path below the crate root (empty: the root itself).
 type Module = Vec<String>;
 
-/// The import circles the workspace is known to have, per crate, each as its sorted modules.
-/// The simulator's: `world` validates through `runner::setup`, which reads `liveness`, which
-/// reads `runner::setup`; `runner::setup` identifies q through `runner::identify`, which drives
-/// `runner::plant`, which takes its barrier settings from `runner::setup`. The restructuring of issue #45 (a `model` that `world` does not call
-/// and that `runner` and `analysis` only read) removes it, and then this list becomes empty.
-const KNOWN_CIRCLES: &[(&str, &[&str])] = &[(
-    "sim/src",
-    &[
-        "liveness",
-        "runner",
-        "runner::compiled",
-        "runner::identify",
-        "runner::plant",
-        "runner::setup",
-        "world",
-    ],
-)];
+/// The simulator's layers, each with the modules it must never name: a world is loaded and
+/// validated (`world`, with the physical `plant` and the leaves below), compiled once (`model`),
+/// then run (`runner`) or analysed (`analysis`).
+const SIM_LAYERS: &[(&str, &[&str])] = &[
+    ("world", &["model", "runner", "analysis", "plant"]),
+    ("plant", &["model", "runner", "analysis"]),
+    ("model", &["runner", "analysis"]),
+    ("runner", &["analysis"]),
+    ("analysis", &["runner"]),
+];
 
 /// The module a file under `src` holds (`a/b.rs` and `a/b/mod.rs` are `a::b`; `lib.rs` and
 /// `main.rs` the root).
@@ -492,7 +487,7 @@ fn circles(
 }
 
 #[test]
-fn no_crate_has_an_import_circle_beyond_the_known_one() {
+fn no_crate_has_an_import_circle() {
     let mut found: Vec<(String, Vec<String>)> = Vec::new();
     let mut modules_seen = 0;
     for krate in CRATES {
@@ -512,15 +507,45 @@ fn no_crate_has_an_import_circle_beyond_the_known_one() {
         modules_seen > 100,
         "the scan found only {modules_seen} modules"
     );
-    let known: Vec<(String, Vec<String>)> = KNOWN_CIRCLES
-        .iter()
-        .map(|(k, ms)| (k.to_string(), ms.iter().map(|m| m.to_string()).collect()))
-        .collect();
-    assert_eq!(
-        found, known,
-        "import circles (crate, modules) differ from the known ones: a new circle is a module \
-         importing upward; a known one gone means KNOWN_CIRCLES should shrink"
+    assert!(
+        found.is_empty(),
+        "import circles (crate, modules): {found:?}; a circle is a module importing upward"
     );
+}
+
+/// No simulator module names a layer above its own, and `runner` and `analysis` never name each
+/// other ([`SIM_LAYERS`]).
+#[test]
+fn the_simulator_flows_world_model_then_runner_or_analysis() {
+    let src = root().join("sim/src");
+    let files: Vec<(Module, String)> = sources()
+        .into_iter()
+        .filter(|(k, _, _)| *k == "sim/src")
+        .map(|(_, file, text)| (module_of(&src, &file), text))
+        .collect();
+    let mut upward = Vec::new();
+    for (from, tos) in arrows(&files) {
+        let Some((layer, forbidden)) = SIM_LAYERS
+            .iter()
+            .find(|(l, _)| from.first().map(String::as_str) == Some(*l))
+        else {
+            continue;
+        };
+        for to in tos {
+            if forbidden.contains(&to.first().map_or("", String::as_str)) {
+                upward.push(format!("{} ({layer}) → {}", from.join("::"), to.join("::")));
+            }
+        }
+    }
+    for (layer, _) in SIM_LAYERS {
+        assert!(
+            files
+                .iter()
+                .any(|(m, _)| m.first().map(String::as_str) == Some(*layer)),
+            "the simulator has no module `{layer}`: SIM_LAYERS is out of date"
+        );
+    }
+    assert!(upward.is_empty(), "arrows against the flow: {upward:#?}");
 }
 
 /// The graph itself, on a small crate: `crate::`, `super::sibling`, `self::child` and groups

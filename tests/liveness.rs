@@ -6,9 +6,9 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use ftcbf_sim::check::check_world;
-use ftcbf_sim::liveness::{Blocked, LivenessReport};
-use ftcbf_sim::runner::setup::{ControlSetup, GainSource, HOLD_BAND};
+use ftcbf_sim::analysis::check::check_world;
+use ftcbf_sim::analysis::liveness::{Blocked, LivenessReport};
+use ftcbf_sim::model::setup::{ControlSetup, GainSource, HOLD_BAND};
 use ftcbf_sim::world::World;
 
 fn world(rel: &str) -> World {
@@ -149,14 +149,14 @@ fn run_ends_with_why_the_goal_was_not_reached() {
 fn suggest_finds_the_smallest_box_or_says_none_exists() {
     // turtlebot_encoders: Theorem 3 fails only on the input limit (book/src/results/catalogue.md); the search
     // raises the box, one key, and re-checks the world with it.
-    let s = ftcbf_sim::check::suggest(&world("worlds/turtlebot_encoders.toml")).unwrap();
+    let s = ftcbf_sim::analysis::check::suggest(&world("worlds/turtlebot_encoders.toml")).unwrap();
     assert!(!s.already);
     assert_eq!(s.changes.len(), 1, "{s}");
     assert_eq!(s.changes[0].0, "control.input_limit");
     assert!(s.changes[0].1 > 1.0 && s.changes[0].1 <= 2.5, "{s}");
     assert!(s.verdict.starts_with("Theorem 3 applies"), "{s}");
     let w = world("worlds/turtlebot_encoders.toml");
-    let smaller = ftcbf_sim::liveness::LIMIT_CANDIDATES
+    let smaller = ftcbf_sim::analysis::liveness::LIMIT_CANDIDATES
         .iter()
         .copied()
         .filter(|&l| l > 1.0 && l < s.changes[0].1);
@@ -170,7 +170,8 @@ fn suggest_finds_the_smallest_box_or_says_none_exists() {
     }
     // Two receivers without odometry: no key of [control] makes the pair filter observable.
     let s =
-        ftcbf_sim::check::suggest(&world("tests/worlds_user/user_crate_corridor.toml")).unwrap();
+        ftcbf_sim::analysis::check::suggest(&world("tests/worlds_user/user_crate_corridor.toml"))
+            .unwrap();
     assert!(s.changes.is_empty() && !s.already);
     assert!(s.to_string().starts_with("suggest: no change"), "{s}");
 }

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ftcbf_sim::check::check_world;
+use ftcbf_sim::analysis::check::check_world;
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::world::{ControllerKindSpec, World};
 

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use ftcbf_sim::check::{check_world, Status};
+use ftcbf_sim::analysis::check::{check_world, Status};
 use ftcbf_sim::world::World;
 
 mod common;

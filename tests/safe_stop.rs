@@ -104,7 +104,7 @@ fn paper_worlds_default_to_the_papers_step3_and_a_bad_value_names_the_key() {
 /// in force.
 #[test]
 fn check_gives_the_safe_stop_its_own_verdict() {
-    let r = ftcbf_sim::check::check_world(&world(None)).expect("check");
+    let r = ftcbf_sim::analysis::check::check_world(&world(None)).expect("check");
     assert!(!r.verdict.applies);
     let s = &r.safe_stop;
     assert!(s.in_force && s.applies, "{}", s.line());
@@ -133,7 +133,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
         .expect("braking hypothesis");
     assert_eq!(
         braking.status,
-        ftcbf_sim::safe_stop::Status::Holds,
+        ftcbf_sim::analysis::safe_stop::Status::Holds,
         "{}",
         braking.detail
     );
@@ -144,7 +144,7 @@ fn check_gives_the_safe_stop_its_own_verdict() {
         "the last line stays Theorem 3's: {last}"
     );
 
-    let paper = ftcbf_sim::check::check_world(&world(Some("paper"))).expect("check");
+    let paper = ftcbf_sim::analysis::check::check_world(&world(Some("paper"))).expect("check");
     assert!(!paper.safe_stop.in_force && !paper.safe_stop.applies);
     assert!(paper.safe_stop.line().contains("not in force"));
 }

@@ -20,7 +20,7 @@
 use std::fmt;
 
 use crate::barrier::Barrier;
-use crate::types::{Input, InputMatrix, State};
+use crate::types::{Input, InputMatrix, State, StateMatrix};
 
 /// The verdict of [`condition_4_4`].
 #[derive(Debug, Clone, PartialEq)]
@@ -147,6 +147,177 @@ impl fmt::Display for Condition44Verdict {
     }
 }
 
+// The sufficient conditions of §4.2 on the paper's closed-form sets (Lemma 1, Prop. 1, Thm. 5).
+
+/// Lemma 1 for a half-plane `aᵀx − b`: `aᵀG ≠ 0`; otherwise the relative degree (the
+/// smallest i with `aᵀFⁱG ≠ 0`) for the lift of §4.2.1.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lemma1Verdict {
+    /// aᵀG.
+    pub a_g: Input,
+    /// Whether aᵀG ≠ 0 (‖aᵀG‖ > 1e-12‖a‖‖G‖).
+    pub holds: bool,
+    /// Smallest i ≤ n with aᵀFⁱG ≠ 0, if any.
+    pub relative_degree: Option<usize>,
+}
+
+/// Check Lemma 1.
+pub fn check_lemma1(a: &State, f: &StateMatrix, g: &InputMatrix) -> Lemma1Verdict {
+    let tol = 1e-12 * a.norm().max(1e-300) * g.norm().max(1e-300);
+    let a_g: Input = g.transpose() * a;
+    let mut fi = StateMatrix::identity();
+    let mut rd = None;
+    for i in 0..=4 {
+        let v: Input = g.transpose() * fi.transpose() * a;
+        if v.norm() > tol {
+            rd = Some(i + 1);
+            break;
+        }
+        fi *= f;
+    }
+    Lemma1Verdict {
+        a_g,
+        holds: a_g.norm() > tol,
+        relative_degree: rd,
+    }
+}
+
+impl fmt::Display for Lemma1Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "Lemma 1 (a^T G != 0): {} — a^T G = ({:.6}, {:.6}); relative degree {}",
+            if self.holds { "HOLDS" } else { "FAILS" },
+            self.a_g[0],
+            self.a_g[1],
+            self.relative_degree
+                .map_or("none (uncontrollable direction)".to_string(), |r| r
+                    .to_string())
+        )
+    }
+}
+
+/// Proposition 1 for an ellipsoid: `θ̄ ≤ sqrt(2(1 − h̄)/λ̄(Φ))` and `rank G = n`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prop1Verdict {
+    /// rank G.
+    pub rank_g: usize,
+    /// n = 4.
+    pub n: usize,
+    /// λ̄(Φ).
+    pub lambda_max: f64,
+    /// θ̄ = max θ_ij.
+    pub theta_bar: f64,
+    /// h̄ = max h̄_γi.
+    pub h_bar: f64,
+    /// sqrt(2(1 − h̄)/λ̄).
+    pub bound: f64,
+    /// Both conditions.
+    pub holds: bool,
+}
+
+/// Check Proposition 1.
+pub fn check_prop1(phi: &StateMatrix, g: &InputMatrix, theta_bar: f64, h_bar: f64) -> Prop1Verdict {
+    let rank_g = g.rank(1e-12);
+    let lambda_max = ((phi + phi.transpose()) * 0.5)
+        .symmetric_eigenvalues()
+        .max();
+    let bound = (2.0 * (1.0 - h_bar) / lambda_max).max(0.0).sqrt();
+    Prop1Verdict {
+        rank_g,
+        n: 4,
+        lambda_max,
+        theta_bar,
+        h_bar,
+        bound,
+        holds: rank_g == 4 && theta_bar <= bound,
+    }
+}
+
+impl fmt::Display for Prop1Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "Proposition 1: {} — rank G = {} (needs {}), theta_bar = {:.6} vs bound sqrt(2(1-h_bar)/lambda_max) = {:.6} (h_bar = {:.6}, lambda_max = {:.6})",
+            if self.holds { "HOLDS" } else { "FAILS" },
+            self.rank_g,
+            self.n,
+            self.theta_bar,
+            self.bound,
+            self.h_bar,
+            self.lambda_max
+        )
+    }
+}
+
+/// Theorem 5 (rank G < n): the auxiliary half-plane `(x − x')ᵀΦv < 0` with `v = G w`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Thm5Verdict {
+    /// rank G.
+    pub rank_g: usize,
+    /// v = G w.
+    pub v: State,
+    /// Normal of the auxiliary half-plane, Φv.
+    pub normal: State,
+    /// max_i (x̂_i − x')ᵀΦv over the estimates (must be < 0: condition (4.12) for Gu = v).
+    pub max_inner: f64,
+    /// min_i h(x̂_i) of the ellipsoid (must be ≥ 0: x̂_i ∈ C).
+    pub min_h: f64,
+    /// −vᵀv (condition (4.13), must be < 0).
+    pub aux_rate: f64,
+    /// All conditions.
+    pub holds: bool,
+}
+
+/// Check Theorem 5 for an inside-ellipsoid `1 − (x − x')ᵀΦ(x − x')`, a direction `w` in input
+/// space (v = G w) and the current estimates.
+pub fn check_theorem5(
+    phi: &StateMatrix,
+    center: &State,
+    g: &InputMatrix,
+    w: &Input,
+    estimates: &[State],
+) -> Thm5Verdict {
+    let v: State = g * w;
+    let normal = phi * v;
+    let mut max_inner = f64::NEG_INFINITY;
+    let mut min_h = f64::INFINITY;
+    for x in estimates {
+        let e = x - center;
+        max_inner = max_inner.max(e.dot(&normal));
+        min_h = min_h.min(1.0 - e.dot(&(phi * e)));
+    }
+    let aux_rate = -v.dot(&v);
+    let holds = max_inner < 0.0 && min_h >= 0.0 && aux_rate < 0.0;
+    Thm5Verdict {
+        rank_g: g.rank(1e-12),
+        v,
+        normal,
+        max_inner,
+        min_h,
+        aux_rate,
+        holds,
+    }
+}
+
+impl fmt::Display for Thm5Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "Theorem 5: {} — rank G = {}, v = ({:.4}, {:.4}, {:.4}, {:.4}), max (x_i - x')^T Phi v = {:.6} (< 0), min h = {:.6} (>= 0), -v^T v = {:.6} (< 0)",
+            if self.holds { "HOLDS" } else { "FAILS" },
+            self.rank_g,
+            self.v[0],
+            self.v[1],
+            self.v[2],
+            self.v[3],
+            self.max_inner,
+            self.min_h,
+            self.aux_rate
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -229,5 +400,46 @@ mod tests {
         // a position ellipsoid (rank-2 Φ on position): ∂h/∂x G = 0 too
         let disc = EllipsoidOutside::disc("d", 0.0, 0.0, 1.0);
         assert!(!condition_4_4(&disc, &g, &est).holds);
+    }
+
+    #[test]
+    fn checks_report_numbers() {
+        let g = LinearModel::double_integrator_g();
+        let f = LinearModel::double_integrator_f();
+        let l = check_lemma1(&State::new(0.0, 1.0, 0.0, 0.2), &f, &g);
+        assert!(l.holds && l.relative_degree == Some(1));
+        assert_eq!(l.a_g, Input::new(0.0, 0.2));
+        let l2 = check_lemma1(&State::new(0.0, 1.0, 0.0, 0.0), &f, &g);
+        assert!(!l2.holds);
+        assert_eq!(l2.relative_degree, Some(2));
+        assert!(l2.to_string().contains("FAILS"));
+        let p = check_prop1(&StateMatrix::identity(), &g, 0.1, 0.0);
+        assert_eq!(p.rank_g, 2);
+        assert!(!p.holds);
+        assert!((p.bound - 2f64.sqrt()).abs() < 1e-12);
+        let p4 = check_prop1(
+            &(StateMatrix::identity() * 4.0),
+            &crate::types::InputMatrix::zeros(),
+            0.1,
+            0.5,
+        );
+        assert!((p4.bound - 0.5).abs() < 1e-12);
+        let phi = StateMatrix::identity();
+        let t = check_theorem5(
+            &phi,
+            &State::zeros(),
+            &g,
+            &Input::new(1.0, 0.0),
+            &[State::new(0.0, 0.0, -0.5, 0.0)],
+        );
+        assert!(t.holds, "{t}");
+        let t2 = check_theorem5(
+            &phi,
+            &State::zeros(),
+            &g,
+            &Input::new(1.0, 0.0),
+            &[State::new(0.0, 0.0, 0.5, 0.0)],
+        );
+        assert!(!t2.holds);
     }
 }

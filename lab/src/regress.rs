@@ -4,7 +4,7 @@
 //! `[expect.baseline]`, `[expect.nominal]`). Each case runs on the same `seeds = N` seeds:
 //! [`regression_seeds`] — the world's seed, then the first N − 1 trial seeds `ftcbf batch` would
 //! use with that base seed, so any failing seed re-runs with `ftcbf run --seed`. All runs of all
-//! cases share one rayon pool; the verdicts ([`ftcbf_sim::expectations::failures`]) are pure functions
+//! cases share one rayon pool; the verdicts ([`ftcbf_sim::analysis::expectations::failures`]) are pure functions
 //! of the summaries, so the table does not depend on the number of threads.
 
 use std::path::{Path, PathBuf};
@@ -13,7 +13,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use ftcbf_sim::expectations::{
+use ftcbf_sim::analysis::expectations::{
     collect_world_files, expectation_for, expected_controllers, failures,
 };
 use ftcbf_sim::runner::{run, CompiledWorld, RunError, RunOptions};
@@ -68,7 +68,10 @@ pub fn regression_seeds(world_seed: u64, n: u32) -> Vec<u64> {
 
 /// The seeds of `world`'s `[expect]` (just its seed without one).
 pub fn world_seeds(world: &World) -> Vec<u64> {
-    regression_seeds(world.file.seed, ftcbf_sim::expectations::seed_count(world))
+    regression_seeds(
+        world.file.seed,
+        ftcbf_sim::analysis::expectations::seed_count(world),
+    )
 }
 
 /// One controller on one world, over the world's regression seeds.

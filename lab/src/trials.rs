@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use ftcbf_sim::check;
+use ftcbf_sim::analysis::check;
 use ftcbf_sim::runner::{run, CompiledWorld, RunOptions};
 use ftcbf_sim::summary::RunSummary;
 use ftcbf_sim::world::{ControllerKindSpec, Override, Param, World};

@@ -10,7 +10,8 @@ use std::sync::{Arc, Mutex};
 use ftcbf_sim::ftcbf_controller::{
     ControlLaw, ControllerConfig, Decision, Input, Readings as RustReadings,
 };
-use ftcbf_sim::runner::setup::{ControlSetup, Conversion};
+use ftcbf_sim::model::setup::ControlSetup;
+use ftcbf_sim::world::structure::Conversion;
 use ftcbf_sim::world::World;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;

@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use ftcbf_sim::check::{self, CheckReport, CovarianceBound, Status};
-use ftcbf_sim::liveness::{Blocked, LivenessReport};
+use ftcbf_sim::analysis::check::{self, CheckReport, CovarianceBound, Status};
+use ftcbf_sim::analysis::liveness::{Blocked, LivenessReport};
+use ftcbf_sim::model::setup::ControlSetup;
 use ftcbf_sim::runner::preflight;
-use ftcbf_sim::runner::setup::ControlSetup;
 use ftcbf_sim::world::{Override, World as SimWorld};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

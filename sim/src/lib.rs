@@ -9,25 +9,23 @@
 
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod attacks;
-pub mod check;
 pub mod drive;
 pub mod environment;
-pub mod expectations;
-pub mod liveness;
+pub mod model;
 pub mod movers;
 pub mod moving;
-pub mod moving_check;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;
 pub mod planner;
+pub mod plant;
 #[cfg(feature = "record")]
 pub mod record;
 pub mod robot;
 pub mod runner;
 pub mod safe_sets;
-pub mod safe_stop;
 pub mod sensors;
 pub mod state;
 pub mod summary;

@@ -284,7 +284,7 @@ fn a_world_file_loads_the_sdf_and_check_says_what_was_kept() {
     let again = world.with_file(world.file.clone()).expect("revalidates");
     assert_eq!(again.obstacles.len(), 10);
     assert_eq!(again.environment, world.environment);
-    let check = ftcbf_sim::check::check_world(&world).expect("checks");
+    let check = ftcbf_sim::analysis::check::check_world(&world).expect("checks");
     let text = check.to_string();
     assert!(
         text.contains("room.world: 10 obstacles kept, 11 elements dropped"),

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use ftcbf_sim::runner::setup::ControlSetup;
+use ftcbf_sim::model::setup::ControlSetup;
 use ftcbf_sim::runner::RunError;
 use ftcbf_sim::world::{ControllerKindSpec, World, WorldError};
 

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ftcbf_sim::check::{check_world, Status};
+use ftcbf_sim::analysis::check::{check_world, Status};
 use ftcbf_sim::runner::{preflight, run, RunOptions};
 use ftcbf_sim::summary::{disagree, DISAGREEMENT_TOLERANCE};
 use ftcbf_sim::world::World;

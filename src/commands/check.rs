@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use ftcbf_sim::check;
+use ftcbf_sim::analysis::check;
 use ftcbf_sim::runner::{preflight, CompiledWorld};
 use ftcbf_sim::world::World;
 

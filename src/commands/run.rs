@@ -97,12 +97,12 @@ pub fn command(a: &RunArgs) -> Result<(), Failure> {
     } else {
         run_recorded(a, &compiled, &opts, kind, seed)?
     };
-    let expected = ftcbf_sim::expectations::expectation_for(world, kind);
+    let expected = ftcbf_sim::analysis::expectations::expectation_for(world, kind);
     let seeds = regress::world_seeds(world);
     // A run is judged by its world's expectations only on one of the regression seeds.
     let judged = expected.as_ref().filter(|_| seeds.contains(&seed));
     let (failures, left) = judged
-        .map(|e| ftcbf_sim::expectations::failures_of_run(e, &summary))
+        .map(|e| ftcbf_sim::analysis::expectations::failures_of_run(e, &summary))
         .unwrap_or_default();
     if a.json {
         let text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
@@ -110,7 +110,7 @@ pub fn command(a: &RunArgs) -> Result<(), Failure> {
     } else {
         print!("{summary}");
         let setup = compiled.setup_for(kind);
-        if let Some(why) = ftcbf_sim::liveness::explain_run(world, &setup, &summary) {
+        if let Some(why) = ftcbf_sim::analysis::liveness::explain_run(world, &setup, &summary) {
             println!("  {why}");
         }
         let judgement = match (&expected, judged) {

@@ -102,14 +102,14 @@ mutant "a run is SAFE with a non-finite barrier value" sim/src/runner/mod.rs \
 mutant "the summary names NaN but not an infinite barrier minimum" sim/src/summary.rs \
   '.find(|b| !b.value.is_finite())' '.find(|b| b.value.is_nan())' \
   the_first_non_finite_quantity_is_named -p ftcbf-sim --lib
-mutant "a check hypothesis that computed NaN or inf keeps its status" sim/src/check.rs \
+mutant "a check hypothesis that computed NaN or inf keeps its status" sim/src/analysis/check.rs \
   'if let Some(w) = shows_non_finite(&h.detail) {' 'if let Some(w) = None::<&str> {' \
   a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply -p ftcbf-sim --lib
-mutant "check does not test the start against the safe sets and obstacles" sim/src/check.rs \
+mutant "check does not test the start against the safe sets and obstacles" sim/src/analysis/check.rs \
   'if !(h.is_finite() && h >= 0.0) {' 'if false {' \
   a_start_outside_the_safe_set_fails_theorem_3 \
   --test reliability a_start_outside_the_safe_set_fails_theorem_3
-mutant "check is silent about a goal inside an obstacle" sim/src/check.rs \
+mutant "check is silent about a goal inside an obstacle" sim/src/analysis/check.rs \
   'if !(h.is_finite() && h + f.goal.radius >= 0.0) {' 'if false {' \
   a_goal_inside_an_obstacle_fails \
   --test reliability a_goal_inside_an_obstacle_fails
@@ -131,8 +131,8 @@ mutant "a noiseless linear plant gives its filters q = 0 (the fuzz's hang)" sim/
   --test reliability a_noiseless_linear_plant_needs_the_filters_own_process_noise
 mutant "loading skips the controller's structural check (check accepts what run refuses)" \
   sim/src/world/mod.rs \
-  'crate::runner::setup::check_structure(&world).map_err(' \
-  'Ok::<(), crate::runner::RunError>(()).map_err(' \
+  'structure::check_structure(&world).map_err(' \
+  'Ok::<(), structure::StructureError>(()).map_err(' \
   every_invalid_world_is_rejected_with_a_helpful_message --test invalid_worlds
 mutant "an error inside a kind-tagged table does not name its key" sim/src/world/tagged.rs \
   'D::Error::custom(format!("`{key}`: {message}"))' 'D::Error::custom(message)' \
@@ -174,11 +174,11 @@ mutant "run --duration runs past the horizon gamma, theta, eta were computed for
   a_run_past_the_horizon_of_gamma_theta_eta_is_refused \
   --test simulation a_run_past_the_horizon_of_gamma_theta_eta_is_refused
 # Issue #30 item 4: γ, θ, η from the sensors as declared; biased filter channels fail check.
-mutant "gamma, theta, eta ignore the filter channels' rates and dropouts" sim/src/runner/setup.rs \
-  '            &timing.schedule,' '            &UpdateSchedule::every_step(),' \
+mutant "gamma, theta, eta ignore the filter channels' rates and dropouts" sim/src/model/setup.rs \
+  '            &timing.schedule,' '            &ftcbf_controller::params::UpdateSchedule::every_step(),' \
   a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap \
   --test guarantees a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap
-mutant "check ignores a declared bias on a filter channel" sim/src/check.rs \
+mutant "check ignores a declared bias on a filter channel" sim/src/analysis/check.rs \
   '    check_white_noise(world, setup, &mut found); // 1d' '' \
   a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis \
   --test guarantees a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis
@@ -189,7 +189,7 @@ mutant "a filter with no reading in its window ranks first" controller/src/estim
   a_filter_silent_for_a_window_ranks_after_every_filter_with_evidence
 # Issue #30 item 4: a heading held between slow samples without a gyro is stale by up to
 # ω_max·age; R carries it.
-mutant "a slow heading's staleness is left out of R" sim/src/runner/setup.rs \
+mutant "a slow heading's staleness is left out of R" sim/src/world/structure.rs \
   '            h.noise_std.hypot(stale)' '            h.noise_std + 0.0 * stale' \
   a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise \
   --test guarantees a_slow_compass_without_a_gyro_puts_its_staleness_in_r_and_fails_white_noise

@@ -27,8 +27,8 @@ use std::time::Instant;
 
 use crate::progress::{Progress, Silent};
 use anyhow::{anyhow, Context};
+use ftcbf_sim::analysis::check::check_world;
 use ftcbf_sim::attacks::AttackSpec;
-use ftcbf_sim::check::check_world;
 use ftcbf_sim::obstacles::{MeshScale, ShapeSpec};
 use ftcbf_sim::runner::{run, RunOptions};
 use ftcbf_sim::world::{Dynamics, World, WorldFile};

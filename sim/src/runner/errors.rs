@@ -9,7 +9,7 @@ use crate::attacks::AttackStack;
 use crate::summary::EstimationError;
 use crate::world::World;
 
-use super::setup::ParamReport;
+use crate::model::setup::ParamReport;
 
 /// The γ each filter of the bank is held to: γ_i for the filter that drops pattern i, γ_ij for
 /// the one that drops i and j (computed bounds only), γ of the baseline for `all`.

@@ -33,13 +33,10 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-mod compiled;
 mod errors;
-pub mod identify;
+pub mod heading;
 mod monitor;
-mod plant;
 mod scene;
-pub mod setup;
 mod stop;
 mod view;
 
@@ -62,11 +59,11 @@ use errors::ErrorMeter;
 use monitor::Monitor;
 use view::StepView;
 
-pub use plant::Plant;
+use crate::model::setup::ControlSetup;
+pub use crate::plant::Plant;
 pub use scene::build_scene;
-use setup::ControlSetup;
 
-pub use compiled::{setups_computed, CompiledWorld, Source};
+pub use crate::model::{setups_computed, CompiledWorld, RunError, Source};
 
 /// Per-run choices that override the world file.
 #[derive(Debug, Clone, Default)]
@@ -77,42 +74,6 @@ pub struct RunOptions {
     pub controller: Option<ControllerKindSpec>,
     /// Simulated duration \[s\] (default: the world's).
     pub duration: Option<f64>,
-}
-
-/// Why a run could not be carried out (the world itself was valid).
-#[derive(Debug, thiserror::Error)]
-pub enum RunError {
-    /// The world does not fit the controller or plant.
-    #[error("{world}: `{key}`: {message}")]
-    Setup {
-        /// World file.
-        world: String,
-        /// Key path.
-        key: String,
-        /// What is wrong.
-        message: String,
-    },
-    /// A component refused to start.
-    #[error("{world}: {what}: {message}")]
-    Start {
-        /// World file.
-        world: String,
-        /// Component.
-        what: &'static str,
-        /// Its error.
-        message: String,
-    },
-    /// A run option is out of range.
-    #[error("{0}")]
-    Option(String),
-}
-
-impl RunError {
-    /// Whether it says the world does not fit the controller or plant (a world `check` and
-    /// `run` both refuse: the CLI's exit 2), as opposed to a run option out of range.
-    pub fn is_invalid_world(&self) -> bool {
-        matches!(self, RunError::Setup { .. } | RunError::Start { .. })
-    }
 }
 
 /// Builds everything a run of `world` with its own controller builds at its start (controller
@@ -180,11 +141,6 @@ fn count_stage(c: &mut StepCounts, o: &QpOutcome) {
     *counter += 1;
 }
 
-/// Deceleration of the safe stop's braking \[m/s²\] for a world without `[control]
-/// input_limit` (with one, the limit): the braking the issue's stopping distance assumes
-/// (0.22 m/s → 2.4 cm).
-pub const DEFAULT_BRAKE_DECELERATION: f64 = 1.0;
-
 /// One closed-loop run of a world, stepped by the caller: [`Simulation::step`] advances one
 /// control period (sensors → attacks → control law → drive → plant ticks) and returns that
 /// step's [`Frame`]; [`Simulation::summary`] reports what was measured so far. The same world,
@@ -200,7 +156,7 @@ pub struct Simulation<'w> {
     attacks: AttackStack,
     law: Box<dyn ControlLaw>,
     plant: Plant,
-    heading_source: setup::HeadingSource,
+    heading_source: heading::HeadingSource,
     filters: Vec<String>,
     windows: Vec<(String, f64, Option<f64>)>,
     attack_windows: Vec<AttackWindow>,
@@ -307,14 +263,14 @@ impl<'w> Simulation<'w> {
     ) -> Self {
         let file = &world.file;
         let control_dt = world.control_dt();
-        let heading_source = setup::HeadingSource::new(world, plant.truth().theta);
+        let heading_source = heading::HeadingSource::new(world, plant.truth().theta);
         let filters = filter_labels(world, law.as_ref());
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
         let attacks_together_outside = attacks.union_outside_fault_patterns(&world.patterns);
         let movers = MoverSet::new(
             &world.obstacles,
-            &setup::obstacle_barrier_config(world),
+            &crate::world::structure::obstacle_barrier_config(world),
             seed,
         );
         let monitor = Monitor::new(world, &setup, &movers);
@@ -445,7 +401,7 @@ impl<'w> Simulation<'w> {
         let detector = |ch: usize| {
             let b = bank?;
             let c = map.get(ch).copied().flatten()?;
-            (conversion[c] == setup::Conversion::Direct).then_some(())?;
+            (conversion[c] == crate::world::structure::Conversion::Direct).then_some(())?;
             b.predicted_measurement(b.baseline_index(), c)
         };
         self.attacks.apply(t, samples, &detector);
@@ -522,12 +478,7 @@ impl<'w> Simulation<'w> {
         // acceleration, with no turn (see `ftcbf_controller::drive::brake_input`).
         let u = match (self.braking, self.plant.encoder_speed()) {
             (true, Some(v)) => {
-                let decel = self
-                    .world
-                    .file
-                    .control
-                    .input_limit
-                    .unwrap_or(DEFAULT_BRAKE_DECELERATION);
+                let decel = self.world.brake_deceleration();
                 brake_input(v, yaw, decel, self.control_dt)
             }
             _ => u,

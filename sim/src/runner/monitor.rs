@@ -15,9 +15,9 @@ use crate::summary::{
 use crate::world::{GoalMetric, World};
 use ftcbf_controller::MoverState;
 
-use super::plant::Plant;
-use super::setup::ControlSetup;
+use crate::model::setup::ControlSetup;
 use crate::moving::MoverSet;
+use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.
 pub(super) struct Monitor {
@@ -73,7 +73,7 @@ impl Monitor {
             clearance_exact: Vec::new(),
             min_clearance: None,
             geometry: {
-                let bcfg = super::setup::obstacle_barrier_config(world);
+                let bcfg = crate::world::structure::obstacle_barrier_config(world);
                 world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
             },
             disagreement: None,

@@ -8,7 +8,7 @@ use crate::obstacles::{Obstacle, ShapeSpec};
 use crate::robot::{CollisionShape, RobotVisual};
 use crate::world::{SafeSetSpec, World};
 
-use super::setup::ControlSetup;
+use crate::model::setup::ControlSetup;
 
 /// Half size of the patch drawn for a half-space wall \[m\].
 const HALF_SPACE_PATCH: f64 = 3.0;

@@ -7,6 +7,7 @@ mod parse_error;
 pub mod ranges;
 pub mod schema;
 pub mod sdf;
+pub mod structure;
 pub(crate) mod tagged;
 mod toml_limits;
 
@@ -15,6 +16,11 @@ use std::path::{Path, PathBuf};
 pub use expect::{Count, Expect, ExpectOutcome, Margin};
 pub use overrides::Override;
 pub use schema::*;
+
+/// Deceleration of the safe stop's braking \[m/s²\] for a world without `[control]
+/// input_limit` (with one, the limit): the braking the safe stop's stopping distance assumes
+/// (0.22 m/s → 2.4 cm).
+pub const DEFAULT_BRAKE_DECELERATION: f64 = 1.0;
 
 use crate::attacks::validate_attacks;
 use crate::obstacles::{Obstacle, ObstacleSpec, ShapeSpec};
@@ -205,17 +211,10 @@ impl World {
         robot: Option<RobotDescription>,
     ) -> Result<World, WorldError> {
         let world = Validator { path }.validate(file, name, robot)?;
-        crate::runner::setup::check_structure(&world).map_err(|e| match e {
-            crate::runner::RunError::Setup { key, message, .. } => WorldError::Invalid {
-                path: path.to_path_buf(),
-                key,
-                message,
-            },
-            other => WorldError::Invalid {
-                path: path.to_path_buf(),
-                key: "control".into(),
-                message: other.to_string(),
-            },
+        structure::check_structure(&world).map_err(|e| WorldError::Invalid {
+            path: path.to_path_buf(),
+            key: e.key,
+            message: e.message,
         })?;
         Ok(world)
     }
@@ -223,6 +222,23 @@ impl World {
     /// Directory that relative paths in the file are resolved against.
     pub fn base_dir(&self) -> &Path {
         self.path.parent().unwrap_or_else(|| Path::new("."))
+    }
+
+    /// The largest κ the rows may use at the world's control rate: κ·dt ≤ 1/2, so that one
+    /// control period cannot take ĥ from its value past zero (the condition is imposed on a
+    /// sampled system: with κ·dt → 1 the sampled input already acts on the whole margin in one
+    /// step).
+    pub fn kappa_max(&self) -> f64 {
+        0.5 / self.control_dt()
+    }
+
+    /// Deceleration of the safe stop's braking \[m/s²\]: `[control] input_limit`, or
+    /// [`DEFAULT_BRAKE_DECELERATION`] without one.
+    pub fn brake_deceleration(&self) -> f64 {
+        self.file
+            .control
+            .input_limit
+            .unwrap_or(DEFAULT_BRAKE_DECELERATION)
     }
 
     /// Control period \[s\].

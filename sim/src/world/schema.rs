@@ -342,7 +342,7 @@ pub struct ControlSection {
     /// the boundary: at rest the robust term holds ĥ ≥ γ‖∂h/∂x K c̄‖/κ; with κ = 1 a room's rows
     /// need more than the box within ~1 m of every obstacle and the robot stalls (issue #36).
     /// Set by [`WorldFile::resolve_defaults`]; with [`ControlSection::cbf_gain_auto`] the
-    /// controller's κ is chosen from the world at setup (`runner::setup::choose_gain`).
+    /// controller's κ is chosen from the world at setup (`model::setup::choose_gain`).
     #[serde(skip)]
     pub cbf_gain: f64,
     /// κ is chosen from the world (`cbf_gain = "auto"`, the default of the safety-filter form).

@@ -981,7 +981,7 @@ mod tests {
         for w in &worlds {
             let world = World::from_str(&w.text, &dir.join(&w.file_name), &[])
                 .unwrap_or_else(|e| panic!("{e}"));
-            let report = crate::check::check_world(&world)
+            let report = crate::analysis::check::check_world(&world)
                 .unwrap_or_else(|e| panic!("{}: check: {e}", w.file_name));
             applies += usize::from(report.verdict.applies);
         }

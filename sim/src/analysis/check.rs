@@ -5,7 +5,7 @@
 //! Checked, in order:
 //! 1. **Disjoint patterns** (§3.1): F(r_i) ∩ F(r_j) = ∅.
 //! 2. **Invertible R̄** for every filter (§4.1): the smallest variance of the channels it keeps
-//!    (a channel declared noise-free is floored at [`crate::runner::setup::MIN_VARIANCE`]).
+//!    (a channel declared noise-free is floored at [`crate::world::structure::MIN_VARIANCE`]).
 //! 3. **Detectability** of (F, c̄) for every single-drop filter x̂_i and pair-drop filter x̂_ij
 //!    (PBH test, [`ftcbf_controller::params::detectability`]), with the unobservable directions
 //!    named in state terms.
@@ -43,21 +43,25 @@
 
 use std::fmt;
 
-use ftcbf_controller::conditions::{condition_4_4, Condition44Verdict};
+use ftcbf_controller::conditions::{
+    check_lemma1, check_theorem5, condition_4_4, Condition44Verdict,
+};
 use ftcbf_controller::params::{
-    check_lemma1, check_theorem5, detectability, pair_slot, steady_state_gain_product,
-    Detectability,
+    detectability, pair_slot, steady_state_gain_product, Detectability,
 };
 use ftcbf_controller::{Input, State, StateMatrix};
 
-use crate::liveness::{self, LivenessReport};
-use crate::runner::setup::{
-    channel_mask, ellipse_prop1, heading_fusion, heading_hold, heading_sensor, initial_covariance,
-    process_model, process_noise, rest_hold, sensor_dependents, speed_bound, turn_rate_bound,
-    ControlSetup, Conversion, NoiseSource, MIN_VARIANCE,
+use crate::analysis::liveness::{self, LivenessReport};
+use crate::model::setup::{
+    channel_mask, ellipse_prop1, initial_covariance, process_model, process_noise, rest_hold,
+    ControlSetup, NoiseSource,
 };
-use crate::runner::{CompiledWorld, RunError};
+use crate::model::{CompiledWorld, RunError};
 use crate::safe_sets::ellipse_phi_state;
+use crate::world::structure::{
+    heading_fusion, heading_hold, heading_sensor, sensor_dependents, speed_bound, turn_rate_bound,
+    Conversion, MIN_VARIANCE,
+};
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
 /// Outcome of one hypothesis.
@@ -215,9 +219,9 @@ pub struct CheckReport {
     /// The verdict.
     pub verdict: Verdict,
     /// The second verdict: the safe stop's guarantee (`[control] fallback = "brake"`;
-    /// [`crate::safe_stop`]).
-    pub safe_stop: crate::safe_stop::SafeStopVerdict,
-    /// Will the robot move and settle (not part of Theorem 3; [`crate::liveness`]).
+    /// [`crate::analysis::safe_stop`]).
+    pub safe_stop: crate::analysis::safe_stop::SafeStopVerdict,
+    /// Will the robot move and settle (not part of Theorem 3; [`crate::analysis::liveness`]).
     pub liveness: LivenessReport,
     /// The barriers' names (`obstacle:wall_1`, `floor`, …): lines that differ only in the
     /// barrier they name are printed once, listing the barriers ([`group_by_barrier`]).
@@ -429,16 +433,16 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     check_movers(world, setup, &mut found); // 12
 
     let applies = found.reasons.is_empty();
-    let failed: Vec<crate::safe_stop::Failed<'_>> = found
+    let failed: Vec<crate::analysis::safe_stop::Failed<'_>> = found
         .hypotheses
         .iter()
         .filter(|h| h.status == Status::Fails)
-        .map(|h| crate::safe_stop::Failed {
+        .map(|h| crate::analysis::safe_stop::Failed {
             name: &h.name,
             detail: &h.detail,
         })
         .collect();
-    let safe_stop = crate::safe_stop::verdict(world, &failed, &liveness);
+    let safe_stop = crate::analysis::safe_stop::verdict(world, &failed, &liveness);
     CheckReport {
         environment: environment_lines(world),
         world: world.name.clone(),
@@ -532,10 +536,10 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
 /// (see the book's "What `check` proves"): Step 3's rule of keeping a unit the box cannot
 /// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not
 /// continuously.
-/// Hypothesis 12, moving obstacles (issue #51): see [`crate::moving_check`]. Assumed findings
+/// Hypothesis 12, moving obstacles (issue #51): see [`super::moving_check`]. Assumed findings
 /// are also assumptions of the verdict.
 fn check_movers(world: &World, setup: &ControlSetup, found: &mut Findings) {
-    for f in crate::moving_check::findings(world, setup) {
+    for f in super::moving_check::findings(world, setup) {
         let status = match f.holds {
             Some(true) => Status::Holds,
             Some(false) => Status::Fails,
@@ -1219,7 +1223,7 @@ fn check_white_noise(world: &World, setup: &ControlSetup, found: &mut Findings) 
 /// 4a. The sensors' rates and dropouts γ, θ and η are computed for ([`sensor_timing`]): reported,
 /// with the longest gap chosen from ε.
 ///
-/// [`sensor_timing`]: crate::runner::setup::sensor_timing
+/// [`sensor_timing`]: crate::world::structure::sensor_timing
 fn report_sensor_timing(world: &World, setup: &ControlSetup, names: &Names, found: &mut Findings) {
     let timing = &setup.params.timing;
     let name = "γ, θ, η for the sensors' rates and dropouts".to_string();
@@ -1328,7 +1332,7 @@ fn check_finite_parameters(world: &World, setup: &ControlSetup, found: &mut Find
 
 /// 6b. The filters' model is true of the rapier robot: they predict with the acceleration the
 /// drive realised and cover the rest with q, identified from inputs held 0.2–1 s (see
-/// `runner::identify`). The paper form's QP switches its input at every step (bang-bang), which
+/// `model::identify`). The paper form's QP switches its input at every step (bang-bang), which
 /// the wheel motors do not follow: measured on paper_turtlebot without its attack, the honest
 /// filters left γ in 12 of 12 runs (3.1 γ) with the paper's q = 1e-3, and in 13 of 20 (1.2 γ)
 /// with q identified under one-step holds (2.4e-2). (4.5) is then not what the robot does.
@@ -1841,7 +1845,7 @@ fn environment_lines(world: &World) -> Vec<String> {
         return Vec::new();
     };
     let mut out = env.lines();
-    out.extend(crate::runner::setup::route_notes(world));
+    out.extend(crate::model::setup::route_notes(world));
     let (r, z) = world
         .robot
         .as_ref()
@@ -1913,9 +1917,9 @@ impl fmt::Display for CheckReport {
             writeln!(f, "hypotheses of the safe stop (besides Theorem 3's, less the pair filters' certification and case (i)):")?;
             for h in &self.safe_stop.hypotheses {
                 let status = match h.status {
-                    crate::safe_stop::Status::Holds => Status::Holds,
-                    crate::safe_stop::Status::Fails => Status::Fails,
-                    crate::safe_stop::Status::Assumed => Status::Assumed,
+                    crate::analysis::safe_stop::Status::Holds => Status::Holds,
+                    crate::analysis::safe_stop::Status::Fails => Status::Fails,
+                    crate::analysis::safe_stop::Status::Assumed => Status::Assumed,
                 };
                 writeln!(f, "  [{}] {}: {}", status.tag(), h.name, h.detail)?;
             }
@@ -2166,7 +2170,7 @@ pub fn suggest(world: &World) -> Result<Suggestion, RunError> {
         });
     }
     let c = &world.file.control;
-    let kmax = liveness::kappa_max(world);
+    let kmax = world.kappa_max();
     let kappas: Vec<f64> = liveness::KAPPA_CANDIDATES
         .iter()
         .copied()

@@ -1,7 +1,7 @@
 //! A world compiled once for its runs (the model/data split): everything a run derives from the
 //! world alone — the channels the linear model observes, the model, the barriers, γ, θ and η
 //! (Riccati), κ, the CLF and the planned path ([`ControlSetup`]) — computed by
-//! [`CompiledWorld::new`] and shared, read-only, by every [`Simulation`](super::Simulation)
+//! [`CompiledWorld::new`] and shared, read-only, by every [`Simulation`](crate::runner::Simulation)
 //! built from it, on any thread. A run ([`Simulation::new`](super::Simulation::new) with a
 //! `&CompiledWorld`) then builds only its own state: sensors, attacks, the control law, the
 //! plant.
@@ -11,23 +11,12 @@
 //! another controller than the world's borrows everything else.
 
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::attacks::AttackSpec;
 use crate::world::{ControllerKindSpec, World, WorldError};
 
 use super::setup::ControlSetup;
 use super::RunError;
-
-/// How many times a world's controller setup (channels, model, barriers, γ/θ/η, κ, CLF, planned
-/// path) has been computed in this process: [`ControlSetup::new`] counts each. Read it before
-/// and after some work to see how often that work compiled a world (a batch: once per sweep
-/// point, whatever its trials and controllers).
-pub fn setups_computed() -> u64 {
-    SETUPS_COMPUTED.load(Ordering::Relaxed)
-}
-
-pub(super) static SETUPS_COMPUTED: AtomicU64 = AtomicU64::new(0);
 
 /// A validated [`World`] and its [`ControlSetup`], computed once. Immutable, `Send + Sync`:
 /// share it between trials and threads by reference (or in an `Arc`).
@@ -95,7 +84,7 @@ impl std::fmt::Debug for CompiledWorld {
     }
 }
 
-/// What a [`Simulation`](super::Simulation) is built from: a world (compiled for that run
+/// What a [`Simulation`](crate::runner::Simulation) is built from: a world (compiled for that run
 /// alone) or a [`CompiledWorld`] (shared).
 #[derive(Clone, Copy)]
 pub enum Source<'w> {

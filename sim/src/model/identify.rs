@@ -30,7 +30,7 @@ use crate::physics::Pose2;
 use crate::sensors::stream_rng;
 use crate::world::World;
 
-use super::plant::{drive_config, Plant};
+use crate::plant::{drive_config, Plant};
 
 /// Length of the identification run \[s\].
 pub const IDENT_SECONDS: f64 = 30.0;

@@ -8,8 +8,7 @@
 //! met by one input, case (i)), plus its own: braking inside the lift's margin, the honest unit
 //! kept by Step 2, and static obstacles.
 
-use crate::liveness::LivenessReport;
-use crate::runner::DEFAULT_BRAKE_DECELERATION;
+use crate::analysis::liveness::LivenessReport;
 use crate::world::{Dynamics, FallbackSpec, World};
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
 
@@ -208,7 +207,7 @@ fn braking(world: &World, record: &mut impl FnMut(&str, Status, String)) {
         return;
     };
     let v = robot.limits.v_max;
-    let a = f.control.input_limit.unwrap_or(DEFAULT_BRAKE_DECELERATION);
+    let a = world.brake_deceleration();
     let dt = world.control_dt();
     let k = f.control.obstacle_lift;
     let need = dt + v / (2.0 * a);

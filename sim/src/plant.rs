@@ -16,7 +16,7 @@ use crate::sensors::stream_rng;
 use crate::state::TruthState;
 use crate::world::{Dynamics, World};
 
-use super::setup::obstacle_barrier_config;
+use crate::world::structure::obstacle_barrier_config;
 
 /// The simulated plant.
 #[allow(clippy::large_enum_variant)]

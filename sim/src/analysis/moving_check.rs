@@ -16,9 +16,10 @@
 //! or stands over the goal when the run ends, blocks it for good; a mover that crosses the path
 //! and goes on makes the robot wait for it to pass.
 
+use crate::model::setup::ControlSetup;
 use crate::moving::{max_speed, mover_indices};
 use crate::obstacles::MotionSpec;
-use crate::runner::setup::{obstacle_barrier_config, ControlSetup};
+use crate::world::structure::obstacle_barrier_config;
 use crate::world::World;
 
 /// One finding: (name, holds: Some(true) holds / Some(false) fails / None assumed or info,

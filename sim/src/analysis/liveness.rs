@@ -8,7 +8,7 @@
 //! uses:
 //!
 //! - **the path**: the safety-filter tracker's points (start, the planned path, the goal where
-//!   the rows can hold the robot; `runner::setup`), or start → waypoints → goal for the paper
+//!   the rows can hold the robot; `model::setup`), or start → waypoints → goal for the paper
 //!   form; sampled every [`SAMPLE_STEP`] m (at most [`MAX_SAMPLES`] points: coarser on a path over 1 km);
 //! - **the rows**: eq. (4.3) of every unit the controller imposes (the single-drop filters x̂_i
 //!   for FT-CBF-CLF, the all-channel filter for the baseline), with γ_i, h̄_γ, κ and the filters'
@@ -45,7 +45,7 @@ use ftcbf_controller::params::{
 use ftcbf_controller::{Input, State, StateMatrix};
 
 use crate::attacks::{open_loop_offset, AttackKind, AttackSpec, StealthyPlay};
-use crate::runner::setup::{channel_mask, initial_covariance, ControlSetup};
+use crate::model::setup::{channel_mask, initial_covariance, ControlSetup};
 use crate::sensors::{ChannelSpec, Quantity};
 use crate::summary::{RunSummary, SETTLE_WINDOW};
 use crate::world::World;
@@ -628,7 +628,7 @@ impl<'a> Model<'a> {
         let axes = declared_reach(world, 0.0, 0.0, max_coord).axes;
         let speed = match &cfg.form {
             ProblemForm::SafetyFilter { tracker, .. } => tracker.cruise_speed,
-            ProblemForm::Paper => crate::runner::setup::speed_bound(world).unwrap_or(0.2),
+            ProblemForm::Paper => crate::world::structure::speed_bound(world).unwrap_or(0.2),
         } * NOMINAL_SPEED_SHARE;
         let spoofed = match (cfg.kind, attacked) {
             (ControllerKind::FtCbfClf, Some(a)) => {
@@ -973,7 +973,7 @@ impl<'a> Model<'a> {
             }
             let x = State::new(p[0] + off[0], p[1] + off[1], 0.0, 0.0);
             // A moving obstacle's rows are not a place on the path: whether the robot waits
-            // for it or is blocked for good is `crate::moving_check`'s.
+            // for it or is blocked for good is `crate::moving::liveness`'s.
             for (bi, b) in cfg.barriers.iter().enumerate() {
                 if b.mover().is_some() {
                     continue;
@@ -1544,18 +1544,11 @@ fn cases(model: &Model, kappa: f64, limit: Option<Input>) -> Vec<LivenessCase> {
     out
 }
 
-/// Values of κ tried by `smallest_fix` (each at most [`kappa_max`]).
+/// Values of κ tried by `smallest_fix` (each at most [`World::kappa_max`]).
 pub const KAPPA_CANDIDATES: [f64; 6] = [10.0, 12.5, 15.0, 20.0, 25.0, 30.0];
 
 /// Input limits tried by `smallest_fix` [m/s²].
 pub const LIMIT_CANDIDATES: [f64; 6] = [0.75, 1.0, 1.25, 1.5, 2.0, 2.5];
-
-/// The largest κ the rows may use at the world's control rate: κ·dt ≤ 1/2, so that one control
-/// period cannot take ĥ from its value past zero (the condition is imposed on a sampled
-/// system: with κ·dt → 1 the sampled input already acts on the whole margin in one step).
-pub fn kappa_max(world: &World) -> f64 {
-    0.5 / world.control_dt()
-}
 
 /// Predict liveness for `world` with its controller configuration (see the module docs).
 pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
@@ -1618,7 +1611,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
 /// The smallest change of one `[control]` key that makes every case live: κ up to
 /// `kappa_max` first (it costs nothing physical), then the input box up to 2.5 m/s².
 fn smallest_fix(world: &World, model: &Model, kappa: f64, limit: Option<Input>) -> Option<Fix> {
-    let kmax = kappa_max(world);
+    let kmax = world.kappa_max();
     for &k in KAPPA_CANDIDATES.iter().filter(|&&k| k > kappa && k <= kmax) {
         if cases(model, k, limit).iter().all(LivenessCase::live) {
             return Some(Fix {
