@@ -15,6 +15,7 @@ pub mod drive;
 pub mod environment;
 pub mod model;
 pub mod movers;
+pub mod moving;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;

@@ -430,6 +430,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     let liveness = liveness::predict(world, setup);
     check_joint_rows(world, &liveness, &mut found); // 10
     check_departures(world, &mut found); // 11
+    check_movers(world, setup, &mut found); // 12
 
     let applies = found.reasons.is_empty();
     let failed: Vec<crate::analysis::safe_stop::Failed<'_>> = found
@@ -537,6 +538,22 @@ fn check_joint_rows(world: &World, liveness: &LivenessReport, found: &mut Findin
 /// (see the book's "What `check` proves"): Step 3's rule of keeping a unit the box cannot
 /// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not
 /// continuously.
+/// Hypothesis 12, moving obstacles (issue #51): see [`super::moving_check`]. Assumed findings
+/// are also assumptions of the verdict.
+fn check_movers(world: &World, setup: &ControlSetup, found: &mut Findings) {
+    for f in super::moving_check::findings(world, setup) {
+        let status = match f.holds {
+            Some(true) => Status::Holds,
+            Some(false) => Status::Fails,
+            None => {
+                found.assumptions.push(f.detail.clone());
+                Status::Assumed
+            }
+        };
+        found.record(f.name, status, f.detail);
+    }
+}
+
 fn check_departures(world: &World, found: &mut Findings) {
     let (flat, cornered, curved) = barrier_boundaries(world);
     let barriers = world.file.safe_sets.len() + world.obstacles.len();

@@ -219,12 +219,16 @@ pub struct LivenessReport {
     /// sources apart. The stop is a pause: whether the robot goes on from it is the walk's
     /// (a case that waits there and goes on stays live; one that stalls there stops short).
     pub safe_stop: Option<String>,
+    /// Moving obstacles that stop across the path: the robot is blocked for good (issue #51).
+    pub movers_blocked: Vec<String>,
+    /// Moving obstacles the robot may wait for (they cross the path and move on).
+    pub movers_wait: Vec<String>,
 }
 
 impl LivenessReport {
     /// Every case live (a skipped prediction counts as live: nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.cases.iter().all(LivenessCase::live)
+        self.cases.iter().all(LivenessCase::live) && self.movers_blocked.is_empty()
     }
 
     /// The verdict line.
@@ -232,15 +236,23 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
+        if let Some(b) = self.movers_blocked.first() {
+            return format!("the robot will NOT reach its goal: {b}");
+        }
         let stop = self
             .safe_stop
             .as_ref()
             .map_or(String::new(), |stop| format!("; {stop}"));
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
-            return format!(
+            let mut s = format!(
                 "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
+            for w in &self.movers_wait {
+                s.push_str("; ");
+                s.push_str(w);
+            }
+            return s;
         };
         let mut s = match &c.stall {
             // With the safe stop it brakes there (and says why below) rather than push on.
@@ -976,7 +988,12 @@ impl<'a> Model<'a> {
                 }
             }
             let x = State::new(p[0] + off[0], p[1] + off[1], 0.0, 0.0);
+            // A moving obstacle's rows are not a place on the path: whether the robot waits
+            // for it or is blocked for good is `crate::moving::liveness`'s.
             for (bi, b) in cfg.barriers.iter().enumerate() {
+                if b.mover().is_some() {
+                    continue;
+                }
                 let eval = b.eval(&x);
                 let h_bar = b.h_bar(u.gamma);
                 if eval.value - h_bar >= cfg.delta {
@@ -1044,6 +1061,7 @@ impl Model<'_> {
             .config
             .barriers
             .iter()
+            .filter(|b| b.mover().is_none())
             .all(|b| b.eval(&x).value >= 0.0)
     }
 }
@@ -1562,6 +1580,8 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             skipped: Some("the nominal controller imposes no rows".into()),
             goal_radius: world.file.goal.radius,
             safe_stop: None,
+            movers_blocked: Vec::new(),
+            movers_wait: Vec::new(),
         };
     };
     let path_length = model.length();
@@ -1577,7 +1597,23 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
     if !live {
         structural_notes(&model, &cases, &mut structural);
     }
+    let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
+    let inputs = crate::moving::LiveInputs {
+        obstacles: &world.obstacles,
+        barriers: &cfg.barriers,
+        gamma: cfg
+            .ft
+            .gamma
+            .iter()
+            .copied()
+            .fold(cfg.ft.gamma_baseline, f64::max),
+        duration: world.file.duration,
+        goal: world.file.goal.center,
+    };
+    let (movers_blocked, movers_wait) = crate::moving::liveness(&inputs, &points);
     LivenessReport {
+        movers_blocked,
+        movers_wait,
         kappa: cfg.cbf_gain,
         path_length,
         samples: n_samples,

@@ -12,7 +12,9 @@ use ftcbf_controller::params::{
     gain_product, steady_state_riccati, BoundMethod, FtParameters, FtParams,
 };
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
-use ftcbf_controller::{Barrier, Fallback, Input, ProblemForm, State, StateMatrix, TrackerConfig};
+use ftcbf_controller::{
+    Barrier, Fallback, Input, MovingBarrier, ProblemForm, State, StateMatrix, TrackerConfig,
+};
 use nalgebra::Matrix2;
 
 use crate::obstacles::BarrierConfig;
@@ -337,10 +339,23 @@ impl ControlSetup {
         check_h_bar_inputs(world, &bcfg).map_err(structure(world))?;
         let mut barriers = safe_set_barriers(world);
         let safe_sets = barriers.len();
+        let mut mover = 0;
         for ob in &world.obstacles {
-            for b in ob.barriers(&bcfg) {
-                barriers.push(Arc::new(b));
+            if ob.spec.motion.is_none() {
+                for b in ob.barriers(&bcfg) {
+                    barriers.push(Arc::new(b));
+                }
+                continue;
             }
+            // A moving obstacle's barrier at its start, moved by its reading; its h̄_γ bound
+            // is for the relative speed (the robot's bound plus the obstacle's).
+            let cfg = BarrierConfig {
+                v_max: bcfg.v_max + crate::moving::max_speed(&ob.spec),
+                ..bcfg
+            };
+            let base: Arc<dyn Barrier> = Arc::new(ob.barrier(&cfg));
+            barriers.push(Arc::new(MovingBarrier::new(base, mover)));
+            mover += 1;
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let params = parameters(world, &model, &patterns, &ch.sensor_of_channel);
@@ -498,6 +513,8 @@ pub fn planned_path(
         pts.push(goal.center);
         return Ok(pts);
     }
+    // The path is planned around the obstacles that stand still (movers are avoided by their
+    // rows as they come).
     let (barriers, boxes) = planner_barriers(world, bcfg);
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     // The budget is in obstacle distance queries (far obstacles are not queried).
@@ -680,7 +697,7 @@ fn no_route_note(
     )
 }
 
-/// The barriers the planner plans against — the controller's (an occupancy map's pieces, not
+/// The barriers the planner plans against, of the obstacles that stand still — the controller's (an occupancy map's pieces, not
 /// its field), so a route keeps the clearance the rows keep — with their bounding rectangles.
 #[allow(clippy::type_complexity)]
 pub fn planner_barriers(
@@ -692,7 +709,7 @@ pub fn planner_barriers(
 ) {
     let mut barriers = Vec::new();
     let mut boxes = Vec::new();
-    for o in &world.obstacles {
+    for o in statics(world) {
         if o.outlines().is_empty() {
             barriers.push(o.barrier(bcfg));
             boxes.push(planar_box(o));
@@ -702,6 +719,11 @@ pub fn planner_barriers(
         }
     }
     (barriers, boxes)
+}
+
+/// The world's obstacles that stand still (the planner's).
+fn statics(world: &World) -> impl Iterator<Item = &crate::obstacles::Obstacle> {
+    world.obstacles.iter().filter(|o| o.spec.motion.is_none())
 }
 
 /// An obstacle's bounding rectangle in the plane (x_min, y_min, x_max, y_max) \[m\], world
