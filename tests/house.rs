@@ -298,6 +298,16 @@ const SIM_LAYERS: &[(&str, &[&str])] = &[
     ("analysis", &["runner"]),
 ];
 
+/// Each source file of `krate` (one of [`CRATES`]) with the module it holds, and its text.
+fn modules_of(krate: &str) -> Vec<(Module, String)> {
+    let src = root().join(krate);
+    sources()
+        .into_iter()
+        .filter(|(k, _, _)| *k == krate)
+        .map(|(_, file, text)| (module_of(&src, &file), text))
+        .collect()
+}
+
 /// The module a file under `src` holds (`a/b.rs` and `a/b/mod.rs` are `a::b`; `lib.rs` and
 /// `main.rs` the root).
 fn module_of(src: &Path, file: &Path) -> Module {
@@ -492,12 +502,7 @@ fn no_crate_has_an_import_circle() {
     let mut found: Vec<(String, Vec<String>)> = Vec::new();
     let mut modules_seen = 0;
     for krate in CRATES {
-        let src = root().join(krate);
-        let files: Vec<(Module, String)> = sources()
-            .into_iter()
-            .filter(|(k, _, _)| *k == krate)
-            .map(|(_, file, text)| (module_of(&src, &file), text))
-            .collect();
+        let files = modules_of(krate);
         let modules: BTreeSet<Module> = files.iter().map(|(m, _)| m.clone()).collect();
         modules_seen += modules.len();
         for circle in circles(&modules, &arrows(&files)) {
@@ -518,12 +523,7 @@ fn no_crate_has_an_import_circle() {
 /// other ([`SIM_LAYERS`]).
 #[test]
 fn the_simulator_flows_world_model_then_runner_or_analysis() {
-    let src = root().join("sim/src");
-    let files: Vec<(Module, String)> = sources()
-        .into_iter()
-        .filter(|(k, _, _)| *k == "sim/src")
-        .map(|(_, file, text)| (module_of(&src, &file), text))
-        .collect();
+    let files = modules_of("sim/src");
     let mut upward = Vec::new();
     for (from, tos) in arrows(&files) {
         let Some((layer, forbidden)) = SIM_LAYERS

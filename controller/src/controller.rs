@@ -8,7 +8,7 @@ use nalgebra::Matrix2;
 use thiserror::Error;
 
 use crate::barrier::{Barrier, MoverState};
-use crate::constraints::{cbf_row, clf_row};
+use crate::constraints::{cbf_row, clf_row, CbfRow};
 use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
 use crate::model::{validate_fault_patterns, LinearModel, ModelError};
@@ -18,6 +18,7 @@ use crate::policy::{
     decide, prepare, DecisionRecord, Fallback, PolicyProblem, PolicyScratch, QpOutcome,
 };
 use crate::qp::QpSolver;
+use crate::reach::{BarrierIndex, ReachTerms};
 use crate::types::{Input, State, StateMatrix};
 
 /// Weight of the shared slack in the QP cost (input cost R is O(1)): soft rows are violated
@@ -94,6 +95,10 @@ pub struct ControllerConfig {
     /// What Step 3 does when it has no evidence which unit lies ([`Fallback::Paper`]: the
     /// thesis' Step 3, the builder's default; [`Fallback::Brake`]: the safe stop).
     pub fallback: Fallback,
+    /// A spatial index over the barriers (issue #52, [`crate::reach`]): each step builds only
+    /// the rows of the barriers it finds within reach of the estimates. Default: none, every
+    /// row is built at every step.
+    pub barrier_index: Option<Arc<dyn BarrierIndex>>,
 }
 
 /// Readings with |y| above this are rejected by default \[m or m/s\] ([`ControllerConfig::max_abs_reading`]).
@@ -126,6 +131,7 @@ impl ControllerConfig {
             max_abs_reading: DEFAULT_MAX_ABS_READING,
             form: ProblemForm::Paper,
             fallback: Fallback::Paper,
+            barrier_index: None,
         })
     }
 }
@@ -150,6 +156,13 @@ impl ControllerConfigBuilder {
     /// a barrier guarantees nothing; add the sets it must keep).
     pub fn barriers(mut self, barriers: Vec<Arc<dyn Barrier>>) -> Self {
         self.0.barriers = barriers;
+        self
+    }
+
+    /// A spatial index over the barriers ([`crate::reach`]): rows out of reach of every input
+    /// of the box are not built. Default: none.
+    pub fn barrier_index(mut self, index: Arc<dyn BarrierIndex>) -> Self {
+        self.0.barrier_index = Some(index);
         self
     }
 
@@ -293,7 +306,8 @@ pub struct ControlOutput {
     pub decision: DecisionRecord,
     /// Rejected readings.
     pub rejected: RejectedReadings,
-    /// h(x̂) per filter of the bank and barrier, index `filter * barriers + barrier`.
+    /// h(x̂) per filter of the bank and barrier, index `filter * barriers + barrier`; NaN for
+    /// a barrier out of reach (not evaluated: [`crate::reach`]).
     pub h_values: Vec<f64>,
     /// V(x̂) per filter of the bank.
     pub v_values: Vec<f64>,
@@ -338,6 +352,8 @@ pub struct Controller {
     applied: Option<Input>,
     /// The moving obstacles' readings of this step ([`Controller::set_movers`]).
     movers: Vec<MoverState>,
+    /// The active-barrier index and its buffers (None: every row is built).
+    reach: Option<Reach>,
 }
 
 fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
@@ -531,6 +547,130 @@ fn validate_numbers(cfg: &ControllerConfig) -> Result<(), ConfigError> {
     Ok(())
 }
 
+/// The active-barrier index of a controller ([`crate::reach`]) with what each step needs.
+#[derive(Debug)]
+struct Reach {
+    index: Arc<dyn BarrierIndex>,
+    /// Which barriers the index covers.
+    covered: Vec<bool>,
+    /// Per unit, the largest h̄_γ over the covered barriers.
+    h_bar: Vec<f64>,
+    /// ‖G‖_F and ‖L‖₂ of the input box.
+    g_norm: f64,
+    limit_norm: f64,
+    /// The barriers found near an estimate (capacity: every barrier).
+    near: Vec<usize>,
+    /// The largest reach radius of this step's units (the logging radius of the other filters).
+    radius: f64,
+    /// Which barriers a filter that is no unit's does not log (beyond `radius`).
+    log_far: Vec<bool>,
+}
+
+impl Reach {
+    /// None without an index, without an input box (nothing can be out of reach) or without
+    /// barrier rows.
+    fn new(
+        cfg: &ControllerConfig,
+        h_bar: &[f64],
+        h_bar_baseline: &[f64],
+        units: usize,
+        barriers_used: usize,
+    ) -> Option<Self> {
+        let index = cfg.barrier_index.clone()?;
+        let limit = cfg.input_limit?;
+        if barriers_used == 0 {
+            return None;
+        }
+        let nb = cfg.barriers.len();
+        let covered: Vec<bool> = (0..nb).map(|b| index.covers(b)).collect();
+        let worst = |hb: &[f64]| {
+            hb.iter()
+                .zip(&covered)
+                .filter(|(_, &c)| c)
+                .map(|(&h, _)| h)
+                .fold(0.0_f64, f64::max)
+        };
+        let h_bar = (0..units)
+            .map(|i| match cfg.kind {
+                ControllerKind::FtCbfClf => worst(&h_bar[i * nb..(i + 1) * nb]),
+                _ => worst(h_bar_baseline),
+            })
+            .collect();
+        Some(Self {
+            index,
+            covered,
+            h_bar,
+            g_norm: cfg.model.g.norm(),
+            limit_norm: limit.norm(),
+            near: Vec::with_capacity(nb),
+            radius: 0.0,
+            log_far: vec![false; nb],
+        })
+    }
+
+    /// Marks unit `i`'s covered barriers out of reach of estimate `x` (filter gain terms `m`,
+    /// `n`, error bound γ), then those the index finds within the reach radius back in reach;
+    /// returns the lower bound of h at the radius (+∞ if nothing is out of reach).
+    #[allow(clippy::too_many_arguments)]
+    fn mark(
+        &mut self,
+        model: &LinearModel,
+        i: usize,
+        x: &State,
+        m: &StateMatrix,
+        n: &StateMatrix,
+        gamma: f64,
+        kappa: f64,
+        delta: f64,
+        far: &mut [bool],
+    ) -> f64 {
+        let terms = ReachTerms::new(
+            &model.f,
+            self.g_norm,
+            self.limit_norm,
+            x,
+            m,
+            n,
+            gamma,
+            kappa,
+            self.h_bar[i],
+            delta,
+        );
+        let radius = terms.radius(self.index.as_ref());
+        self.radius = self.radius.max(radius);
+        if !(radius.is_finite() && x[0].is_finite() && x[1].is_finite()) {
+            far.iter_mut().for_each(|f| *f = false);
+            return f64::INFINITY;
+        }
+        far.copy_from_slice(&self.covered[..far.len()]);
+        self.near.clear();
+        self.index.near([x[0], x[1]], radius, &mut self.near);
+        for &b in &self.near {
+            if let Some(f) = far.get_mut(b) {
+                *f = false;
+            }
+        }
+        self.index.far_bounds(radius, terms.speed).h_lower
+    }
+
+    /// `log_far`: the covered barriers beyond this step's largest reach radius from `x`'s
+    /// position (h(x̂) of a filter that is no unit's is logged only within it).
+    fn log_mask(&mut self, x: &State) {
+        if !(self.radius.is_finite() && x[0].is_finite() && x[1].is_finite()) {
+            self.log_far.iter_mut().for_each(|f| *f = false);
+            return;
+        }
+        self.log_far.copy_from_slice(&self.covered);
+        self.near.clear();
+        self.index.near([x[0], x[1]], self.radius, &mut self.near);
+        for &b in &self.near {
+            if let Some(f) = self.log_far.get_mut(b) {
+                *f = false;
+            }
+        }
+    }
+}
+
 /// The policy's problem with its fixed parts filled in: δ, V̄, and θ_ij, η_ij and the
 /// increment metric per ordered pair of units.
 fn initial_problem(
@@ -653,6 +793,7 @@ impl Controller {
             .map(|b| b.h_bar(cfg.ft.gamma_baseline))
             .collect();
 
+        let reach = Reach::new(&cfg, &h_bar, &h_bar_baseline, units, barriers_used);
         let mut problem = initial_problem(&cfg, units, barriers_used, m);
         let bank = EstimatorBank::new(cfg.model.clone(), &cfg.fault_patterns, cfg.x0, cfg.p0);
         let qp = QpSolver::new(
@@ -701,6 +842,7 @@ impl Controller {
             tracker,
             applied: None,
             movers: Vec::new(),
+            reach,
         })
     }
 
@@ -817,14 +959,22 @@ impl Controller {
         self.output.qp = outcome;
         // logging values: a unit's filter's h(x̂) is its rows' (the same evaluation of the same
         // estimate, made in `fill_problem` this step), the other filters' are evaluated here
+        // (NaN: out of reach, not evaluated; see crate::reach)
         let nb = self.barriers.len();
         let nbu = self.problem.barriers();
         let units = self.problem.units();
         for (fi, f) in self.bank.filters().iter().enumerate() {
             let unit = (0..units).find(|&i| nbu == nb && self.unit_filter(i) == fi);
+            if unit.is_none() {
+                if let Some(r) = self.reach.as_mut() {
+                    r.log_mask(f.estimate());
+                }
+            }
             for (bi, b) in self.barriers.iter().enumerate() {
                 self.output.h_values[fi * nb + bi] = match unit {
+                    Some(i) if self.problem.cbf_far[i * nbu + bi] => f64::NAN,
                     Some(i) => self.problem.cbf[i * nbu + bi].h,
+                    None if self.reach.as_ref().is_some_and(|r| r.log_far[bi]) => f64::NAN,
                     None => b.eval_moving(f.estimate(), &self.movers).0.value,
                 };
             }
@@ -915,6 +1065,9 @@ impl Controller {
     }
 
     fn fill_problem(&mut self) {
+        if let Some(r) = self.reach.as_mut() {
+            r.radius = 0.0;
+        }
         let model = self.bank.model();
         let nbu = self.problem.barriers();
         let units = self.problem.units();
@@ -934,7 +1087,36 @@ impl Controller {
             };
             let f = &self.bank.filters()[fi];
             let x = f.estimate();
+            let far = &mut self.problem.cbf_far[i * nbu..(i + 1) * nbu];
+            let h_far = match self.reach.as_mut() {
+                Some(r) => r.mark(
+                    model,
+                    i,
+                    x,
+                    f.gain_drift(),
+                    f.gain_diffusion(),
+                    gamma,
+                    self.cbf_gain,
+                    self.delta,
+                    far,
+                ),
+                None => f64::INFINITY,
+            };
             for (b, &hb) in hbars.iter().enumerate().take(nbu) {
+                let k = i * nbu + b;
+                if self.problem.cbf_far[k] {
+                    let h_hat = h_far - self.reach.as_ref().map_or(0.0, |r| r.h_bar[i]);
+                    // Out of reach (crate::reach): every input of the box satisfies the row.
+                    self.problem.cbf[k] = CbfRow {
+                        lambda: Input::zeros(),
+                        omega_bar: -1.0,
+                        h: h_far,
+                        h_hat,
+                    };
+                    // The radius makes ĥ ≥ δ when δ is finite: outside X_t(δ), as Step 1 has it.
+                    self.problem.cbf_active[k] = self.delta == f64::INFINITY;
+                    continue;
+                }
                 let (eval, dh_dt) = self.barriers[b].eval_moving(x, &self.movers);
                 let mut row = cbf_row(
                     model,
@@ -949,7 +1131,6 @@ impl Controller {
                 // A moving obstacle's row: ∂h/∂x(Fx̂ + Gu) + ∂h/∂t ≥ …, so ∂h/∂t moves ω̄
                 // (a static barrier's is exactly 0 and leaves the row as it was, bit for bit).
                 row.omega_bar -= dh_dt;
-                let k = i * nbu + b;
                 // X_t(δ) = {ĥ < δ}; a NaN ĥ is imposed (and its row fails closed), never
                 // left out as "far from the boundary".
                 self.problem.cbf_active[k] = row.h_hat < self.delta || row.h_hat.is_nan();

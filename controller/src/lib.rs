@@ -130,6 +130,7 @@ pub mod odometry;
 pub mod params;
 pub mod policy;
 pub mod qp;
+pub mod reach;
 pub mod types;
 
 pub use barrier::{

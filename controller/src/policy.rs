@@ -433,6 +433,11 @@ pub struct PolicyProblem {
     pub cbf: Vec<CbfRow>,
     /// Whether each Ω is in X_t(δ) (ĥ < δ).
     pub cbf_active: Vec<bool>,
+    /// Whether each Ω is out of reach ([`crate::reach`]): every input of the box satisfies
+    /// it, so it is not built (its [`CbfRow`] holds the certified lower bounds of h and ĥ,
+    /// Λ = 0 and ω̄ = −1) and not handed to the QP or the feasibility test. It still counts as
+    /// its unit's row in X_t(δ) where Steps 2–3 ask whether a unit has rows.
+    pub cbf_far: Vec<bool>,
     /// Υ rows per unit.
     pub clf: Vec<ClfRow>,
     /// Whether each Υ is in Y_t(V̄).
@@ -500,6 +505,7 @@ impl PolicyProblem {
             barriers,
             cbf: vec![zero_cbf; units * barriers],
             cbf_active: vec![false; units * barriers],
+            cbf_far: vec![false; units * barriers],
             clf: vec![zero_clf; units],
             clf_active: vec![false; units],
             use_clf: true,
@@ -559,11 +565,12 @@ impl PolicyScratch {
     }
 }
 
-/// Appends unit `i`'s imposed CBF rows (those in X_t(δ)) to `out`.
+/// Appends unit `i`'s imposed CBF rows (those in X_t(δ)) to `out`, except the rows out of
+/// reach (every input of the box satisfies them: leaving them out changes no feasible set).
 fn push_cbf_rows(p: &PolicyProblem, i: usize, out: &mut Vec<HalfSpace>) {
     for b in 0..p.barriers {
         let k = i * p.barriers + b;
-        if p.cbf_active[k] {
+        if p.cbf_active[k] && !p.cbf_far[k] {
             out.push(p.cbf[k].half_space());
         }
     }

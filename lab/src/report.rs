@@ -782,20 +782,7 @@ fn falsify_page(inputs: &Inputs) -> String {
     );
     let _ = writeln!(out, "The worst attack each method found:\n");
     for (_, f) in inputs.falsify.iter().filter(|(_, f)| !f.aims_at_fallback()) {
-        for m in &f.methods {
-            let _ = writeln!(
-                out,
-                "- `{}`, {}: {} (ρ = {})",
-                f.world,
-                if m.method == "cem" {
-                    "CEM"
-                } else {
-                    "random search"
-                },
-                m.witness.description,
-                rho(&m.witness.robustness)
-            );
-        }
+        worst_attacks(&mut out, f);
     }
     let _ = writeln!(out);
     fallback_section(&mut out, inputs);
@@ -808,6 +795,24 @@ impl FalsifyJson {
     /// Searched with `--family fallback` (attacks aimed at the safe stop).
     fn aims_at_fallback(&self) -> bool {
         self.family.as_deref() == Some("fallback")
+    }
+}
+
+/// One line per search method of `f`: the worst attack it found and its ρ.
+fn worst_attacks(out: &mut String, f: &FalsifyJson) {
+    for m in &f.methods {
+        let _ = writeln!(
+            out,
+            "- `{}`, {}: {} (ρ = {})",
+            f.world,
+            if m.method == "cem" {
+                "CEM"
+            } else {
+                "random search"
+            },
+            m.witness.description,
+            rho(&m.witness.robustness)
+        );
     }
 }
 
@@ -873,20 +878,7 @@ fn fallback_section(out: &mut String, inputs: &Inputs) {
          worst run of each search:\n"
     );
     for f in &searched {
-        for m in &f.methods {
-            let _ = writeln!(
-                out,
-                "- `{}`, {}: {} (ρ = {})",
-                f.world,
-                if m.method == "cem" {
-                    "CEM"
-                } else {
-                    "random search"
-                },
-                m.witness.description,
-                rho(&m.witness.robustness)
-            );
-        }
+        worst_attacks(out, f);
     }
     let _ = writeln!(out);
 }

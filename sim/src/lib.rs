@@ -9,9 +9,10 @@
 
 #![warn(missing_docs)]
 
+pub mod active;
 pub mod analysis;
 pub mod attacks;
-pub mod drive;
+pub mod drivetrain;
 pub mod environment;
 pub mod model;
 pub mod movers;

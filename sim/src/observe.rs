@@ -125,9 +125,12 @@ pub struct Frame<'a> {
     pub channels: &'a [ChannelView],
     /// Per estimator, in [`Scene::filters`] order.
     pub estimates: &'a [EstimateView],
-    /// h(x̂) per estimator (row) and barrier (column), row-major.
+    /// h(x̂) per estimator (row) and barrier (column), row-major. NaN: out of reach, not
+    /// evaluated this step (a world with an active-barrier index, see
+    /// [`ftcbf_controller::reach`]: far obstacles are not evaluated, so they are not logged).
     pub barrier_values: &'a [f64],
-    /// h(x_true) per barrier.
+    /// h(x_true) per barrier. NaN: a far obstacle not evaluated this step (its certified lower
+    /// bound is at or above its least value so far; worlds with an active-barrier index only).
     pub barrier_truth: &'a [f64],
     /// The input u = (a_x, a_y) [m/s²].
     pub u: [f64; 2],

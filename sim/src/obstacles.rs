@@ -1070,6 +1070,12 @@ impl Obstacle {
         }
     }
 
+    /// How many barriers [`Obstacle::barriers`] gives, without building them: one per piece of
+    /// an occupancy map's outline, else one.
+    pub fn barrier_count(&self) -> usize {
+        self.outlines.len().max(1)
+    }
+
     /// The barriers the controller keeps for this obstacle: one per piece of an occupancy map
     /// (named `obstacle:NAME#k`), else the one of [`Obstacle::barrier`].
     pub fn barriers(&self, cfg: &BarrierConfig) -> Vec<ObstacleBarrier> {

@@ -8,7 +8,7 @@ use rand::Rng;
 use rand_chacha::ChaCha20Rng;
 use rand_distr::StandardNormal;
 
-use crate::drive::{Drive, DriveConfig};
+use crate::drivetrain::{Drive, DriveConfig};
 use crate::obstacles::{Obstacle, ObstacleBarrier};
 use crate::physics::{PhysicsConfig, PhysicsWorld, Pose2};
 use crate::robot::WheelGeometry;
@@ -162,7 +162,7 @@ impl Plant {
     pub fn apply_input(&mut self, u: &Input, heading: f64, control_dt: f64) -> [f64; 2] {
         match self {
             Plant::Rapier { physics, drive, .. } => {
-                // The wheel encoders' forward speed closes the loop of (6.3) (see crate::drive).
+                // The wheel encoders' forward speed closes the loop of (6.3) (see crate::drivetrain).
                 let (wl, wr) = physics.wheel_speeds();
                 let measured = drive.body_from_wheels(wl, wr).v;
                 let (sent, (l, r)) = drive.step(*u, heading, control_dt, Some(measured), false);

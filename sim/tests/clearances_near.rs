@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use ftcbf_sim::drive::{BodyCommand, Drive, DriveConfig};
+use ftcbf_sim::drivetrain::{BodyCommand, Drive, DriveConfig};
 use ftcbf_sim::obstacles::{Obstacle, ObstacleSpec, ShapeSpec};
 use ftcbf_sim::physics::{PhysicsConfig, PhysicsWorld, Pose2};
 use ftcbf_sim::robot::{LoadOptions, RobotDescription};

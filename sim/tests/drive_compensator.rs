@@ -1,7 +1,7 @@
 //! The compensator (6.3)–(6.4), its guard at v ≈ 0, limits and wheel kinematics.
 
 use ftcbf_controller::Input;
-use ftcbf_sim::drive::{BodyCommand, Drive, DriveConfig, DriveError};
+use ftcbf_sim::drivetrain::{BodyCommand, Drive, DriveConfig, DriveError};
 use ftcbf_sim::robot::{DriveLimits, WheelGeometry};
 
 const GEOM: WheelGeometry = WheelGeometry {

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
-use ftcbf_sim::drive::{BodyCommand, Drive, DriveConfig};
+use ftcbf_sim::drivetrain::{BodyCommand, Drive, DriveConfig};
 use ftcbf_sim::obstacles::{Obstacle, ObstacleSpec, ShapeSpec};
 use ftcbf_sim::physics::{PhysicsConfig, PhysicsWorld, Pose2};
 use ftcbf_sim::robot::{CollisionShape, LoadOptions, RobotDescription};

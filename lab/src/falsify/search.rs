@@ -1185,7 +1185,13 @@ mod tests {
     /// A made-up robustness: lowest for a stealthy attack on pattern 1 with z near 0.8, with
     /// seed noise of ±0.01.
     fn synthetic(c: &Candidate, seed: u64) -> f64 {
-        let arm = if c.pattern == 1 && c.kind == Kind::Stealthy {
+        weak_spot(c, seed, Kind::Stealthy)
+    }
+
+    /// A made-up robustness whose weak spot is an attack of `kind` on pattern 1 with z near
+    /// 0.8, with seed noise of ±0.01.
+    fn weak_spot(c: &Candidate, seed: u64, kind: Kind) -> f64 {
+        let arm = if c.pattern == 1 && c.kind == kind {
             0.0
         } else {
             0.5
@@ -1394,16 +1400,7 @@ mod tests {
     fn the_fallback_family_is_searched_and_its_weak_spot_found() {
         let plan = Plan::new(200).expect("plan");
         let sp = space(2).with_family(Family::Fallback);
-        let rho = |c: &Candidate, seed: u64| {
-            let arm = if c.pattern == 1 && c.kind == Kind::TimedRamp {
-                0.0
-            } else {
-                0.5
-            };
-            let d: f64 = c.z[..5].iter().map(|v| (v - 0.8).powi(2)).sum();
-            let noise = (trial_seed(seed, c.z[0].to_bits()) % 2001) as f64 / 1000.0 - 1.0;
-            arm + d + 0.01 * noise
-        };
+        let rho = |c: &Candidate, seed: u64| weak_spot(c, seed, Kind::TimedRamp);
         let mut found = 0;
         for seed in 0..10 {
             let (search, _) = search_generations(Method::Cem, &plan, &sp, seed, |g, cs| {

@@ -583,7 +583,7 @@ fn barrier_boundaries(world: &World) -> (usize, usize, usize) {
                 cornered += 1
             }
             // one barrier per piece of its outline
-            ShapeSpec::OccupancyMap { .. } => cornered += ob.outlines().len().max(1),
+            ShapeSpec::OccupancyMap { .. } => cornered += ob.barrier_count(),
             ShapeSpec::Ball { .. }
             | ShapeSpec::Cylinder { .. }
             | ShapeSpec::Capsule { .. }
@@ -814,6 +814,10 @@ fn context_parameters(world: &World, setup: &ControlSetup, context: &mut Vec<Str
                 "active rows: up to {rows} barrier rows and no input box: no row can be shown not to bind, every row enters every QP"
             ),
         });
+    }
+    let v_max = crate::world::structure::obstacle_barrier_config(world).v_max;
+    if let Some(line) = active_barriers_line(setup, &p.ft.gamma, v_max) {
+        context.push(line);
     }
     for b in &setup.config.barriers {
         let hb: Vec<f64> = p.ft.gamma.iter().map(|g| b.h_bar(*g)).collect();
@@ -2322,4 +2326,44 @@ mod grouping_tests {
             ]
         );
     }
+}
+
+/// One line on the active barriers (issue #52, [`ftcbf_controller::reach`]) when the world has
+/// an index: how many barriers it covers, the rule, and the reach radius at rest and at v_max
+/// before the filters' robustness and Itô terms (each step adds them to A and B).
+fn active_barriers_line(
+    setup: &crate::model::setup::ControlSetup,
+    gamma: &[f64],
+    v_max: f64,
+) -> Option<String> {
+    use ftcbf_controller::reach::ReachTerms;
+    let index = setup.config.barrier_index.as_ref()?;
+    let limit = setup.config.input_limit?;
+    let bars = &setup.config.barriers;
+    let covered: Vec<usize> = (0..bars.len()).filter(|&b| index.covers(b)).collect();
+    let h_bar = covered
+        .iter()
+        .flat_map(|&b| gamma.iter().map(move |&g| bars[b].h_bar(g)))
+        .fold(0.0_f64, f64::max);
+    let radius = |s: f64| {
+        ReachTerms {
+            kappa: setup.config.cbf_gain,
+            h_bar,
+            a: setup.config.model.g.norm() * limit.norm() + s,
+            b: 0.0,
+            delta: setup.config.delta,
+            speed: s,
+        }
+        .radius(index.as_ref())
+    };
+    Some(format!(
+        "active barriers: {} of {} barriers are indexed (a parry BVH over their boxes); a step builds a unit's row only for those within its reach radius D of the estimate, the least D with κ(h_lower(D, s) − h̄_γ) > ‖∂h‖·A + ‖∇²h‖_F·B (h_lower = D − r − margin − k·s; A = ‖G‖‖L‖ + ‖F x̂‖ + γ‖M‖, B = ½‖N‖): beyond D every input of the box satisfies the row, so leaving it out changes no feasible set and the guarantee is the same. With κ = {:.3}, h̄_γ ≤ {:.4}: D = {:.2} m at rest, {:.2} m at {:.2} m/s (before the filters' γ‖M‖ and Itô terms)",
+        covered.len(),
+        bars.len(),
+        setup.config.cbf_gain,
+        h_bar,
+        radius(0.0),
+        radius(v_max),
+        v_max
+    ))
 }

@@ -372,7 +372,17 @@ impl ControlSetup {
 
         let goal = State::new(file.goal.center[0], file.goal.center[1], 0.0, 0.0);
         let clf = clf_config(world, &model, goal)?;
-        let config = ControllerConfig::builder(model, patterns, params.ft.clone())
+        let units = match kind {
+            ControllerKindSpec::FtCbfClf => patterns.len(),
+            _ => 1,
+        };
+        let index = active_index(world, &bcfg, units, safe_sets, barriers.len());
+        let builder = ControllerConfig::builder(model, patterns, params.ft.clone());
+        let builder = match index {
+            Some(index) => builder.barrier_index(index),
+            None => builder,
+        };
+        let config = builder
             .kind(kind.into())
             .barriers(barriers)
             .goal(goal, file.goal.radius)
@@ -406,6 +416,24 @@ impl ControlSetup {
             gain,
         })
     }
+}
+
+/// The active-barrier index ([`crate::active`]) when a step can have more barrier rows
+/// (units × barriers: fault patterns for ft-cbf-clf, one for the others) than [`ftcbf_controller::qp::COMPACT_CBF_ROWS`], the most a QP
+/// holds all of; below, every row is built and solved row for row as before (every catalogue
+/// world, so their results stay bit-identical).
+pub fn active_index(
+    world: &World,
+    bcfg: &BarrierConfig,
+    units: usize,
+    safe_sets: usize,
+    barriers: usize,
+) -> Option<Arc<dyn ftcbf_controller::reach::BarrierIndex>> {
+    if units.max(1) * barriers <= ftcbf_controller::qp::COMPACT_CBF_ROWS {
+        return None;
+    }
+    let index = crate::active::ObstacleIndex::new(&world.obstacles, safe_sets, barriers, bcfg);
+    (index.covered_count() > 0).then(|| Arc::new(index) as _)
 }
 
 /// `[control] form` with its tracker: the path through `[goal] waypoints`, planned around the
@@ -710,11 +738,10 @@ pub fn planner_barriers(
     let mut barriers = Vec::new();
     let mut boxes = Vec::new();
     for o in statics(world) {
+        barriers.extend(o.barriers(bcfg));
         if o.outlines().is_empty() {
-            barriers.push(o.barrier(bcfg));
             boxes.push(planar_box(o));
         } else {
-            barriers.extend(o.barriers(bcfg));
             boxes.extend(o.outlines().iter().map(|p| Some(p.bounds())));
         }
     }

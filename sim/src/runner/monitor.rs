@@ -35,6 +35,11 @@ pub(super) struct Monitor {
     /// Each obstacle's barrier geometry (distance without margin or lift), to hold the
     /// physics' clearances against.
     geometry: Vec<ObstacleBarrier>,
+    /// Each obstacle's bounding box (world frame).
+    regions: Vec<parry3d::bounding_volume::Aabb>,
+    /// The obstacles' index when the controller has one (issue #52): a barrier whose certified
+    /// lower bound on the truth is at or above its least value so far is not evaluated.
+    index: Option<crate::active::ObstacleIndex>,
     /// The first instant the barrier geometry and the physics disagreed (see
     /// [`crate::summary::disagree`]).
     pub(super) disagreement: Option<Disagreement>,
@@ -76,6 +81,16 @@ impl Monitor {
                 let bcfg = crate::world::structure::obstacle_barrier_config(world);
                 world.obstacles.iter().map(|o| o.barrier(&bcfg)).collect()
             },
+            regions: world
+                .obstacles
+                .iter()
+                .map(|o| o.shape().compute_aabb(o.shape_pose()))
+                .collect(),
+            index: setup.config.barrier_index.as_ref().map(|_| {
+                let bcfg = crate::world::structure::obstacle_barrier_config(world);
+                let n = setup.config.barriers.len();
+                crate::active::ObstacleIndex::new(&world.obstacles, setup.safe_sets, n, &bcfg)
+            }),
             disagreement: None,
             first_collision: None,
             first_violation: None,
@@ -172,8 +187,10 @@ impl Monitor {
     }
 
     /// After the control step's last tick: obstacle barriers and clearances on the truth, and
-    /// h(x_true) of every barrier into `barrier_truth`; `movers` are the moving obstacles'
-    /// states at that instant.
+    /// h(x_true) of every barrier into `barrier_truth` (NaN for a far obstacle whose certified
+    /// lower bound, [`crate::active`], is at or above its least value so far: its minimum
+    /// cannot change, so it is not evaluated and not logged); `movers` are the moving
+    /// obstacles' states at that instant (their barriers are never covered by the index).
     pub(super) fn after_step(
         &mut self,
         plant: &Plant,
@@ -181,9 +198,21 @@ impl Monitor {
         movers: &[MoverState],
         barrier_truth: &mut [f64],
     ) {
+        use ftcbf_controller::reach::BarrierIndex;
         let truth = plant.truth();
         let x = truth.planar();
+        let speed = x[2].hypot(x[3]);
         for (j, b) in self.barriers.iter().enumerate() {
+            if let Some(ix) = &self.index {
+                let lower = ix
+                    .distance(j, [x[0], x[1]])
+                    .map(|d| ix.far_bounds(d, speed).h_lower);
+                // NaN (a non-finite state) compares false: evaluated.
+                if lower.is_some_and(|l| l >= self.min_barrier[j]) {
+                    barrier_truth[j] = f64::NAN;
+                    continue;
+                }
+            }
             let h = b.eval_moving(&x, movers).0.value;
             barrier_truth[j] = h;
             note_non_finite(&mut self.non_finite, &self.names[j], h, truth.t);
@@ -242,7 +271,15 @@ impl Monitor {
             .zip(&self.clearance_exact)
             .enumerate()
             .find_map(|(i, (((g, &c), o), &exact))| {
-                let d = g.clearance(at_for(i));
+                let at = at_for(i);
+                // A far obstacle (its physics clearance a lower bound above the tolerance) with
+                // p outside its box (a mover's box at its start, so p relative to it): sd > 0
+                // and c > tol, so neither clause of `disagree` can hold; its geometry is not
+                // queried (issue #52).
+                if !exact && outside(&self.regions[i], [at.x, at.y]) {
+                    return None;
+                }
+                let d = g.clearance(at);
                 let centre = d + g.config().robot_radius;
                 disagree(centre, d, c).then(|| Disagreement {
                     t,
@@ -270,6 +307,15 @@ impl Monitor {
             })
             .collect()
     }
+}
+
+/// Whether the planar point `p` is outside the xy extent of `b` (by more than f32 rounding).
+fn outside(b: &parry3d::bounding_volume::Aabb, p: [f64; 2]) -> bool {
+    let pad = crate::active::REGION_PAD;
+    p[0] < b.mins.x as f64 - pad
+        || p[0] > b.maxs.x as f64 + pad
+        || p[1] < b.mins.y as f64 - pad
+        || p[1] > b.maxs.y as f64 + pad
 }
 
 fn goal_distance(world: &World, t: &TruthState) -> f64 {

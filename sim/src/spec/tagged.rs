@@ -13,7 +13,7 @@
 //!
 //! The error message is ``"`PATH`: MESSAGE"`` with `PATH` relative to the tagged table (e.g.
 //! `half_extents\[1\]`, or `kind` when the tag is missing or unknown); the world loader
-//! ([`super::parse_error`]) joins it to the table's own path and finds its line and column.
+//! (`world::parse_error`) joins it to the table's own path and finds its line and column.
 
 use serde::de::{DeserializeOwned, Error as _};
 use serde::{Deserialize, Deserializer};
