@@ -336,6 +336,99 @@ pub struct LiveInputs<'a> {
     pub duration: f64,
     /// The goal's centre \[m\].
     pub goal: [f64; 2],
+    /// The robot's speed bound \[m/s\].
+    pub v_max: f64,
+}
+
+/// The share of its speed bound the robot is taken to cross a mover's stretch of its path at
+/// (it starts from rest, where it waited, and its rows slow it near the mover).
+pub const CROSSING_SPEED_FRACTION: f64 = 0.5;
+
+/// Where mover `spec` (starting at `origin`) is at `tau` \[s\]: its scripted path, or a
+/// walker's straight legs between its goals in turn at its `speed` (its social force steers it
+/// off them near other bodies: the legs are what it aims for).
+fn mover_at(spec: &ObstacleSpec, traj: Option<&Trajectory>, tau: f64) -> [f64; 2] {
+    let origin = [spec.position[0], spec.position[1]];
+    if let Some(t) = traj {
+        return t.state(tau).0;
+    }
+    let Some(MotionSpec::Walker { goals, speed }) = &spec.motion else {
+        return origin;
+    };
+    let mut left = tau * speed;
+    let mut from = origin;
+    // Origin to the first goal, then the goals in turn, round and round.
+    for j in 0..(goals.len() * 10_000).max(1) {
+        let Some(to) = goals.get(j % goals.len().max(1)).copied() else {
+            return origin;
+        };
+        let len = (to[0] - from[0]).hypot(to[1] - from[1]);
+        if left <= len || (goals.len() == 1 && j > 0) {
+            let s = if len > 0.0 {
+                (left / len).min(1.0)
+            } else {
+                1.0
+            };
+            return [
+                from[0] + s * (to[0] - from[0]),
+                from[1] + s * (to[1] - from[1]),
+            ];
+        }
+        left -= len;
+        from = to;
+    }
+    from
+}
+
+/// The longest time \[s\] mover barrier `b` leaves the stretch of `path` it ever covers
+/// (`band`: the indices of the path points it keeps out at some time) free, among the windows
+/// the robot can use: opening after it can reach the stretch (`arrive` \[s\]) and long before
+/// the run's end (`latest` \[s\], the last moment a crossing may end). Sampled every 0.1 s.
+struct Window<'a> {
+    b: &'a dyn Barrier,
+    gamma: f64,
+    n: usize,
+    spec: &'a ObstacleSpec,
+    traj: Option<&'a Trajectory>,
+}
+
+impl Window<'_> {
+    fn covers(&self, p: [f64; 2], tau: f64) -> bool {
+        let q = mover_at(self.spec, self.traj, tau);
+        let d = [q[0] - self.spec.position[0], q[1] - self.spec.position[1]];
+        keeps_out(self.b, self.gamma, p, d, self.n)
+    }
+
+    fn longest_free(&self, band: &[[f64; 2]], arrive: f64, latest: f64) -> f64 {
+        const DT: f64 = 0.1;
+        let (mut best, mut open): (f64, Option<f64>) = (0.0, None);
+        let steps = (latest / DT).ceil().max(0.0) as usize;
+        for s in 0..=steps {
+            let tau = (s as f64 * DT).min(latest);
+            let free = tau >= arrive && !band.iter().any(|&p| self.covers(p, tau));
+            match (free, open) {
+                (true, None) => open = Some(tau),
+                (false, Some(t0)) => {
+                    best = best.max(tau - t0);
+                    open = None;
+                }
+                _ => {}
+            }
+        }
+        if let Some(t0) = open {
+            best = best.max(latest - t0);
+        }
+        best
+    }
+}
+
+/// Arc length of `path` from point `a` to point `b` (indices, a ≤ b) \[m\].
+fn arc(path: &[[f64; 2]], a: usize, b: usize) -> f64 {
+    path.get(a..=b).map_or(0.0, |w| {
+        w.windows(2)
+            .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
+            .sum()
+    })
 }
 
 /// Liveness with movers along `path` (points every few cm): the movers that block it for good
@@ -406,13 +499,59 @@ pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec
             None => true,
         };
         if crosses {
+            let win = Window {
+                b: b.as_ref(),
+                gamma,
+                n,
+                spec: &o.spec,
+                traj: traj.as_ref(),
+            };
+            if let Some(line) = never_free(inputs, &win, path, &o.name) {
+                blocked.push(line);
+                continue;
+            }
             waits.push(match traj {
                 Some(_) => format!("the robot may wait for mover `{}` to pass (it crosses the path and moves on)", o.name),
-                None => format!("the robot may wait for walker `{}` to pass (its walk is not predicted; it never stops)", o.name),
+                None => format!("the robot may wait for walker `{}` to pass (taken along the legs between its goals; its walk is not predicted exactly, and it never stops)", o.name),
             });
         }
     }
     (blocked, waits)
+}
+
+/// A line when mover `name` never leaves its stretch of `path` free long enough for the robot
+/// to cross it at [`CROSSING_SPEED_FRACTION`] of its speed bound, in time to settle before the
+/// run ends: blocked (it keeps crossing, the robot keeps waiting).
+fn never_free(
+    inputs: &LiveInputs<'_>,
+    win: &Window<'_>,
+    path: &[[f64; 2]],
+    name: &str,
+) -> Option<String> {
+    const DT: f64 = 0.1;
+    let steps = (inputs.duration / DT).ceil() as usize;
+    let covered: Vec<bool> = path
+        .iter()
+        .map(|&p| (0..=steps).any(|s| win.covers(p, s as f64 * DT)))
+        .collect();
+    let first = covered.iter().position(|&c| c)?;
+    let last = covered.iter().rposition(|&c| c)?;
+    let speed = CROSSING_SPEED_FRACTION * inputs.v_max;
+    if speed.is_nan() || speed <= 0.0 {
+        return None;
+    }
+    let arrive = arc(path, 0, first) / inputs.v_max;
+    let need = arc(path, first, last) / speed;
+    let after = arc(path, last, path.len().saturating_sub(1)) / inputs.v_max;
+    let latest = inputs.duration - crate::summary::SETTLE_WINDOW - after;
+    let band: Vec<[f64; 2]> = path[first..=last].to_vec();
+    let free = win.longest_free(&band, arrive, latest);
+    (free < need).then(|| {
+        format!(
+            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}): it leaves that stretch free for at most {free:.1} s at a time after the robot can reach it (t ≥ {arrive:.1} s) and in time to settle (t ≤ {latest:.1} s); crossing it at {speed:.2} m/s takes {need:.1} s: the robot waits for good",
+            path[first][0], path[first][1], path[last][0], path[last][1]
+        )
+    })
 }
 
 #[cfg(test)]

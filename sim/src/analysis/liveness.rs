@@ -1612,6 +1612,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             .fold(cfg.ft.gamma_baseline, f64::max),
         duration: world.file.duration,
         goal: world.file.goal.center,
+        v_max: crate::world::structure::speed_bound(world).unwrap_or(f64::INFINITY),
     };
     let (movers_blocked, movers_wait) = crate::moving::liveness(&inputs, &points);
     LivenessReport {

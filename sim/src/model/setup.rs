@@ -351,6 +351,7 @@ impl ControlSetup {
             // is for the relative speed (the robot's bound plus the obstacle's).
             let cfg = BarrierConfig {
                 v_max: bcfg.v_max + crate::moving::max_speed(&ob.spec),
+                k: mover_lift(world, &ob.spec, &bcfg),
                 ..bcfg
             };
             let base: Arc<dyn Barrier> = Arc::new(ob.barrier(&cfg));
@@ -415,6 +416,42 @@ impl ControlSetup {
             params,
             gain,
         })
+    }
+}
+
+/// The least time the drive takes to turn a quarter turn from rest \[s\] (a differential
+/// drive reverses, so π/2 is the most it turns to face an escape direction): at ω_max, after
+/// the yaw acceleration limit when the drive has one. None without a robot (a point robot
+/// accelerates in any direction).
+pub fn quarter_turn_time(world: &World) -> Option<f64> {
+    let robot = world.robot.as_ref()?;
+    let w = robot.limits.omega_max;
+    let theta = std::f64::consts::FRAC_PI_2;
+    let drive = crate::plant::drive_config(world, &robot.limits);
+    Some(match drive.domega_max {
+        Some(a) if a > 0.0 && theta <= w * w / a => 2.0 * (theta / a).sqrt(),
+        Some(a) if a > 0.0 => theta / w + w / a,
+        _ => theta / w,
+    })
+}
+
+/// The lift k of moving obstacle `spec`'s barrier \[s\] (issue #51): the world's
+/// `obstacle_lift`, raised so that a robot stopped on the mover's boundary (d = margin + k·v_o)
+/// with the mover heading at it square to its heading can turn a quarter turn
+/// ([`quarter_turn_time`]) and reach v_o at the brake deceleration a before contact:
+/// k ≥ t_turn + v_o/(2a) − margin/v_o.
+pub fn mover_lift(
+    world: &World,
+    spec: &crate::obstacles::ObstacleSpec,
+    bcfg: &BarrierConfig,
+) -> f64 {
+    let v_o = crate::moving::max_speed(spec);
+    match quarter_turn_time(world) {
+        Some(t) if v_o > 0.0 => {
+            let a = world.brake_deceleration();
+            bcfg.k.max(t + v_o / (2.0 * a) - bcfg.margin / v_o)
+        }
+        _ => bcfg.k,
     }
 }
 

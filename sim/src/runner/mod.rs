@@ -540,6 +540,7 @@ impl<'w> Simulation<'w> {
             attacks_active: &v.attacks_active,
             link_poses: &v.link_poses,
             events: &v.events,
+            movers: self.movers.states(),
         }
     }
 
