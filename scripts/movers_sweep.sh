@@ -46,6 +46,6 @@ done | tee "$out/sweep/rows.tsv"
 awk -F'\t' -v n="$trials" '
     { worlds++; if ($2 == "applies") { ap++; unsafe_ap += n - $4; own_ap += $9 } else { unsafe_no += n - $4 }
       live_obs = ($5 >= 0.95 * n); if ($3 == "live") { pl++; settled_pl += $5; trials_pl += n }
-      if (($3 == "live") == live_obs) match++ }
+      if (($3 == "live") == live_obs) agree++ }
     END { printf "worlds %d; check applies in %d: unsafe trials there %d of %d (by the robot'"'"'s own motion %d); unsafe elsewhere %d\n", worlds, ap, unsafe_ap, ap * n, own_ap, unsafe_no;
-          printf "predicted live %d: settled %d of %d trials (%.3f); prediction matched in %d of %d worlds (%.3f)\n", pl, settled_pl, trials_pl, (trials_pl ? settled_pl / trials_pl : 0), match, worlds, match / worlds }' "$out/sweep/rows.tsv"
+          printf "predicted live %d: settled %d of %d trials (%.3f); prediction matched in %d of %d worlds (%.3f)\n", pl, settled_pl, trials_pl, (trials_pl ? settled_pl / trials_pl : 0), agree, worlds, agree / worlds }' "$out/sweep/rows.tsv"

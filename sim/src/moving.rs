@@ -380,10 +380,8 @@ fn mover_at(spec: &ObstacleSpec, traj: Option<&Trajectory>, tau: f64) -> [f64; 2
     from
 }
 
-/// The longest time \[s\] mover barrier `b` leaves the stretch of `path` it ever covers
-/// (`band`: the indices of the path points it keeps out at some time) free, among the windows
-/// the robot can use: opening after it can reach the stretch (`arrive` \[s\]) and long before
-/// the run's end (`latest` \[s\], the last moment a crossing may end). Sampled every 0.1 s.
+/// One mover against the robot's path, for liveness: its barrier `b` (at error bound γ, one of
+/// `n` movers), its spec and scripted path (None: a walker, taken along its legs).
 struct Window<'a> {
     b: &'a dyn Barrier,
     gamma: f64,
@@ -399,26 +397,27 @@ impl Window<'_> {
         keeps_out(self.b, self.gamma, p, d, self.n)
     }
 
-    fn longest_free(&self, band: &[[f64; 2]], arrive: f64, latest: f64) -> f64 {
+    /// Whether the robot, leaving the start of `band` (points every few cm, `cum` their arc
+    /// lengths from it) at `t0` \[s\] at `speed` \[m/s\], crosses it without the mover keeping
+    /// out the point it is at (sampled every 0.1 s).
+    fn passes(&self, band: &[[f64; 2]], cum: &[f64], t0: f64, speed: f64) -> bool {
         const DT: f64 = 0.1;
-        let (mut best, mut open): (f64, Option<f64>) = (0.0, None);
-        let steps = (latest / DT).ceil().max(0.0) as usize;
-        for s in 0..=steps {
-            let tau = (s as f64 * DT).min(latest);
-            let free = tau >= arrive && !band.iter().any(|&p| self.covers(p, tau));
-            match (free, open) {
-                (true, None) => open = Some(tau),
-                (false, Some(t0)) => {
-                    best = best.max(tau - t0);
-                    open = None;
-                }
-                _ => {}
+        let total = cum.last().copied().unwrap_or(0.0);
+        let mut j = 0;
+        let mut tau = 0.0;
+        loop {
+            let s = (speed * tau).min(total);
+            while j + 1 < cum.len() && cum[j + 1] <= s {
+                j += 1;
             }
+            if self.covers(band[j], t0 + tau) {
+                return false;
+            }
+            if s >= total {
+                return true;
+            }
+            tau += DT;
         }
-        if let Some(t0) = open {
-            best = best.max(latest - t0);
-        }
-        best
     }
 }
 
@@ -519,9 +518,10 @@ pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec
     (blocked, waits)
 }
 
-/// A line when mover `name` never leaves its stretch of `path` free long enough for the robot
-/// to cross it at [`CROSSING_SPEED_FRACTION`] of its speed bound, in time to settle before the
-/// run ends: blocked (it keeps crossing, the robot keeps waiting).
+/// A line when the robot, crossing the stretch of `path` mover `name` ever comes onto at
+/// [`CROSSING_SPEED_FRACTION`] of its speed bound, meets the mover there whenever it leaves
+/// (from when it can reach the stretch to the last departure that leaves time to settle):
+/// blocked (it keeps crossing, the robot keeps waiting).
 fn never_free(
     inputs: &LiveInputs<'_>,
     win: &Window<'_>,
@@ -545,11 +545,24 @@ fn never_free(
     let after = arc(path, last, path.len().saturating_sub(1)) / inputs.v_max;
     let latest = inputs.duration - crate::summary::SETTLE_WINDOW - after;
     let band: Vec<[f64; 2]> = path[first..=last].to_vec();
-    let free = win.longest_free(&band, arrive, latest);
-    (free < need).then(|| {
+    let mut cum = vec![0.0; band.len()];
+    for j in 1..band.len() {
+        cum[j] = cum[j - 1] + (band[j][0] - band[j - 1][0]).hypot(band[j][1] - band[j - 1][1]);
+    }
+    // Departures every 0.1 s from when the robot can reach the stretch to the last one that
+    // crosses it in time to settle.
+    let departures = ((latest - need - arrive) / DT).floor();
+    let crosses = departures >= 0.0
+        && (0..=departures as usize)
+            .any(|k| win.passes(&band, &cum, arrive + k as f64 * DT, speed));
+    (!crosses).then(|| {
         format!(
-            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}): it leaves that stretch free for at most {free:.1} s at a time after the robot can reach it (t ≥ {arrive:.1} s) and in time to settle (t ≤ {latest:.1} s); crossing it at {speed:.2} m/s takes {need:.1} s: the robot waits for good",
-            path[first][0], path[first][1], path[last][0], path[last][1]
+            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}): leaving it at any time from t = {arrive:.1} s (when the robot can reach it) to {:.1} s (to cross it in time to settle) at {speed:.2} m/s, which takes {need:.1} s, the robot meets it there: it waits for good",
+            path[first][0],
+            path[first][1],
+            path[last][0],
+            path[last][1],
+            (latest - need).max(arrive)
         )
     })
 }
