@@ -1,6 +1,12 @@
 //! The top-level controller the simulator's runner calls: FT-CBF-CLF, the all-channel
 //! baseline (the paper's comparison, same CBF-CLF QP over one filter) and a nominal
 //! CLF-only controller (all-channel filter, no barriers).
+//!
+//! One file (about 1,250 lines of code): the [`Controller`], its configuration and its step are
+//! one sequence — readings → filters → each unit's rows (with the active-barrier index) →
+//! [`crate::policy::resolve`] → the record — and the builder's documented defaults sit beside
+//! the fields they fill. What stands alone already lives beside it: the rows
+//! ([`crate::constraints`]), the policy, the estimator bank, the reach rule ([`crate::reach`]).
 
 use std::sync::Arc;
 
@@ -208,7 +214,7 @@ impl ControllerConfigBuilder {
     }
 
     /// Initial estimate x̂(0) and its covariance P0. Default: the origin with P0 = 0, a start
-    /// known exactly (the setting of [`crate::params::FtParameters::compute`]).
+    /// known exactly (the setting of [`crate::params::FtComputed::compute`]).
     pub fn start(mut self, x0: State, p0: StateMatrix) -> Self {
         self.0.x0 = x0;
         self.0.p0 = p0;
