@@ -79,14 +79,20 @@ where
 /// `ftcbf gen --kind`: [`Kind`]'s names, or `all`.
 pub fn kind_parser() -> impl TypedValueParser<Value = OneOrEvery<Kind>> {
     one_or_every(
-        &Kind::ALL,
+        &Kind::NAMED,
         Kind::name,
-        |k| match k {
+        |k| {
+            match k {
             Kind::Room => "Four walls and furniture (tables, shelves, pillars, chairs)",
             Kind::Corridor => "A straight corridor, maybe with bins or boxes against its walls",
             Kind::Doorway => "A wall with a door, free-standing or between two rooms",
             Kind::Clutter => "A field of boxes, bins and balls",
             Kind::LTurn => "An L-shaped corridor",
+            Kind::AisleCrossing => "Clutter with a cart going up and down an aisle across the route (moving)",
+            Kind::CorridorWalker => "A corridor with a person walking down it and back (moving)",
+            Kind::RoomPeople => "A room with two people walking across the route (moving)",
+            Kind::DqnLoops => "A room with two cylinders on waypoint loops at 0.1 m/s, as the TurtleBot3 DQN stages (moving)",
+        }
         },
         ("all", "Every kind in turn"),
     )

@@ -13,6 +13,9 @@
 - h on the truth and on each estimate is plotted for every barrier, with the zero line;
 - no value of a plotted series lies outside the documented plot range (|v| < 1e6).
 
+Each moving obstacle (`/world/movers/<name>`) has a temporal translation that changes and its
+trail under `/world/trails/movers/`.
+
 With `--visual-meshes N`: at least N robot shapes are URDF visual meshes (`Mesh3D` entities
 named `<link>_visual_<i>` under `/world/robot`).
 
@@ -220,7 +223,26 @@ def check_motion(reader):
     moving = [n for n in links if len(distinct_positions(table, n)) >= 10]
     if not moving:
         fail("no robot link moves")
+    check_movers(table)
     return store
+
+
+def check_movers(table):
+    """Each moving obstacle (issue #51) drawn at `/world/movers/<name>` moves: its translation
+    is temporal and takes >= 10 distinct values, and its trail `/world/trails/movers/<name>`
+    is drawn. A world without movers has no `/world/movers/` entity."""
+    movers = [n for n in columns(table, ":Transform3D:translation")
+              if n.startswith("/world/movers/") and n.split(":")[0].count("/") == 3]
+    strips = columns(table, ":LineStrips3D:strips")
+    for name in movers:
+        entity = name.split(":")[0]
+        seen = distinct_positions(table, name)
+        if len(seen) < 10:
+            fail(f"{entity}: only {len(seen)} distinct translations over time")
+        trail = "/world/trails/movers/" + entity.rsplit("/", 1)[1] + ":LineStrips3D:strips"
+        if trail not in strips:
+            fail(f"{entity}: no trail {trail.split(':')[0]}")
+        print(f"rrd_check: {entity}: {len(seen)} distinct translations, trail drawn")
 
 
 def check_plots(store):

@@ -163,6 +163,9 @@ fn with_kind(array: &str, kind: &str, extra: &[(&str, Value)]) -> Table {
         "obstacles.0.shape" => {
             table_at(&mut w, "obstacles.0").insert("shape".into(), Value::Table(t));
         }
+        "obstacles.0.motion" => {
+            table_at(&mut w, "obstacles.0").insert("motion".into(), Value::Table(t));
+        }
         _ => {
             w.insert(array.into(), Value::Array(vec![Value::Table(t)]));
         }
@@ -285,6 +288,12 @@ fn every_kind_and_its_keys_are_in_the_reference() {
             "## `[[obstacles]]`",
         ),
         (
+            "obstacles.0.motion",
+            "Motion kind",
+            None,
+            "## `[[obstacles]]`",
+        ),
+        (
             "attacks",
             "Attack kind",
             Some("## `[[attacks]]`"),
@@ -307,7 +316,7 @@ fn every_kind_and_its_keys_are_in_the_reference() {
                 continue;
             }
             let mut w = with_kind(array, kind, &[]);
-            let path = if array == "obstacles.0.shape" {
+            let path = if array.starts_with("obstacles.0.") {
                 array.to_string()
             } else {
                 format!("{array}.0")
@@ -347,7 +356,27 @@ fn every_allowed_value_of_a_string_key_is_in_the_reference() {
         "non_finite",
         &[("channels", Value::Array(vec![Value::String("x".into())]))],
     );
+    let waypoints = with_kind(
+        "obstacles.0.motion",
+        "waypoints",
+        &[
+            (
+                "points",
+                Value::Array(vec![Value::Array(vec![
+                    Value::Float(1.0),
+                    Value::Float(0.0),
+                ])]),
+            ),
+            ("speed", Value::Float(0.1)),
+        ],
+    );
     let cases: Vec<(Table, &str, &str, &str)> = vec![
+        (
+            waypoints,
+            "obstacles.0.motion",
+            "repeat",
+            "### Motion kind `waypoints`",
+        ),
         (base(), "", "dynamics", "## Top level"),
         (base(), "control", "controller", "## `[control]`"),
         (base(), "control", "form", "## `[control]`"),

@@ -25,6 +25,89 @@ pub trait Barrier: Send + Sync + std::fmt::Debug {
     /// Closed form where known (γ‖a‖ for a half-plane, Prop. 3 for an ellipsoid); an upper
     /// bound (γ times a Lipschitz constant of h) otherwise — an upper bound is conservative.
     fn h_bar(&self, gamma: f64) -> f64;
+    /// The moving obstacle whose reading this barrier needs (an index into the readings of
+    /// [`Barrier::eval_moving`]); `None` for a barrier that does not depend on time.
+    fn mover(&self) -> Option<usize> {
+        None
+    }
+    /// h(x, t), its derivatives in x and a lower bound of ∂h/∂t at the instant the obstacle
+    /// readings `movers` describe. A time-invariant barrier: [`Barrier::eval`] and ∂h/∂t = 0.
+    fn eval_moving(&self, x: &State, movers: &[MoverState]) -> (BarrierEval, f64) {
+        let _ = movers;
+        (self.eval(x), 0.0)
+    }
+}
+
+/// A moving obstacle as the controller reads it at one instant (issue #51): where it is
+/// relative to where its barrier was built, how fast it moves, and a bound on its
+/// acceleration. Known exactly from the script for a scripted path; a walker's is read from
+/// the simulator's crowd in this first version (also exact: no obstacle sensor, no attack).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MoverState {
+    /// Displacement from the pose its barrier was built at, world frame \[m\].
+    pub displacement: [f64; 2],
+    /// Velocity, world frame \[m/s\].
+    pub velocity: [f64; 2],
+    /// Bound on the norm of its acceleration \[m/s²\] (0 for a piecewise-constant velocity:
+    /// the jumps at a path's corners are not covered, see the book's moving-obstacles page).
+    pub accel_bound: f64,
+}
+
+/// A barrier that moves with an obstacle by translation: h(x, t) = h₀(p − δ(t), v − v_c(t))
+/// with δ the obstacle's displacement and v_c its velocity (so a velocity lift on h₀ is on
+/// the relative velocity). With h₀'s gradient (∇_p, ∇_v) at the shifted state,
+/// ∂h/∂t = −∇_p h₀·v_c − ∇_v h₀·a_c ≥ −∇_p h₀·v_c − ‖∇_v h₀‖·ā, the bound returned.
+#[derive(Debug, Clone)]
+pub struct MovingBarrier {
+    base: std::sync::Arc<dyn Barrier>,
+    mover: usize,
+}
+
+impl MovingBarrier {
+    /// `base` (the obstacle's barrier at its starting pose) moved by reading `mover`.
+    pub fn new(base: std::sync::Arc<dyn Barrier>, mover: usize) -> Self {
+        Self { base, mover }
+    }
+}
+
+impl Barrier for MovingBarrier {
+    fn name(&self) -> &str {
+        self.base.name()
+    }
+    /// h at the obstacle's starting pose, standing still (without a reading).
+    fn eval(&self, x: &State) -> BarrierEval {
+        self.base.eval(x)
+    }
+    /// The base's bound: it must be built for the relative speed (the robot's bound plus the
+    /// obstacle's largest speed).
+    fn h_bar(&self, gamma: f64) -> f64 {
+        self.base.h_bar(gamma)
+    }
+    fn mover(&self) -> Option<usize> {
+        Some(self.mover)
+    }
+    /// Without its reading, h is NaN (the row fails closed).
+    fn eval_moving(&self, x: &State, movers: &[MoverState]) -> (BarrierEval, f64) {
+        let Some(m) = movers.get(self.mover) else {
+            let nan = BarrierEval {
+                value: f64::NAN,
+                gradient: State::repeat(f64::NAN),
+                hessian: StateMatrix::repeat(f64::NAN),
+            };
+            return (nan, f64::NAN);
+        };
+        let shifted = x - State::new(
+            m.displacement[0],
+            m.displacement[1],
+            m.velocity[0],
+            m.velocity[1],
+        );
+        let e = self.base.eval(&shifted);
+        let g = e.gradient;
+        let dh_dt =
+            -(g[0] * m.velocity[0] + g[1] * m.velocity[1]) - g[2].hypot(g[3]) * m.accel_bound;
+        (e, dh_dt)
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -255,6 +338,31 @@ mod tests {
         assert_eq!(lambda, crate::types::Input::new(0.0, 1.0));
         assert!((lift.h_bar(0.1) - 0.1 * 2f64.sqrt()).abs() < 1e-15);
         assert_eq!(lift.base().a, State::new(0.0, 1.0, 0.0, 0.0));
+    }
+
+    /// A disc moving at (0.3, 0): h and ∂h/∂t of the moved barrier are those of the disc at
+    /// its new place, and ∂h/∂t is −∇h·v_c (minus the acceleration term).
+    #[test]
+    fn a_moving_disc_is_the_disc_moved_with_its_time_derivative() {
+        let disc: std::sync::Arc<dyn Barrier> =
+            std::sync::Arc::new(EllipsoidOutside::disc("d", 0.0, 0.0, 1.0));
+        let m = MovingBarrier::new(disc, 1);
+        assert_eq!(m.mover(), Some(1));
+        let reading = MoverState {
+            displacement: [1.0, 0.0],
+            velocity: [0.3, 0.0],
+            accel_bound: 0.0,
+        };
+        let x = State::new(3.0, 0.0, 0.0, 0.0);
+        let (e, dh_dt) = m.eval_moving(&x, &[MoverState::default(), reading]);
+        // Distance 2 from the moved centre: h = 4 − 1 = 3, ∇_p h = (4, 0).
+        assert!((e.value - 3.0).abs() < 1e-12);
+        assert!((dh_dt - (-4.0 * 0.3)).abs() < 1e-12);
+        // Without its reading the row fails closed.
+        assert!(m.eval_moving(&x, &[]).0.value.is_nan());
+        // A static barrier: eval and 0.
+        let d = EllipsoidOutside::disc("s", 0.0, 0.0, 1.0);
+        assert_eq!(d.eval_moving(&x, &[reading]), (d.eval(&x), 0.0));
     }
 
     #[test]

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use nalgebra::Matrix2;
 use thiserror::Error;
 
-use crate::barrier::Barrier;
+use crate::barrier::{Barrier, MoverState};
 use crate::constraints::{cbf_row, clf_row, CbfRow};
 use crate::estimator::{EstimatorBank, RESIDUE_WINDOW_MAX_STEPS};
 use crate::lyapunov::{ClfConfig, LyapunovError, QuadraticClf};
@@ -356,6 +356,8 @@ pub struct Controller {
     /// The acceleration the drive realised over the period now ending, when the platform
     /// reported it ([`Controller::set_applied_input`]); the next prediction uses it once.
     applied: Option<Input>,
+    /// The moving obstacles' readings of this step ([`Controller::set_movers`]).
+    movers: Vec<MoverState>,
     /// The active-barrier index and its buffers (None: every row is built).
     reach: Option<Reach>,
 }
@@ -843,6 +845,7 @@ impl Controller {
             elapsed: 0.0,
             tracker,
             applied: None,
+            movers: Vec::new(),
             reach,
         })
     }
@@ -855,6 +858,14 @@ impl Controller {
     /// did carries a velocity error its γ does not cover. Non-finite values are ignored.
     pub fn set_applied_input(&mut self, a: Input) {
         self.applied = (a[0].is_finite() && a[1].is_finite()).then_some(a);
+    }
+
+    /// The moving obstacles' readings for the next [`Controller::step`] (issue #51): the rows
+    /// of barriers with a [`Barrier::mover`] are built from them (a missing reading makes its
+    /// rows NaN, which fail closed). Kept until replaced.
+    pub fn set_movers(&mut self, movers: &[MoverState]) {
+        self.movers.clear();
+        self.movers.extend_from_slice(movers);
     }
 
     /// Which controller this is.
@@ -968,7 +979,7 @@ impl Controller {
                     Some(i) if self.problem.cbf_far[i * nbu + bi] => f64::NAN,
                     Some(i) => self.problem.cbf[i * nbu + bi].h,
                     None if self.reach.as_ref().is_some_and(|r| r.log_far[bi]) => f64::NAN,
-                    None => b.eval(f.estimate()).value,
+                    None => b.eval_moving(f.estimate(), &self.movers).0.value,
                 };
             }
             self.output.v_values[fi] = self.clf.value(f.estimate());
@@ -1110,8 +1121,8 @@ impl Controller {
                     self.problem.cbf_active[k] = self.delta == f64::INFINITY;
                     continue;
                 }
-                let eval = self.barriers[b].eval(x);
-                let row = cbf_row(
+                let (eval, dh_dt) = self.barriers[b].eval_moving(x, &self.movers);
+                let mut row = cbf_row(
                     model,
                     &eval,
                     x,
@@ -1121,6 +1132,9 @@ impl Controller {
                     hb,
                     self.cbf_gain,
                 );
+                // A moving obstacle's row: ∂h/∂x(Fx̂ + Gu) + ∂h/∂t ≥ …, so ∂h/∂t moves ω̄
+                // (a static barrier's is exactly 0 and leaves the row as it was, bit for bit).
+                row.omega_bar -= dh_dt;
                 // X_t(δ) = {ĥ < δ}; a NaN ĥ is imposed (and its row fails closed), never
                 // left out as "far from the boundary".
                 self.problem.cbf_active[k] = row.h_hat < self.delta || row.h_hat.is_nan();

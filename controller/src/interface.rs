@@ -28,6 +28,9 @@ pub struct Readings<'a> {
     /// after its limits, [`crate::drive::realized_acceleration`]); `None` when the input asked for
     /// was realised as asked (the linear plant).
     pub applied: Option<Input>,
+    /// The moving obstacles' states at `t` (issue #51), in the order the barriers'
+    /// [`crate::Barrier::mover`] index; empty in a world where nothing moves.
+    pub movers: &'a [crate::barrier::MoverState],
 }
 
 /// What a law decided at one step.
@@ -68,6 +71,7 @@ impl ControlLaw for Controller {
         if let Some(a) = readings.applied {
             self.set_applied_input(a);
         }
+        self.set_movers(readings.movers);
         let out = Controller::step(self, readings.y, readings.fresh, readings.dt);
         Decision {
             u: out.u,
@@ -122,6 +126,7 @@ mod tests {
                 y: &y,
                 fresh: &fresh,
                 applied: None,
+                movers: &[],
             };
             let d = law.step(&r);
             assert_eq!(d.u, Input::new(0.5, -0.25));

@@ -137,6 +137,7 @@ pub mod types;
 
 pub use barrier::{
     Barrier, BarrierEval, EllipsoidInside, EllipsoidOutside, HalfPlane, HigherOrderHalfPlane,
+    MoverState, MovingBarrier,
 };
 pub use controller::{
     ConfigError, ControlOutput, Controller, ControllerConfig, ControllerConfigBuilder,

@@ -41,6 +41,7 @@ fn obstacles() -> Vec<Obstacle> {
             position,
             rpy: [0.0, 0.0, a],
             shape,
+            motion: None,
         });
     }
     Obstacle::from_specs(&specs, None).expect("valid obstacles")

@@ -23,7 +23,8 @@
 //! cones and convex hulls (parry's support-map projection is iterative: its normal is not
 //! Lipschitz to the last bit, and the central differences amplify that), half-spaces
 //! (unbounded), triangle meshes (not convex: the normal jumps across the medial axis),
-//! occupancy maps (one obstacle spanning the map), and closed-form safe sets.
+//! occupancy maps (one obstacle spanning the map), closed-form safe sets, and moving obstacles
+//! (issue #51: their region moves with them, so their rows are built at every step).
 
 use ftcbf_controller::reach::{BarrierIndex, FarBounds, ReachTerms};
 use ftcbf_controller::{ControllerConfig, State, StateMatrix};
@@ -95,7 +96,8 @@ impl ObstacleIndex {
         for o in obstacles {
             let at = next;
             next += o.barrier_count();
-            if !o.outlines().is_empty() {
+            // A moving obstacle's region moves with it: its barrier is always active.
+            if !o.outlines().is_empty() || o.spec.motion.is_some() {
                 continue;
             }
             let Some(num) = coverage(o, cfg) else {

@@ -33,20 +33,27 @@ pub enum Repeat {
     Once,
 }
 
+/// A polyline travelled at a constant speed, with its legs (start, unit direction, length)
+/// and period computed once.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Path {
+    /// The polyline, starting at the obstacle's own position \[m\].
+    pub points: Vec<[f64; 2]>,
+    /// Speed along it \[m/s\].
+    pub speed: f64,
+    /// After the last point.
+    pub repeat: Repeat,
+    /// Time the motion starts \[s\]; before it the obstacle stands at its first point.
+    pub start: f64,
+    legs: Vec<([f64; 2], [f64; 2], f64)>,
+    period: f64,
+}
+
 /// A scripted motion: position and velocity as functions of time.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Trajectory {
-    /// Along `points` (the obstacle's own position first) at `speed`, from `start` on.
-    Waypoints {
-        /// The polyline, starting at the obstacle's own position \[m\].
-        points: Vec<[f64; 2]>,
-        /// Speed along it \[m/s\].
-        speed: f64,
-        /// After the last point.
-        repeat: Repeat,
-        /// Time the motion starts \[s\]; before it the obstacle stands at its first point.
-        start: f64,
-    },
+    /// Along a [`Path`] (the obstacle's own position first) at its speed, from its start on.
+    Waypoints(Path),
     /// From `origin` at a constant velocity.
     Velocity {
         /// Position at t = 0 \[m\].
@@ -130,18 +137,39 @@ impl Trajectory {
         for p in points {
             all.push([finite("points", p[0])?, finite("points", p[1])?]);
         }
-        Ok(Trajectory::Waypoints {
+        // The legs travelled in one period: forward, then back (reverse) or to the first (loop).
+        let mut ends: Vec<([f64; 2], [f64; 2])> = all.windows(2).map(|w| (w[0], w[1])).collect();
+        match repeat {
+            Repeat::Loop => ends.push((all[all.len() - 1], all[0])),
+            Repeat::Reverse => {
+                let back: Vec<_> = ends.iter().rev().map(|&(a, b)| (b, a)).collect();
+                ends.extend(back);
+            }
+            Repeat::Once => {}
+        }
+        let legs: Vec<_> = ends
+            .into_iter()
+            .filter_map(|(a, b)| {
+                let d = sub(b, a);
+                let len = norm(d);
+                (len > 0.0).then(|| (a, [d[0] / len, d[1] / len], len))
+            })
+            .collect();
+        let period = legs.iter().map(|l| l.2).sum::<f64>() / speed;
+        Ok(Trajectory::Waypoints(Path {
             points: all,
             speed,
             repeat,
             start,
-        })
+            legs,
+            period,
+        }))
     }
 
     /// The largest speed of the motion \[m/s\].
     pub fn max_speed(&self) -> f64 {
         match self {
-            Trajectory::Waypoints { speed, .. } => *speed,
+            Trajectory::Waypoints(path) => path.speed,
             Trajectory::Velocity { velocity, .. } => norm(*velocity),
         }
     }
@@ -153,53 +181,43 @@ impl Trajectory {
                 [origin[0] + velocity[0] * t, origin[1] + velocity[1] * t],
                 *velocity,
             ),
-            Trajectory::Waypoints {
-                points,
-                speed,
-                repeat,
-                start,
-            } => along(points, *speed, *repeat, t - start),
+            Trajectory::Waypoints(path) => path.along(t - path.start),
+        }
+    }
+
+    /// Where it is at t = 0 \[m\] (its own position).
+    pub fn origin(&self) -> [f64; 2] {
+        match self {
+            Trajectory::Velocity { origin, .. } => *origin,
+            Trajectory::Waypoints(path) => path.points[0],
         }
     }
 }
 
-/// Position and velocity after travelling for `tau` seconds along `points` at `speed`.
-fn along(points: &[[f64; 2]], speed: f64, repeat: Repeat, tau: f64) -> ([f64; 2], [f64; 2]) {
-    // The legs travelled in one period: forward, then back (reverse) or to the first (loop).
-    let mut legs: Vec<([f64; 2], [f64; 2])> = points.windows(2).map(|w| (w[0], w[1])).collect();
-    match repeat {
-        Repeat::Loop => legs.push((points[points.len() - 1], points[0])),
-        Repeat::Reverse => {
-            let back: Vec<_> = legs.iter().rev().map(|&(a, b)| (b, a)).collect();
-            legs.extend(back);
+impl Path {
+    /// Position and velocity after travelling for `tau` seconds.
+    fn along(&self, tau: f64) -> ([f64; 2], [f64; 2]) {
+        let points = &self.points;
+        let (speed, period) = (self.speed, self.period);
+        if tau <= 0.0 || period <= 0.0 {
+            return (points[0], [0.0, 0.0]);
         }
-        Repeat::Once => {}
-    }
-    let period: f64 = legs.iter().map(|(a, b)| norm(sub(*b, *a))).sum::<f64>() / speed;
-    if tau <= 0.0 || period <= 0.0 {
-        return (points[0], [0.0, 0.0]);
-    }
-    let mut s = match repeat {
-        Repeat::Once if tau >= period => return (points[points.len() - 1], [0.0, 0.0]),
-        Repeat::Once => tau * speed,
-        _ => (tau % period) * speed,
-    };
-    for (a, b) in &legs {
-        let d = sub(*b, *a);
-        let len = norm(d);
-        if len == 0.0 {
-            continue;
+        let mut s = match self.repeat {
+            Repeat::Once if tau >= period => return (points[points.len() - 1], [0.0, 0.0]),
+            Repeat::Once => tau * speed,
+            _ => (tau % period) * speed,
+        };
+        for &(a, u, len) in &self.legs {
+            if s <= len {
+                return (
+                    [a[0] + u[0] * s, a[1] + u[1] * s],
+                    [u[0] * speed, u[1] * speed],
+                );
+            }
+            s -= len;
         }
-        if s <= len {
-            let u = [d[0] / len, d[1] / len];
-            return (
-                [a[0] + u[0] * s, a[1] + u[1] * s],
-                [u[0] * speed, u[1] * speed],
-            );
-        }
-        s -= len;
+        (points[0], [0.0, 0.0])
     }
-    (points[0], [0.0, 0.0])
 }
 
 /// What a walker sees of the static world: the distance from a point to the nearest static

@@ -79,6 +79,9 @@ pub struct Scene {
     pub attacks: Vec<String>,
     /// Per attack (in [`Scene::attacks`] order), the channels it targets.
     pub attack_channels: Vec<Vec<String>>,
+    /// The names of the obstacles that move (issue #51), in the order of [`Frame::movers`];
+    /// each is drawn in [`Scene::obstacles`] at its start.
+    pub movers: Vec<String>,
 }
 
 /// One estimator's view at a control step.
@@ -146,6 +149,9 @@ pub struct Frame<'a> {
     pub link_poses: &'a [(String, [f32; 3], [f32; 4])],
     /// Collisions and safety violations that started this step.
     pub events: &'a [String],
+    /// Each moving obstacle's state at `t` (in [`Scene::movers`] order): its displacement from
+    /// its start \[m\] and its velocity \[m/s\], world frame.
+    pub movers: &'a [ftcbf_controller::MoverState],
 }
 
 /// Receives the scene once and every control step of a run.

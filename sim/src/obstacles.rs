@@ -145,6 +145,56 @@ pub struct ObstacleSpec {
     pub rpy: [f64; 3],
     /// The shape in the obstacle frame.
     pub shape: ShapeSpec,
+    /// How the obstacle moves (issue #51); absent: it stands still.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionSpec>,
+}
+
+/// What `[repeat]` a waypoint path does after its last point (`motion.repeat`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RepeatSpec {
+    /// Back to the obstacle's own position and round again (default).
+    #[default]
+    Loop,
+    /// Back along the same points, and forth again.
+    Reverse,
+    /// Stop at the last point.
+    Once,
+}
+
+crate::spec::tagged::kind_tagged! {
+/// How an obstacle moves, in the world's x–y plane (it keeps its height and orientation).
+/// See [`crate::movers`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MotionSpec via MotionByKind {
+    /// Along `points` (after the obstacle's own position) at `speed`.
+    Waypoints {
+        /// Points to move through, world frame \[m\].
+        points: Vec<[f64; 2]>,
+        /// Speed along the path \[m/s\].
+        speed: f64,
+        /// After the last point: `loop` (default), `reverse` or `once`.
+        #[serde(default)]
+        repeat: RepeatSpec,
+        /// Time the motion starts \[s\] (default 0).
+        #[serde(default)]
+        start: f64,
+    },
+    /// At a constant velocity from the obstacle's own position.
+    Velocity {
+        /// \[m/s\], world frame.
+        velocity: [f64; 2],
+    },
+    /// A walker (social force, [`crate::movers::Walker`]) heading for `goals` in turn.
+    Walker {
+        /// Goals, world frame \[m\].
+        goals: Vec<[f64; 2]>,
+        /// Desired speed \[m/s\] (each trial draws the walker's own within ±20 %).
+        speed: f64,
+    },
+}
 }
 
 crate::spec::tagged::kind_tagged! {

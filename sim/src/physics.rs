@@ -132,6 +132,8 @@ pub struct PhysicsWorld {
     /// [`PhysicsWorld::clearances_near`] (recomputed for an obstacle whose pose has changed).
     obstacle_aabbs: Vec<(parry3d::math::Pose, parry3d::bounding_volume::Aabb)>,
     obstacles: Vec<Obstacle>,
+    /// The kinematic body of each obstacle that moves (by obstacle index).
+    mover_bodies: Vec<Option<MoverBody>>,
     /// Motors of the left wheels (one, or several for a skid-steer robot).
     left: Vec<WheelMotor>,
     /// Motors of the right wheels.
@@ -406,24 +408,50 @@ fn add_joints(
     joint_handles
 }
 
-/// The obstacles as fixed colliders that meet the robot only, each with its index as user
-/// data; returns their handles.
+/// A moving obstacle's kinematic body and the translation it started at.
+#[derive(Debug, Clone, Copy)]
+struct MoverBody {
+    body: RigidBodyHandle,
+    start: rp::Vector,
+}
+
+/// The obstacles as colliders that meet the robot only, each with its index as user data:
+/// fixed, or on a kinematic position-based body for an obstacle that moves (issue #51);
+/// returns their handles and the movers' bodies (by obstacle index).
 fn add_obstacles(
     world: &mut rp::PhysicsWorld,
     obstacles: &[Obstacle],
     cfg: &PhysicsConfig,
-) -> Vec<ColliderHandle> {
+) -> (Vec<ColliderHandle>, Vec<Option<MoverBody>>) {
     let mut obstacle_colliders = Vec::with_capacity(obstacles.len());
+    let mut movers = Vec::with_capacity(obstacles.len());
     for (i, o) in obstacles.iter().enumerate() {
-        let c = ColliderBuilder::new(o.shape().clone())
-            .position(*o.shape_pose())
+        let builder = ColliderBuilder::new(o.shape().clone())
             .friction(cfg.friction as f32)
             .collision_groups(groups(OBSTACLES, ROBOT))
-            .user_data(i as u128)
-            .build();
-        obstacle_colliders.push(world.colliders.insert(c));
+            .user_data(i as u128);
+        if o.spec.motion.is_some() {
+            let pose = *o.shape_pose();
+            let body = world.bodies.insert(
+                RigidBodyBuilder::kinematic_position_based()
+                    .pose(pose)
+                    .build(),
+            );
+            let h = world
+                .colliders
+                .insert_with_parent(builder.build(), body, &mut world.bodies);
+            obstacle_colliders.push(h);
+            movers.push(Some(MoverBody {
+                body,
+                start: pose.translation,
+            }));
+        } else {
+            let c = builder.position(*o.shape_pose()).build();
+            obstacle_colliders.push(world.colliders.insert(c));
+            movers.push(None);
+        }
     }
-    obstacle_colliders
+    (obstacle_colliders, movers)
 }
 
 impl PhysicsWorld {
@@ -451,7 +479,7 @@ impl PhysicsWorld {
         };
         let left = robot.wheels.left.iter().map(motor).collect();
         let right = robot.wheels.right.iter().map(motor).collect();
-        let obstacle_colliders = add_obstacles(&mut world, obstacles, cfg);
+        let (obstacle_colliders, mover_bodies) = add_obstacles(&mut world, obstacles, cfg);
         let link_names = robot.bodies.iter().map(|b| b.name.clone()).collect();
         let obstacle_aabbs = obstacle_colliders
             .iter()
@@ -469,6 +497,7 @@ impl PhysicsWorld {
             obstacle_colliders,
             obstacle_aabbs,
             obstacles: obstacles.to_vec(),
+            mover_bodies,
             left,
             right,
             steps: 0,
@@ -516,6 +545,18 @@ impl PhysicsWorld {
             if hit {
                 self.contacts_buf.push(i);
             }
+        }
+    }
+
+    /// Moves obstacle `i` (one that moves: others are left alone) to `offset` \[m\] from its
+    /// starting place in the x–y plane by the end of the next [`PhysicsWorld::step`].
+    pub fn move_obstacle(&mut self, i: usize, offset: [f64; 2]) {
+        let Some(Some(m)) = self.mover_bodies.get(i) else {
+            return;
+        };
+        let to = m.start + rp::Vector::new(offset[0] as f32, offset[1] as f32, 0.0);
+        if let Some(b) = self.world.bodies.get_mut(m.body) {
+            b.set_next_kinematic_translation(to);
         }
     }
 

@@ -222,6 +222,14 @@ impl Plant {
         }
     }
 
+    /// Moves obstacle `i` (one that moves) to `offset` \[m\] from its start by the end of the
+    /// next tick (the rapier plant only: the linear one has no moving obstacles).
+    pub fn move_obstacle(&mut self, i: usize, offset: [f64; 2]) {
+        if let Plant::Rapier { physics, .. } = self {
+            physics.move_obstacle(i, offset);
+        }
+    }
+
     /// Whether the robot touches obstacle `i` after the last step.
     pub fn in_contact(&self, i: usize) -> bool {
         match self {

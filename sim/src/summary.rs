@@ -368,6 +368,35 @@ pub struct RunSummary {
     /// law without a bank).
     #[serde(default)]
     pub estimation_errors: Vec<EstimationError>,
+    /// Collisions (contacts that began) by what was hit and whether the robot moved (issue
+    /// #51); static obstacles are counted in every world.
+    #[serde(default)]
+    pub collisions: CollisionCounts,
+}
+
+/// The robot counts as stopped at a contact when its true speed is below this \[m/s\] (about
+/// 5 % of a TurtleBot3 burger's 0.22 m/s; the drive's encoder resolution is far below it).
+pub const STOPPED_SPEED: f64 = 0.01;
+
+/// Contacts that began during a run, by who moved (issue #51).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CollisionCounts {
+    /// With an obstacle that stands still.
+    pub static_obstacles: u64,
+    /// With a moving obstacle while the robot moved (|v| ≥ [`STOPPED_SPEED`]).
+    pub mover_robot_moving: u64,
+    /// With a moving obstacle while the robot stood (|v| < [`STOPPED_SPEED`]): the mover ran
+    /// into it (a walker's among them are also in `walker_robot_stopped`).
+    pub mover_robot_stopped: u64,
+    /// Of `mover_robot_stopped`, those with a walker: the walker's fault.
+    pub walker_robot_stopped: u64,
+}
+
+impl CollisionCounts {
+    /// Contacts with movers.
+    pub fn movers(&self) -> u64 {
+        self.mover_robot_moving + self.mover_robot_stopped
+    }
 }
 
 impl RunSummary {

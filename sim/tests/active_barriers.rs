@@ -19,6 +19,7 @@ fn obstacle(name: &str, position: [f64; 3], rpy: [f64; 3], shape: ShapeSpec) -> 
         position,
         rpy,
         shape,
+        motion: None,
     };
     Obstacle::from_spec(&spec, None).unwrap()
 }

@@ -20,6 +20,7 @@ fn obstacle(name: String, position: [f64; 3], shape: ShapeSpec) -> Obstacle {
             position,
             rpy: [0.0; 3],
             shape,
+            motion: None,
         },
         None,
     )

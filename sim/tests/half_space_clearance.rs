@@ -92,6 +92,7 @@ fn wall(position: [f64; 3], normal: [f64; 3]) -> Obstacle {
             position,
             rpy: [0.0; 3],
             shape: ShapeSpec::HalfSpace { normal },
+            motion: None,
         },
         None,
     )

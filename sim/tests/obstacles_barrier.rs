@@ -28,6 +28,7 @@ fn obstacle(position: [f64; 3], rpy: [f64; 3], shape: ShapeSpec) -> Obstacle {
             position,
             rpy,
             shape,
+            motion: None,
         },
         None,
     )
@@ -525,6 +526,7 @@ fn invalid_specs_are_typed_errors_naming_the_key() {
         position: [0.0; 3],
         rpy: [0.0; 3],
         shape,
+        motion: None,
     };
     let e = Obstacle::from_spec(&spec(ShapeSpec::Ball { radius: -0.1 }), None).unwrap_err();
     assert!(

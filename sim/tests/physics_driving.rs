@@ -127,6 +127,7 @@ fn wall_at(x: f64) -> Obstacle {
             shape: ShapeSpec::HalfSpace {
                 normal: [-1.0, 0.0, 0.0],
             },
+            motion: None,
         },
         None,
     )
@@ -203,6 +204,7 @@ fn passing_5_cm_beside_an_obstacle_is_not_a_collision() {
             shape: ShapeSpec::Cuboid {
                 half_extents: [0.1, 0.1, 0.1],
             },
+            motion: None,
         },
         None,
     )

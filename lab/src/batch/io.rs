@@ -18,7 +18,10 @@
 //! `omega_sign_change_fraction` (control steps whose commanded ω changed sign),
 //! `mean_abs_domega` [rad/s per step], `stalls` (the safety filter's tracker), `estimation`
 //! (per filter of the bank, as a JSON array: `filter`, `honest` — it read no attacked channel —,
-//! `max_ratio` — its largest ‖x − x̂‖/γ — and `exceeded` — it left γ).
+//! `max_ratio` — its largest ‖x − x̂‖/γ — and `exceeded` — it left γ), `safe_stop`,
+//! `first_stop_t` \[s\], `stop_reason`, and the contacts that began by who moved (issue #51):
+//! `static_collisions`, `mover_collisions_moving` (the robot moved), `mover_collisions_stopped`
+//! (it stood below 0.01 m/s) and of those `walker_collisions_stopped`.
 //! Fields containing `,`, `"` or a line break are quoted (RFC 4180). Written and read through the
 //! `csv` crate with serde (one row type, its field names the header); [`from_csv`] reads a file
 //! back exactly, a field that does not parse an error naming the file, trial and column.
@@ -119,7 +122,8 @@ pub const CSV_HEADER: &str =
 first_collision_obstacle,first_violation_t,first_violation_set,first_violation_value,min_barrier,\
 min_barrier_name,min_clearance,goal_reached,time_to_goal,step1,clf_relaxed,step2,step3,infeasible,\
 control_steps,rejected_readings,duration,outside_fault_patterns,goal_settled,final_goal_distance,\
-omega_sign_change_fraction,mean_abs_domega,stalls,estimation,safe_stop,first_stop_t,stop_reason";
+omega_sign_change_fraction,mean_abs_domega,stalls,estimation,safe_stop,first_stop_t,stop_reason,\
+static_collisions,mover_collisions_moving,mover_collisions_stopped,walker_collisions_stopped";
 
 fn float_text(x: f64) -> String {
     // Debug of f64 is the shortest text that parses back to the same bits ("NaN", "inf").
@@ -169,6 +173,14 @@ struct CsvRow {
     first_stop_t: String,
     #[serde(default)]
     stop_reason: String,
+    #[serde(default)]
+    static_collisions: u64,
+    #[serde(default)]
+    mover_collisions_moving: u64,
+    #[serde(default)]
+    mover_collisions_stopped: u64,
+    #[serde(default)]
+    walker_collisions_stopped: u64,
 }
 
 impl CsvRow {
@@ -211,6 +223,10 @@ impl CsvRow {
             mean_abs_domega: float_text(r.mean_abs_domega),
             stalls: r.stalls,
             estimation: serde_json::to_string(&r.estimation).unwrap_or_else(|_| "[]".into()),
+            static_collisions: r.collisions.static_obstacles,
+            mover_collisions_moving: r.collisions.mover_robot_moving,
+            mover_collisions_stopped: r.collisions.mover_robot_stopped,
+            walker_collisions_stopped: r.collisions.walker_robot_stopped,
         }
     }
 }
@@ -291,6 +307,12 @@ impl CsvRow {
                 .context("column `estimation`: expected a JSON array of filter rows")?,
             first_stop_t: opt_f("first_stop_t", &self.first_stop_t)?,
             stop_reason: opt_s(&self.stop_reason),
+            collisions: ftcbf_sim::summary::CollisionCounts {
+                static_obstacles: self.static_collisions,
+                mover_robot_moving: self.mover_collisions_moving,
+                mover_robot_stopped: self.mover_collisions_stopped,
+                walker_robot_stopped: self.walker_collisions_stopped,
+            },
         })
     }
 }

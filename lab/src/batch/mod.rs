@@ -191,6 +191,7 @@ pub(crate) mod testutil {
                     stalls: seed % 2,
                 },
                 safe_stop: None,
+                collisions: Default::default(),
                 estimation_errors: vec![ftcbf_sim::summary::EstimationError {
                     filter: "drop_r1".into(),
                     gamma: Some(0.1),

@@ -88,6 +88,10 @@ pub struct TrialRecord {
     /// Why the robot first stopped (absent: it never did).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop_reason: Option<String>,
+    /// Contacts that began, by who moved (issue #51): static obstacles, movers while the robot
+    /// moved, movers while it stood, walkers while it stood.
+    #[serde(default)]
+    pub collisions: ftcbf_sim::summary::CollisionCounts,
 }
 
 /// One filter's estimation error against its γ in one trial (see
@@ -223,6 +227,7 @@ impl TrialRecord {
                 .collect(),
             first_stop_t: s.safe_stop.as_ref().map(|r| r.first_t),
             stop_reason: s.safe_stop.as_ref().map(|r| r.reason.clone()),
+            collisions: s.collisions,
         }
     }
 }
@@ -383,6 +388,19 @@ pub struct ControllerSummary {
     /// settled / n.
     #[serde(default)]
     pub settled_rate: f64,
+    /// Trials with a contact with an obstacle that stands still (issue #51).
+    #[serde(default)]
+    pub static_collision_trials: u64,
+    /// Trials with a contact with a moving obstacle while the robot moved.
+    #[serde(default)]
+    pub mover_hit_while_moving_trials: u64,
+    /// Trials with a contact with a moving obstacle while the robot stood (the mover ran
+    /// into it), and of those with a walker (the walker's fault).
+    #[serde(default)]
+    pub mover_hit_while_stopped_trials: u64,
+    /// Of `mover_hit_while_stopped_trials`, those where a walker did.
+    #[serde(default)]
+    pub walker_hit_while_stopped_trials: u64,
     /// Distance to the goal at the end: median over trials \[m\].
     #[serde(default)]
     pub final_goal_distance_p50: f64,
@@ -628,6 +646,10 @@ fn summarize<'a>(
         goal_rate: rate(goals, n),
         settled,
         settled_rate: rate(settled, n),
+        static_collision_trials: count(&|r| r.collisions.static_obstacles > 0),
+        mover_hit_while_moving_trials: count(&|r| r.collisions.mover_robot_moving > 0),
+        mover_hit_while_stopped_trials: count(&|r| r.collisions.mover_robot_stopped > 0),
+        walker_hit_while_stopped_trials: count(&|r| r.collisions.walker_robot_stopped > 0),
         final_goal_distance_p50,
         time_to_goal: UpperQuantiles::of(
             recs.iter()

@@ -183,6 +183,20 @@ fn safety_table(res: &BatchResult, out: &mut String) {
     {
         out.push_str("(*) some attacks lie outside the declared fault patterns: the claim does not cover them\n");
     }
+    // Moving obstacles (issue #51): which collisions were with movers, and who moved.
+    for s in &res.summaries {
+        let movers = s.mover_hit_while_moving_trials + s.mover_hit_while_stopped_trials;
+        if movers > 0 {
+            out.push_str(&format!(
+                "{}: trials with a collision — static obstacle {}, mover while the robot moved {}, mover into the stopped robot {} (a walker: {})\n",
+                s.controller,
+                s.static_collision_trials,
+                s.mover_hit_while_moving_trials,
+                s.mover_hit_while_stopped_trials,
+                s.walker_hit_while_stopped_trials
+            ));
+        }
+    }
 }
 
 /// Which policy step decided, summed over trials.

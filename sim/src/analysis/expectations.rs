@@ -245,6 +245,7 @@ mod tests {
             smoothness: Default::default(),
             estimation_errors: Vec::new(),
             safe_stop: None,
+            collisions: Default::default(),
         }
     }
 

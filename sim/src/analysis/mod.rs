@@ -7,4 +7,5 @@
 pub mod check;
 pub mod expectations;
 pub mod liveness;
+pub mod moving_check;
 pub mod safe_stop;

@@ -164,11 +164,29 @@ pub fn verdict(
             "Step 3 drops a unit only when its windowed χ² score exceeds z_α (α = {DEFAULT_EVIDENCE_ALPHA:e} per unit and step) or a reading of it was rejected: over N = {steps} steps and m = {units} units the union bound is N·m·α = {false_alarm:.4}, spent from the bound"
         ),
     );
-    record(
-        "static obstacles",
-        Status::Holds,
-        "the world declares no moving obstacle (movers are not yet part of the world file): a robot at rest cannot hit one".into(),
-    );
+    let movers: Vec<&str> = world
+        .obstacles
+        .iter()
+        .filter(|o| o.spec.motion.is_some())
+        .map(|o| o.name.as_str())
+        .collect();
+    if movers.is_empty() {
+        record(
+            "static obstacles",
+            Status::Holds,
+            "the world declares no moving obstacle: a robot at rest cannot hit one".into(),
+        );
+    } else {
+        record(
+            "static obstacles",
+            Status::Fails,
+            format!(
+                "{} move ({}): a robot that brakes to a stop and stays can be hit by one, so the safe stop is not a safe state",
+                movers.len(),
+                crate::environment::name_list(&movers, 3)
+            ),
+        );
+    }
     v.applies = v.reasons.is_empty();
     v.predicted_stop = predicted_stop(liveness);
     v

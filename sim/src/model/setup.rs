@@ -17,7 +17,9 @@ use ftcbf_controller::params::{
     gain_product, steady_state_riccati, BoundMethod, FtComputed, FtDerivation, FtParams,
 };
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
-use ftcbf_controller::{Barrier, Fallback, Input, ProblemForm, State, StateMatrix, TrackerConfig};
+use ftcbf_controller::{
+    Barrier, Fallback, Input, MovingBarrier, ProblemForm, State, StateMatrix, TrackerConfig,
+};
 use nalgebra::Matrix2;
 
 use crate::obstacles::BarrierConfig;
@@ -340,10 +342,24 @@ impl ControlSetup {
         check_h_bar_inputs(world, &bcfg).map_err(structure(world))?;
         let mut barriers = safe_set_barriers(world);
         let safe_sets = barriers.len();
+        let mut mover = 0;
         for ob in &world.obstacles {
-            for b in ob.barriers(&bcfg) {
-                barriers.push(Arc::new(b));
+            if ob.spec.motion.is_none() {
+                for b in ob.barriers(&bcfg) {
+                    barriers.push(Arc::new(b));
+                }
+                continue;
             }
+            // A moving obstacle's barrier at its start, moved by its reading; its h̄_γ bound
+            // is for the relative speed (the robot's bound plus the obstacle's).
+            let cfg = BarrierConfig {
+                v_max: bcfg.v_max + crate::moving::max_speed(&ob.spec),
+                k: mover_lift(world, &ob.spec, &bcfg),
+                ..bcfg
+            };
+            let base: Arc<dyn Barrier> = Arc::new(ob.barrier(&cfg));
+            barriers.push(Arc::new(MovingBarrier::new(base, mover)));
+            mover += 1;
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
         let (ft, params) = parameters(world, &model, &patterns, &ch.sensor_of_channel);
@@ -403,6 +419,42 @@ impl ControlSetup {
             params,
             gain,
         })
+    }
+}
+
+/// The least time the drive takes to turn a quarter turn from rest \[s\] (a differential
+/// drive reverses, so π/2 is the most it turns to face an escape direction): at ω_max, after
+/// the yaw acceleration limit when the drive has one. None without a robot (a point robot
+/// accelerates in any direction).
+pub fn quarter_turn_time(world: &World) -> Option<f64> {
+    let robot = world.robot.as_ref()?;
+    let w = robot.limits.omega_max;
+    let theta = std::f64::consts::FRAC_PI_2;
+    let drive = crate::plant::drive_config(world, &robot.limits);
+    Some(match drive.domega_max {
+        Some(a) if a > 0.0 && theta <= w * w / a => 2.0 * (theta / a).sqrt(),
+        Some(a) if a > 0.0 => theta / w + w / a,
+        _ => theta / w,
+    })
+}
+
+/// The lift k of moving obstacle `spec`'s barrier \[s\] (issue #51): the world's
+/// `obstacle_lift`, raised so that a robot stopped on the mover's boundary (d = margin + k·v_o)
+/// with the mover heading at it square to its heading can turn a quarter turn
+/// ([`quarter_turn_time`]) and reach v_o at the brake deceleration a before contact:
+/// k ≥ t_turn + v_o/(2a) − margin/v_o.
+pub fn mover_lift(
+    world: &World,
+    spec: &crate::obstacles::ObstacleSpec,
+    bcfg: &BarrierConfig,
+) -> f64 {
+    let v_o = crate::moving::max_speed(spec);
+    match quarter_turn_time(world) {
+        Some(t) if v_o > 0.0 => {
+            let a = world.brake_deceleration();
+            bcfg.k.max(t + v_o / (2.0 * a) - bcfg.margin / v_o)
+        }
+        _ => bcfg.k,
     }
 }
 
@@ -529,6 +581,8 @@ pub fn planned_path(
         pts.push(goal.center);
         return Ok(pts);
     }
+    // The path is planned around the obstacles that stand still (movers are avoided by their
+    // rows as they come).
     let (barriers, boxes) = planner_barriers(world, bcfg);
     let clear = |p: [f64; 2]| nearest_clearance(&barriers, &boxes, bcfg.robot_radius, p);
     // The budget is in obstacle distance queries (far obstacles are not queried).
@@ -711,7 +765,7 @@ fn no_route_note(
     )
 }
 
-/// The barriers the planner plans against — the controller's (an occupancy map's pieces, not
+/// The barriers the planner plans against, of the obstacles that stand still — the controller's (an occupancy map's pieces, not
 /// its field), so a route keeps the clearance the rows keep — with their bounding rectangles.
 #[allow(clippy::type_complexity)]
 pub fn planner_barriers(
@@ -723,7 +777,7 @@ pub fn planner_barriers(
 ) {
     let mut barriers = Vec::new();
     let mut boxes = Vec::new();
-    for o in &world.obstacles {
+    for o in statics(world) {
         barriers.extend(o.barriers(bcfg));
         if o.outlines().is_empty() {
             boxes.push(planar_box(o));
@@ -732,6 +786,11 @@ pub fn planner_barriers(
         }
     }
     (barriers, boxes)
+}
+
+/// The world's obstacles that stand still (the planner's).
+fn statics(world: &World) -> impl Iterator<Item = &crate::obstacles::Obstacle> {
+    world.obstacles.iter().filter(|o| o.spec.motion.is_none())
 }
 
 /// An obstacle's bounding rectangle in the plane (x_min, y_min, x_max, y_max) \[m\], world

@@ -55,6 +55,8 @@ pub(crate) const RECEIVED: rerun::Color = rgb(214, 39, 40);
 pub(crate) const ATTACK: rerun::Color = rgb(255, 150, 150);
 /// The robot's links.
 pub(crate) const ROBOT: rerun::Color = rgb(70, 70, 70);
+/// A moving obstacle and its path (issue #51): orange, apart from the grey obstacles that stand.
+pub(crate) const MOVER: rerun::Color = rgb(225, 120, 30);
 /// Safe-set boundaries.
 pub(crate) const SAFE_SET: rerun::Color = rgb(214, 39, 40);
 /// Goal region.

@@ -83,6 +83,7 @@ mod tests {
             attacks_active: &[],
             link_poses: &[],
             events: &[],
+            movers: &[],
         }
     }
 

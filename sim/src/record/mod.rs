@@ -3,7 +3,9 @@
 //!
 //! Entity paths (stable; segments hold only ASCII letters, digits, `_` and `-`):
 //! - `world/ground` (sized to the run), `world/obstacles/<name>` (solid, standing on the floor;
-//!   a half-space's wall patch cut to the ground, 0.3 m high),
+//!   a half-space's wall patch cut to the ground, 0.3 m high), `world/movers/<name>/<name>` (a
+//!   moving obstacle, issue #51: its shape at its start, static, under `world/movers/<name>`,
+//!   whose translation over time is its displacement) and its path `world/trails/movers/<name>`,
 //!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`;
 //! - `world/robot/<link>` — link pose over time, its shapes (static) below it: the body's URDF
 //!   visual meshes where they were found, its collision shapes otherwise;
@@ -42,7 +44,7 @@ use rerun::sink::{FileSink, LogSink};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::observe::{Frame, Observer, Scene};
-use draw::{log_placed, palette, seg, Rect, GOAL, ROBOT, SAFE_SET, TRUTH};
+use draw::{log_placed, palette, seg, Rect, GOAL, MOVER, ROBOT, SAFE_SET, TRUTH};
 use plots::Plots;
 
 pub use layout::EYE_ELEVATION;
@@ -126,6 +128,10 @@ pub struct Recorder {
     links: Vec<LinkTrack>,
     /// Truth first, then one per estimator.
     trails: Vec<Vec<[f32; 3]>>,
+    /// Per mover, its displacement from its start at every step.
+    mover_moves: Vec<Vec<[f32; 3]>>,
+    /// Per mover, its start in the plane and its path (a point every [`TRAIL_EVERY`] steps).
+    mover_trails: Vec<([f32; 2], Vec<[f32; 3]>)>,
     last_policy: String,
     last_attacks: Vec<bool>,
     first_error: Option<String>,
@@ -163,6 +169,8 @@ impl Recorder {
             positions: Vec::new(),
             links: Vec::new(),
             trails: Vec::new(),
+            mover_moves: Vec::new(),
+            mover_trails: Vec::new(),
             last_policy: String::new(),
             last_attacks: Vec::new(),
             first_error: None,
@@ -222,11 +230,20 @@ impl Recorder {
             } else {
                 255
             };
+            let moves = self.scene.movers.contains(&ob.name);
+            let (base, color) = if moves {
+                (format!("world/movers/{}", seg(&ob.name)), MOVER)
+            } else {
+                (
+                    "world/obstacles".to_string(),
+                    rerun::Color::from_unmultiplied_rgba(130, 130, 150, alpha),
+                )
+            };
             let res = log_placed(
                 &self.rec,
-                "world/obstacles",
+                &base,
                 &draw::cut_to_ground(&draw::standing(ob), &r, wall),
-                rerun::Color::from_unmultiplied_rgba(130, 130, 150, alpha),
+                color,
             );
             if let Err(e) = res {
                 self.first_error.get_or_insert_with(|| e.to_string());
@@ -309,6 +326,17 @@ impl Recorder {
                 self.first_error.get_or_insert_with(|| e.to_string());
             }
         }
+        for (name, (_, pts)) in self.scene.movers.iter().zip(&self.mover_trails) {
+            let r = self.rec.log(
+                format!("world/trails/movers/{}", seg(name)).as_str(),
+                &rerun::LineStrips3D::new([pts.clone()])
+                    .with_colors([MOVER])
+                    .with_radii([0.005f32]),
+            );
+            if let Err(e) = r {
+                self.first_error.get_or_insert_with(|| e.to_string());
+            }
+        }
     }
 
     /// Sends the buffered positions and link poses as columns.
@@ -337,6 +365,16 @@ impl Recorder {
                 .columns_of_unit_batches()
                 .map_err(|x| e(&x))?;
             let path = format!("world/robot/{}", seg(name));
+            self.rec
+                .send_columns(path.as_str(), times(), cols)
+                .map_err(|x| e(&x))?;
+        }
+        for (name, moves) in self.scene.movers.iter().zip(&self.mover_moves) {
+            let cols = rerun::Transform3D::update_fields()
+                .with_many_translation(moves.iter().copied())
+                .columns_of_unit_batches()
+                .map_err(|x| e(&x))?;
+            let path = format!("world/movers/{}", seg(name));
             self.rec
                 .send_columns(path.as_str(), times(), cols)
                 .map_err(|x| e(&x))?;
@@ -438,6 +476,19 @@ impl Observer for Recorder {
         self.plots = Plots::new(scene);
         self.positions = vec![Vec::new(); scene.filters.len()];
         self.trails = vec![Vec::new(); scene.filters.len() + 1];
+        self.mover_moves = vec![Vec::new(); scene.movers.len()];
+        self.mover_trails = scene
+            .movers
+            .iter()
+            .map(|m| {
+                let start = scene
+                    .obstacles
+                    .iter()
+                    .find(|o| &o.name == m)
+                    .map_or([0.0; 2], |o| [o.translation[0], o.translation[1]]);
+                (start, Vec::new())
+            })
+            .collect();
     }
 
     fn frame(&mut self, f: &Frame<'_>) {
@@ -465,6 +516,9 @@ impl Observer for Recorder {
         for (pos, e) in self.positions.iter_mut().zip(f.estimates) {
             pos.push(est(e));
         }
+        for (moves, m) in self.mover_moves.iter_mut().zip(f.movers) {
+            moves.push([m.displacement[0] as f32, m.displacement[1] as f32, 0.0]);
+        }
         if f.step.is_multiple_of(TRAIL_EVERY) {
             if let Some(t) = self.trails.first_mut() {
                 t.push([truth[0], truth[1], 0.004]);
@@ -474,6 +528,10 @@ impl Observer for Recorder {
                 if finite(&p) {
                     t.push(p);
                 }
+            }
+            for ((start, t), m) in self.mover_trails.iter_mut().zip(f.movers) {
+                let d = m.displacement;
+                t.push([start[0] + d[0] as f32, start[1] + d[1] as f32, 0.003]);
             }
             self.log_trails();
         }

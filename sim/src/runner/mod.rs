@@ -49,6 +49,7 @@ use ftcbf_controller::Input;
 use std::borrow::Cow;
 
 use crate::attacks::AttackStack;
+use crate::moving::MoverSet;
 use crate::observe::{Frame, Observer, Scene};
 use crate::sensors::SensorSuite;
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};
@@ -178,6 +179,9 @@ pub struct Simulation<'w> {
     braking: bool,
     /// Fault-pattern names, for the stop's reason.
     pattern_names: Vec<String>,
+    /// The moving obstacles (issue #51) and their states at the last plant tick.
+    movers: MoverSet,
+    mover_now: Vec<ftcbf_controller::MoverState>,
 }
 
 impl<'w> Simulation<'w> {
@@ -264,7 +268,12 @@ impl<'w> Simulation<'w> {
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
         let attacks_together_outside = attacks.union_outside_fault_patterns(&world.patterns);
-        let monitor = Monitor::new(world, &setup);
+        let movers = MoverSet::new(
+            &world.obstacles,
+            &crate::world::structure::obstacle_barrier_config(world),
+            seed,
+        );
+        let monitor = Monitor::new(world, &setup, &movers);
         let view = StepView::new(
             file.sensors.len(),
             filters.len(),
@@ -310,6 +319,8 @@ impl<'w> Simulation<'w> {
             stops: stop::StopMeter::default(),
             braking: false,
             pattern_names: file.fault_patterns.iter().map(|p| p.name.clone()).collect(),
+            movers,
+            mover_now: Vec::new(),
         }
     }
 
@@ -354,9 +365,19 @@ impl<'w> Simulation<'w> {
             return None;
         }
         let t = self.k as f64 * self.control_dt;
+        if !self.movers.is_empty() {
+            let truth = self.plant.truth();
+            let radius = self
+                .world
+                .robot
+                .as_ref()
+                .map_or(0.0, |r| r.footprint_radius);
+            self.movers
+                .control_step(t, self.control_dt, ([truth.x, truth.y], radius));
+        }
         self.sense(t);
         let u = self.decide(t, note);
-        self.actuate(u);
+        self.actuate(u, t);
         self.k += 1;
         Some(t)
     }
@@ -406,6 +427,7 @@ impl<'w> Simulation<'w> {
             y: &self.y,
             fresh: &self.fresh,
             applied: self.applied,
+            movers: self.movers.states(),
         };
         let decision = self.law.step(&readings);
         self.braking = false;
@@ -448,7 +470,7 @@ impl<'w> Simulation<'w> {
     }
 
     /// Holds `u` through the drive for one control period of plant ticks, checking the truth.
-    fn actuate(&mut self, u: Input) {
+    fn actuate(&mut self, u: Input, t: f64) {
         let before = self.view.body_cmd;
         let yaw = self.heading_source.drive_yaw();
         // The safe stop brakes on the wheel encoders' speed (not on a sensor channel, the
@@ -473,13 +495,26 @@ impl<'w> Simulation<'w> {
         });
         let p = [self.view.truth.x, self.view.truth.y];
         self.smooth.observe(self.view.body_cmd, p);
-        for _ in 0..self.world.ticks_per_control {
+        let plant_dt = self.world.plant_dt();
+        for j in 0..self.world.ticks_per_control {
+            if !self.movers.is_empty() {
+                // Where each mover is at the end of this tick.
+                let tau = t + f64::from(j + 1) * plant_dt;
+                self.movers.states_at(tau, &mut self.mover_now);
+                for (m, &i) in self.mover_now.iter().zip(self.movers.obstacles()) {
+                    self.plant.move_obstacle(i, m.displacement);
+                }
+            }
             self.plant.tick();
             self.monitor
                 .after_tick(&self.plant, self.world, &mut self.view.events);
         }
-        self.monitor
-            .after_step(&self.plant, self.world, &mut self.view.barrier_truth);
+        self.monitor.after_step(
+            &self.plant,
+            self.world,
+            &self.mover_now,
+            &mut self.view.barrier_truth,
+        );
         if self.link_poses {
             self.plant.link_poses(&mut self.view.link_poses);
         }
@@ -505,6 +540,7 @@ impl<'w> Simulation<'w> {
             attacks_active: &v.attacks_active,
             link_poses: &v.link_poses,
             events: &v.events,
+            movers: self.movers.states(),
         }
     }
 
@@ -555,6 +591,7 @@ impl<'w> Simulation<'w> {
             smoothness: self.smooth.smoothness(),
             estimation_errors: self.errors.rows().to_vec(),
             safe_stop: self.stops.report(),
+            collisions: m.collisions,
         }
     }
 }

@@ -8,10 +8,15 @@ use ftcbf_controller::{Barrier, State};
 
 use crate::obstacles::ObstacleBarrier;
 use crate::state::TruthState;
-use crate::summary::{disagree, CollisionEvent, Disagreement, NamedValue, ViolationEvent};
+use crate::summary::{
+    disagree, CollisionCounts, CollisionEvent, Disagreement, NamedValue, ViolationEvent,
+    STOPPED_SPEED,
+};
 use crate::world::{GoalMetric, World};
+use ftcbf_controller::MoverState;
 
 use crate::model::setup::ControlSetup;
+use crate::moving::MoverSet;
 use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.
@@ -48,12 +53,22 @@ pub(super) struct Monitor {
     pub(super) last_outside_goal: Option<f64>,
     /// The CLF, for V(x_true) at the end.
     clf: Option<QuadraticClf>,
+    /// Per obstacle: its mover number and whether it is a walker (None: it stands still).
+    mover_of: Vec<Option<(usize, bool)>>,
+    /// Contacts that began, by who moved.
+    pub(super) collisions: CollisionCounts,
 }
 
 impl Monitor {
-    pub(super) fn new(world: &World, setup: &ControlSetup) -> Self {
+    pub(super) fn new(world: &World, setup: &ControlSetup, movers: &MoverSet) -> Self {
         let barriers = setup.config.barriers.clone();
+        let mut mover_of = vec![None; world.obstacles.len()];
+        for (k, &i) in movers.obstacles().iter().enumerate() {
+            mover_of[i] = Some((k, movers.is_walker(k)));
+        }
         Self {
+            mover_of,
+            collisions: CollisionCounts::default(),
             min_barrier: vec![f64::INFINITY; barriers.len()],
             barriers,
             names: setup.barrier_names.clone(),
@@ -142,6 +157,15 @@ impl Monitor {
         for (oi, touching) in self.in_contact.iter_mut().enumerate() {
             let now = plant.in_contact(oi);
             if now && !*touching {
+                let c = &mut self.collisions;
+                match self.mover_of[oi] {
+                    None => c.static_obstacles += 1,
+                    Some(_) if tt.vx.hypot(tt.vy) >= STOPPED_SPEED => c.mover_robot_moving += 1,
+                    Some((_, walker)) => {
+                        c.mover_robot_stopped += 1;
+                        c.walker_robot_stopped += u64::from(walker);
+                    }
+                }
                 let name = world.obstacles[oi].name.clone();
                 events.push(format!("collision with {name} at t = {:.3} s", tt.t));
                 if self.first_collision.is_none() {
@@ -165,8 +189,15 @@ impl Monitor {
     /// After the control step's last tick: obstacle barriers and clearances on the truth, and
     /// h(x_true) of every barrier into `barrier_truth` (NaN for a far obstacle whose certified
     /// lower bound, [`crate::active`], is at or above its least value so far: its minimum
-    /// cannot change, so it is not evaluated and not logged).
-    pub(super) fn after_step(&mut self, plant: &Plant, world: &World, barrier_truth: &mut [f64]) {
+    /// cannot change, so it is not evaluated and not logged); `movers` are the moving
+    /// obstacles' states at that instant (their barriers are never covered by the index).
+    pub(super) fn after_step(
+        &mut self,
+        plant: &Plant,
+        world: &World,
+        movers: &[MoverState],
+        barrier_truth: &mut [f64],
+    ) {
         use ftcbf_controller::reach::BarrierIndex;
         let truth = plant.truth();
         let x = truth.planar();
@@ -182,7 +213,7 @@ impl Monitor {
                     continue;
                 }
             }
-            let h = b.eval(&x).value;
+            let h = b.eval_moving(&x, movers).0.value;
             barrier_truth[j] = h;
             note_non_finite(&mut self.non_finite, &self.names[j], h, truth.t);
             if j >= self.safe_sets {
@@ -209,17 +240,29 @@ impl Monitor {
                 }
             }
             self.min_clearance = Some(self.min_clearance.map_or(m, |c: f64| c.min(m)));
-            self.hold_against_physics(world, plant, [x[0], x[1]], truth.t);
+            self.hold_against_physics(world, plant, [x[0], x[1]], movers, truth.t);
         }
     }
 
     /// Holds each obstacle's barrier geometry at position `p` against the physics' clearance
     /// just measured; keeps the first disagreement.
-    fn hold_against_physics(&mut self, world: &World, plant: &Plant, p: [f64; 2], t: f64) {
+    fn hold_against_physics(
+        &mut self,
+        world: &World,
+        plant: &Plant,
+        p: [f64; 2],
+        movers: &[MoverState],
+        t: f64,
+    ) {
         if self.disagreement.is_some() {
             return;
         }
-        let at = nalgebra::Vector2::new(p[0], p[1]);
+        let mover_of = &self.mover_of;
+        // A moving obstacle's geometry is that of its start: the robot's position relative to it.
+        let at_for = |i: usize| match mover_of[i].and_then(|(k, _)| movers.get(k)) {
+            Some(m) => nalgebra::Vector2::new(p[0] - m.displacement[0], p[1] - m.displacement[1]),
+            None => nalgebra::Vector2::new(p[0], p[1]),
+        };
         self.disagreement = self
             .geometry
             .iter()
@@ -228,10 +271,12 @@ impl Monitor {
             .zip(&self.clearance_exact)
             .enumerate()
             .find_map(|(i, (((g, &c), o), &exact))| {
+                let at = at_for(i);
                 // A far obstacle (its physics clearance a lower bound above the tolerance) with
-                // p outside its box: sd > 0 and c > tol, so neither clause of `disagree` can
-                // hold; its geometry is not queried (issue #52).
-                if !exact && outside(&self.regions[i], p) {
+                // p outside its box (a mover's box at its start, so p relative to it): sd > 0
+                // and c > tol, so neither clause of `disagree` can hold; its geometry is not
+                // queried (issue #52).
+                if !exact && outside(&self.regions[i], [at.x, at.y]) {
                     return None;
                 }
                 let d = g.clearance(at);

@@ -296,5 +296,11 @@ pub fn build_scene(
             .iter()
             .map(|a| a.channels.clone())
             .collect(),
+        movers: world
+            .obstacles
+            .iter()
+            .filter(|ob| ob.spec.motion.is_some())
+            .map(|ob| ob.name.clone())
+            .collect(),
     }
 }

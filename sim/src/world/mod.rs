@@ -859,6 +859,7 @@ impl Validator<'_> {
                 file: map.clone(),
                 unknown: env.unknown.unwrap_or_default(),
             },
+            motion: None,
         };
         Obstacle::from_spec(&spec, Some(base))
             .map(Some)
@@ -898,6 +899,17 @@ impl Validator<'_> {
         for (i, spec) in file.obstacles.iter().enumerate() {
             let ob = Obstacle::from_spec(spec, Some(base))
                 .map_err(|e| self.err(format!("obstacles[{i}]"), e.to_string()))?;
+            if spec.motion.is_some() {
+                let key = format!("obstacles[{i}].motion");
+                crate::moving::check_motion(spec).map_err(|e| self.err(&key, e))?;
+                if file.dynamics == Dynamics::Linear {
+                    return Err(self.err(
+                        key,
+                        "obstacles move only in the rapier simulation (dynamics = \"rapier\"); \
+                         the linear plant has no moving obstacles",
+                    ));
+                }
+            }
             names.push((spec.name.as_str(), format!("obstacles[{i}]")));
             obstacles.push(ob);
         }

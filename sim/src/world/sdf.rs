@@ -715,6 +715,7 @@ pub(super) fn spec_at(name: &str, x: &Isometry3<f64>, shape: ShapeSpec) -> Obsta
         position: [t.x, t.y, t.z],
         rpy: [r, p, y],
         shape,
+        motion: None,
     }
 }
 

@@ -628,6 +628,10 @@ pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Layout {
         Kind::Doorway => doorway(rng, keep),
         Kind::Clutter => clutter(rng, keep),
         Kind::LTurn => l_turn(rng, keep),
+        // The moving-obstacle kinds are drawn in their static scene (`Kind::scene`).
+        Kind::AisleCrossing => clutter(rng, keep),
+        Kind::CorridorWalker => corridor(rng, keep),
+        Kind::RoomPeople | Kind::DqnLoops => room(rng, keep),
     };
     let k = rng.random_range(0..4);
     quarter_turns(l, k)

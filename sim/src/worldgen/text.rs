@@ -130,6 +130,8 @@ pub(crate) struct WorldText {
     pub goal: [f64; 2],
     pub goal_radius: f64,
     pub obstacles: Vec<Obstacle>,
+    /// Moving obstacles with their `motion` text (issue #51).
+    pub movers: Vec<(Obstacle, String)>,
     pub sensors: Vec<Sensor>,
     pub patterns: Vec<(String, Vec<String>)>,
     pub attack: Attack,
@@ -169,7 +171,12 @@ impl WorldText {
         w!("[goal]");
         w!("center = {}", list(&self.goal));
         w!("radius = {}", num(self.goal_radius));
-        for o in &self.obstacles {
+        let all = self
+            .obstacles
+            .iter()
+            .map(|o| (o, None))
+            .chain(self.movers.iter().map(|(o, m)| (o, Some(m))));
+        for (o, motion) in all {
             w!("");
             w!("[[obstacles]]");
             w!("name = \"{}\"", o.name);
@@ -195,6 +202,9 @@ impl WorldText {
                 Shape::Ball { radius } => {
                     w!("shape = {{ kind = \"ball\", radius = {} }}", num(radius))
                 }
+            }
+            if let Some(m) = motion {
+                w!("motion = {m}");
             }
         }
         for c in &self.sensors {

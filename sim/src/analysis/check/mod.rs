@@ -425,6 +425,7 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
     let liveness = liveness::predict(world, setup);
     check_joint_rows(cx, &liveness, &mut found); // 10
     check_departures(cx, &mut found); // 11
+    check_movers(cx, &mut found); // 12
 
     let applies = found.reasons.is_empty();
     let failed: Vec<crate::analysis::safe_stop::Failed<'_>> = found

@@ -74,6 +74,23 @@ pub(super) fn check_joint_rows(cx: Ctx<'_>, liveness: &LivenessReport, found: &m
     }
 }
 
+/// Hypothesis 12, moving obstacles (issue #51): see [`crate::analysis::moving_check`]. Assumed
+/// findings are also assumptions of the verdict.
+pub(super) fn check_movers(cx: Ctx<'_>, found: &mut Findings) {
+    let Ctx { world, setup, .. } = cx;
+    for f in crate::analysis::moving_check::findings(world, setup) {
+        let status = match f.holds {
+            Some(true) => Status::Holds,
+            Some(false) => Status::Fails,
+            None => {
+                found.assumptions.push(f.detail.clone());
+                Status::Assumed
+            }
+        };
+        found.record(f.name, status, f.detail);
+    }
+}
+
 /// Hypothesis 11, departures from the thesis's setting that `check` cannot decide and the verdict rests on
 /// (see the book's "What `check` proves"): Step 3's rule of keeping a unit the box cannot
 /// satisfy is exact for one half-plane only, and the rows are imposed at the control rate, not

@@ -234,12 +234,17 @@ pub struct LivenessReport {
     /// sources apart. The stop is a pause: whether the robot goes on from it is the walk's
     /// (a case that waits there and goes on stays live; one that stalls there stops short).
     pub safe_stop: Option<String>,
+    /// Moving obstacles that block the path for good (issue #51): one that stops across it, is
+    /// over the goal at the end, or keeps coming back so the robot never gets across.
+    pub movers_blocked: Vec<String>,
+    /// Moving obstacles the robot may wait for (they cross the path and move on).
+    pub movers_wait: Vec<String>,
 }
 
 impl LivenessReport {
     /// Every case live (a skipped prediction counts as live: nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.cases.iter().all(LivenessCase::live)
+        self.cases.iter().all(LivenessCase::live) && self.movers_blocked.is_empty()
     }
 
     /// The verdict line.
@@ -247,15 +252,23 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
+        if let Some(b) = self.movers_blocked.first() {
+            return format!("the robot will NOT reach its goal: {b}");
+        }
         let stop = self
             .safe_stop
             .as_ref()
             .map_or(String::new(), |stop| format!("; {stop}"));
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
-            return format!(
+            let mut s = format!(
                 "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
                 self.path_length, (self.kappa * 1e3).round() / 1e3
             );
+            for w in &self.movers_wait {
+                s.push_str("; ");
+                s.push_str(w);
+            }
+            return s;
         };
         let mut s = match &c.stall {
             // With the safe stop it brakes there (and says why below) rather than push on.
@@ -472,6 +485,8 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             skipped: Some("the nominal controller imposes no rows".into()),
             goal_radius: world.file.goal.radius,
             safe_stop: None,
+            movers_blocked: Vec::new(),
+            movers_wait: Vec::new(),
         };
     };
     let path_length = model.length();
@@ -487,7 +502,10 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
     if !live {
         structural_notes(&model, &cases, &mut structural);
     }
+    let (movers_blocked, movers_wait) = mover_liveness(world, setup, &model);
     LivenessReport {
+        movers_blocked,
+        movers_wait,
         kappa: cfg.cbf_gain,
         path_length,
         samples: n_samples,
@@ -498,6 +516,31 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
         goal_radius: model.goal_radius,
         safe_stop: None,
     }
+}
+
+/// Liveness with the moving obstacles along the planned path ([`crate::moving::liveness`]):
+/// the movers that block it for good and those the robot may wait for.
+fn mover_liveness(
+    world: &World,
+    setup: &ControlSetup,
+    model: &Model,
+) -> (Vec<String>, Vec<String>) {
+    let cfg = &setup.config;
+    let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
+    let inputs = crate::moving::LiveInputs {
+        obstacles: &world.obstacles,
+        barriers: &cfg.barriers,
+        gamma: cfg
+            .ft
+            .gamma
+            .iter()
+            .copied()
+            .fold(cfg.ft.gamma_baseline, f64::max),
+        duration: world.file.duration,
+        goal: world.file.goal.center,
+        v_max: crate::world::structure::speed_bound(world).unwrap_or(f64::INFINITY),
+    };
+    crate::moving::liveness(&inputs, &points)
 }
 
 /// The smallest change of one `[control]` key that makes every case live: κ up to

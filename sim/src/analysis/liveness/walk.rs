@@ -59,6 +59,7 @@ impl Model<'_> {
             .config
             .barriers
             .iter()
+            .filter(|b| b.mover().is_none())
             .all(|b| b.eval(&x).value >= 0.0)
     }
 }

@@ -1,0 +1,283 @@
+//! What `ftcbf check` says about moving obstacles (issue #51): which hypotheses of Theorem 3
+//! their rows add, and whether the robot waits for a mover to pass or is blocked for good.
+//!
+//! **Safety.** A mover's row carries ∂h/∂t (see [`ftcbf_controller::MovingBarrier`]). At rest
+//! on its boundary, a mover heading straight at the robot at speed v_o makes ∂h/∂t = −v_o − k·ā
+//! (∇d unit, ∇_v h = k∇d), so the row asks k·u_n ≥ v_o + k·ā: an acceleration v_o/k + ā away
+//! from it, which the input box must hold. And to keep d from falling for good the robot must
+//! outrun it: v_o ≤ v_max. Either failing is a failed hypothesis, with the numbers. Not decided
+//! (assumed, stated): that two movers do not pin the robot between them (the joint rows of
+//! two moving barriers), the
+//! velocity jumps at a path's corners (the row does not see them coming), and a walker's
+//! acceleration bound, which covers the social force's driving term only.
+//!
+//! Decided since (the trials of a generated aisle crossing were unsafe where these were
+//! assumed): a mover must not pin the robot against a static obstacle (somewhere on its path a
+//! gap to a static obstacle narrower than the robot with its margins, 2(r + margin), and wider
+//! than 0), and the drive must turn away in time (stopped on the mover's boundary, the robot
+//! turns a quarter turn and accelerates to v_o while the mover closes in: that must fit in
+//! margin + k·v_o). Two movers pinning the robot between them stays assumed.
+//!
+//! **Liveness** with movers is [`crate::moving::liveness`] (in the liveness prediction): a mover
+//! that ends its motion (`repeat = "once"`, or a zero velocity) where the robot's path passes,
+//! or stands over the goal when the run ends, blocks it for good; a mover that crosses the path
+//! and goes on makes the robot wait for it to pass.
+
+use crate::model::setup::{mover_lift, quarter_turn_time, ControlSetup};
+use crate::moving::{max_speed, mover_indices};
+use crate::obstacles::{BarrierConfig, MotionSpec, Obstacle, ObstacleBarrier, ShapeSpec};
+use crate::world::structure::obstacle_barrier_config;
+use crate::world::World;
+
+/// One finding: (name, holds: Some(true) holds / Some(false) fails / None assumed or info,
+/// whether it is only information, detail).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MoverFinding {
+    /// Short name.
+    pub name: String,
+    /// `Some(true)`: holds; `Some(false)`: fails (Theorem 3 does not apply); `None`: assumed.
+    pub holds: Option<bool>,
+    /// The numbers.
+    pub detail: String,
+}
+
+/// The mover hypotheses of `world` (empty when nothing moves).
+pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
+    let movers = mover_indices(&world.obstacles);
+    if movers.is_empty() {
+        return Vec::new();
+    }
+    let bcfg = obstacle_barrier_config(world);
+    let v_max = bcfg.v_max;
+    let limit = setup.config.input_limit.map(|l| l[0].min(l[1]));
+    let mut out = Vec::new();
+    for &i in &movers {
+        let o = &world.obstacles[i];
+        let v_o = max_speed(&o.spec);
+        let walker = matches!(o.spec.motion, Some(MotionSpec::Walker { .. }));
+        let a_bar = if walker {
+            // (v_des + v_cap)/τ with the largest desired speed: see crate::moving.
+            v_o * (1.0 / 1.3 + 1.0) / crate::movers::SocialForce::default().tau
+        } else {
+            0.0
+        };
+        out.push(MoverFinding {
+            name: format!("mover `{}` can be escaped", o.name),
+            holds: Some(v_o <= v_max),
+            detail: if v_o <= v_max {
+                format!(
+                    "mover `{}` moves at up to {v_o:.3} m/s ≤ the robot's v_max = {v_max:.3} m/s",
+                    o.name
+                )
+            } else {
+                format!(
+                    "mover `{}` moves at up to {v_o:.3} m/s, faster than the robot's v_max = {v_max:.3} m/s: it can catch a robot that flees, and no input keeps its barrier ≥ 0 (the guarantee does not apply with it)",
+                    o.name
+                )
+            },
+        });
+        let k = mover_lift(world, &o.spec, &bcfg);
+        if k > 0.0 {
+            let need = v_o / k + a_bar;
+            let (holds, detail) = match limit {
+                Some(l) => (
+                    Some(need <= l),
+                    format!(
+                        "at rest on its boundary with `{}` heading at the robot, the row asks an acceleration v_o/k + ā = {v_o:.3}/{k} + {a_bar:.3} = {need:.3} m/s² away from it; the input box gives {l} m/s²{}",
+                        o.name,
+                        if need <= l { "" } else { ": it cannot (the guarantee does not apply)" }
+                    ),
+                ),
+                None => (
+                    Some(true),
+                    format!(
+                        "at rest on its boundary with `{}` heading at the robot, the row asks {need:.3} m/s² away from it; no input box limits u",
+                        o.name
+                    ),
+                ),
+            };
+            out.push(MoverFinding {
+                name: format!("input to escape `{}`", o.name),
+                holds,
+                detail,
+            });
+        }
+        if walker {
+            out.push(MoverFinding {
+                name: format!("walker `{}`", o.name),
+                holds: None,
+                detail: format!(
+                    "walker `{}`: its reading is exact (no obstacle sensor yet); its acceleration bound {a_bar:.3} m/s² covers the social force's driving term, not its repulsion near another body; it keeps off the robot by the social force only, so it may walk into a robot that stopped — counted apart (collisions.walker_robot_stopped), the walker's fault",
+                    o.name
+                ),
+            });
+        } else if matches!(o.spec.motion, Some(MotionSpec::Waypoints { .. })) {
+            out.push(MoverFinding {
+                name: format!("corners of `{}`", o.name),
+                holds: None,
+                detail: format!(
+                    "`{}` turns at its waypoints with a velocity jump of up to 2 × {v_o:.3} m/s the row does not see coming (its lift k∇d·(v − v_c) jumps with it)",
+                    o.name
+                ),
+            });
+        }
+    }
+    for &i in &movers {
+        out.push(pin_finding(world, i));
+        out.push(turn_finding(world, i));
+    }
+    if movers.len() > 1 {
+        out.push(MoverFinding {
+            name: "movers do not corner the robot between them".into(),
+            holds: None,
+            detail: "no two movers pin the robot between them (the rows of two moving barriers at once): not decided".into(),
+        });
+    }
+    out.push(MoverFinding {
+        name: "what the guarantee covers with movers".into(),
+        holds: None,
+        detail: "the guarantee covers the robot's own motion: a mover that does not avoid the robot (a scripted path; a walker keeps off by its social force only) can walk into a robot that has stopped — such contacts are the mover's, counted apart by `ftcbf batch` (mover into the stopped robot), and are outside it".into(),
+    });
+    out
+}
+
+/// The mover's planar footprint radius \[m\]: its own for a round body, else the half
+/// diagonal of its bounding box in the plane.
+fn body_radius(o: &Obstacle) -> f64 {
+    match o.spec.shape {
+        ShapeSpec::Cylinder { radius, .. }
+        | ShapeSpec::Capsule { radius, .. }
+        | ShapeSpec::Ball { radius } => radius,
+        _ => {
+            let b = o.shape().compute_aabb(o.shape_pose());
+            let hx = f64::from(b.maxs.x - b.mins.x) / 2.0;
+            let hy = f64::from(b.maxs.y - b.mins.y) / 2.0;
+            hx.hypot(hy)
+        }
+    }
+}
+
+/// Where mover `o`'s centre goes during the run, every few cm: its scripted path over the
+/// run's duration, or a walker's straight legs between its goals (it steers around obstacles
+/// off them: the legs are what it aims for).
+fn swept_centres(world: &World, o: &Obstacle) -> Vec<[f64; 2]> {
+    const STEP: f64 = 0.05;
+    let start = [o.spec.position[0], o.spec.position[1]];
+    match &o.spec.motion {
+        Some(MotionSpec::Walker { goals, .. }) => {
+            let mut out = vec![start];
+            let mut from = start;
+            for g in goals {
+                let n = ((g[0] - from[0]).hypot(g[1] - from[1]) / STEP)
+                    .ceil()
+                    .max(1.0) as usize;
+                out.extend((1..=n).map(|j| {
+                    let s = j as f64 / n as f64;
+                    [
+                        from[0] + s * (g[0] - from[0]),
+                        from[1] + s * (g[1] - from[1]),
+                    ]
+                }));
+                from = *g;
+            }
+            out
+        }
+        _ => match crate::moving::trajectory(&o.spec) {
+            Ok(Some(t)) => {
+                let v = t.max_speed().max(1e-3);
+                let dt = STEP / v;
+                let n = (world.file.duration / dt).ceil().min(1e6) as usize;
+                (0..=n).map(|j| t.state(j as f64 * dt).0).collect()
+            }
+            _ => vec![start],
+        },
+    }
+}
+
+/// Whether mover `i` can pin the robot against a static obstacle: somewhere along its path the
+/// gap between its body and a static obstacle is positive but narrower than the robot with
+/// its margins, 2(r + margin): a robot in that gap when the mover comes has no way out (the
+/// rows of two barriers at once, which Theorem 3 does not cover).
+fn pin_finding(world: &World, i: usize) -> MoverFinding {
+    let o = &world.obstacles[i];
+    let bcfg = obstacle_barrier_config(world);
+    let bare = BarrierConfig {
+        robot_radius: 0.0,
+        margin: 0.0,
+        k: 0.0,
+        ..bcfg
+    };
+    let need = 2.0 * (bcfg.robot_radius + bcfg.margin);
+    let r_o = body_radius(o);
+    let statics: Vec<(String, Vec<ObstacleBarrier>)> = world
+        .obstacles
+        .iter()
+        .filter(|s| s.spec.motion.is_none())
+        .map(|s| (s.name.clone(), s.barriers(&bare)))
+        .collect();
+    // The narrowest gap below `need` (and > 0: a mover that touches an obstacle shuts the gap).
+    let mut worst: Option<(f64, [f64; 2], &str)> = None;
+    for c in swept_centres(world, o) {
+        for (name, bs) in &statics {
+            let p = nalgebra::Vector2::new(c[0], c[1]);
+            let gap = bs
+                .iter()
+                .map(|b| b.clearance(p))
+                .fold(f64::INFINITY, f64::min)
+                - r_o;
+            if gap > 0.0 && gap < need && worst.is_none_or(|w| gap < w.0) {
+                worst = Some((gap, c, name));
+            }
+        }
+    }
+    MoverFinding {
+        name: format!("`{}` cannot pin the robot against a static obstacle", o.name),
+        holds: Some(worst.is_none()),
+        detail: match worst {
+            None => format!(
+                "along its path (every 5 cm) the gap between `{}` (body radius {r_o:.3} m) and each static obstacle is 0 or at least the robot's width with its margins, 2(r + margin) = {need:.3} m",
+                o.name
+            ),
+            Some((gap, c, name)) => format!(
+                "at ({:.2}, {:.2}) on its path `{}` (body radius {r_o:.3} m) passes {gap:.3} m from `{name}`, less than the robot's width with its margins, 2(r + margin) = {need:.3} m: a robot in that gap when it comes is pinned between two barriers, which Theorem 3 does not cover (the guarantee does not apply with it)",
+                c[0], c[1], o.name
+            ),
+        },
+    }
+}
+
+/// Whether the robot, stopped on mover `i`'s boundary (H = 0, so d = margin + k·v_o) with the
+/// mover heading at it square to its heading, can turn and pull away before contact: it turns
+/// for t_turn ([`quarter_turn_time`]) while the mover closes v_o·t_turn, then reaches v_o at
+/// the brake deceleration a over v_o²/(2a); both within margin + k·v_o.
+fn turn_finding(world: &World, i: usize) -> MoverFinding {
+    let o = &world.obstacles[i];
+    let bcfg = obstacle_barrier_config(world);
+    let v_o = max_speed(&o.spec);
+    let name = format!("the drive turns away from `{}` in time", o.name);
+    let Some(t_turn) = quarter_turn_time(world) else {
+        return MoverFinding {
+            name,
+            holds: Some(true),
+            detail: "the point robot accelerates in any direction: no turn".into(),
+        };
+    };
+    let a = world.brake_deceleration();
+    let k = mover_lift(world, &o.spec, &bcfg);
+    let closes = v_o * t_turn + v_o * v_o / (2.0 * a);
+    let room = bcfg.margin + k * v_o;
+    // k_m makes them equal at most; a relative 1e-9 leaves the rounding of the sum out.
+    let holds = closes <= room * (1.0 + 1e-9);
+    MoverFinding {
+        name,
+        holds: Some(holds),
+        detail: format!(
+            "stopped on its boundary with `{}` heading at it square to its heading, the robot turns a quarter turn in ≥ {t_turn:.3} s (ω_max and the drive's yaw-rate limit) and reaches v_o at {a} m/s²: the mover closes v_o·t_turn + v_o²/(2a) = {closes:.3} m, {} the room its row keeps, margin + k_m·v_o = {:.3} + {k:.3}·{v_o:.3} = {room:.3} m (k_m: the mover's lift, the world's {:.3} s raised to cover the turn){}",
+            o.name,
+            if holds { "within" } else { "more than" },
+            bcfg.margin,
+            bcfg.k,
+            if holds { "" } else { " (the guarantee does not apply with it)" }
+        ),
+    }
+}

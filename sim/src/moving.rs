@@ -1,0 +1,662 @@
+//! The moving obstacles of one run (issue #51): each obstacle with a `motion` is moved here —
+//! a scripted path ([`Trajectory`]) in closed form, a walker ([`Walker`]) one control step at
+//! a time — and read by the controller as a [`MoverState`] per mover.
+//!
+//! Movers are numbered in the order of the world's obstacles that move; a mover's barrier
+//! ([`ftcbf_controller::MovingBarrier`]) reads the state of that number.
+//!
+//! A walker steps the social force once per control period (from the positions at its start,
+//! with the robot as one more body to keep off) and then moves at the velocity found, in a
+//! straight line, through the plant ticks of the period: what the controller reads at the
+//! step — its position and that velocity — is exactly what it does until the next step. Its
+//! velocity jumps between steps by at most its acceleration times the period; the reading's
+//! acceleration bound is the social force's driving term's, (v_des + v_cap)/τ, which does not
+//! cover the repulsion when it is close to another body (stated, not proven).
+
+use ftcbf_controller::{Barrier, MoverState, State};
+use rand::RngCore;
+
+use crate::movers::{
+    step_crowd, MotionError, Repeat, SocialForce, Surroundings, Trajectory, Walker,
+};
+use crate::obstacles::{
+    BarrierConfig, MotionSpec, Obstacle, ObstacleBarrier, ObstacleSpec, RepeatSpec, ShapeSpec,
+};
+use crate::sensors::stream_rng;
+
+/// The largest factor a walker's speed may reach over its `speed`: its desired speed is at
+/// most 1.2 × `speed` (the per-trial draw) and its speed at most 1.3 × the desired one.
+pub const WALKER_SPEED_FACTOR: f64 = 1.2 * 1.3;
+
+/// The scripted path of `spec`, if it has one (a walker and a standing obstacle have none).
+pub fn trajectory(spec: &ObstacleSpec) -> Result<Option<Trajectory>, MotionError> {
+    let origin = [spec.position[0], spec.position[1]];
+    match &spec.motion {
+        Some(MotionSpec::Waypoints {
+            points,
+            speed,
+            repeat,
+            start,
+        }) => {
+            let repeat = match repeat {
+                RepeatSpec::Loop => Repeat::Loop,
+                RepeatSpec::Reverse => Repeat::Reverse,
+                RepeatSpec::Once => Repeat::Once,
+            };
+            Trajectory::waypoints(origin, points, *speed, repeat, *start).map(Some)
+        }
+        Some(MotionSpec::Velocity { velocity }) => {
+            for v in velocity {
+                if !v.is_finite() {
+                    return Err(MotionError::Value {
+                        key: "velocity",
+                        expected: "a finite number in m/s",
+                        found: *v,
+                    });
+                }
+            }
+            Ok(Some(Trajectory::Velocity {
+                origin,
+                velocity: *velocity,
+            }))
+        }
+        _ => Ok(None),
+    }
+}
+
+/// A walker's body radius: the radius of its round shape.
+fn walker_radius(spec: &ObstacleSpec) -> Option<f64> {
+    match spec.shape {
+        ShapeSpec::Cylinder { radius, .. }
+        | ShapeSpec::Capsule { radius, .. }
+        | ShapeSpec::Ball { radius } => Some(radius),
+        _ => None,
+    }
+}
+
+/// Checks an obstacle's `motion` (the key inside it and what was expected on error).
+pub fn check_motion(spec: &ObstacleSpec) -> Result<(), String> {
+    trajectory(spec).map_err(|e| e.to_string())?;
+    match (&spec.motion, &spec.shape) {
+        (Some(_), ShapeSpec::HalfSpace { .. } | ShapeSpec::OccupancyMap { .. }) => Err(format!(
+            "`kind`: a {} cannot move (expected a bounded shape)",
+            spec.shape.kind()
+        )),
+        (Some(MotionSpec::Walker { goals, speed }), _) => {
+            if walker_radius(spec).is_none() {
+                return Err(format!(
+                    "`kind`: a walker is a round body; expected a cylinder, capsule or ball, \
+                     found a {}",
+                    spec.shape.kind()
+                ));
+            }
+            if let Some(g) = goals.iter().flatten().find(|g| !g.is_finite()) {
+                return Err(format!("`goals`: expected finite numbers, found {g}"));
+            }
+            Walker::new([0.0, 0.0], 0.1, goals, *speed, 0)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The largest speed obstacle `spec` can move at \[m/s\] (0 when it stands still).
+pub fn max_speed(spec: &ObstacleSpec) -> f64 {
+    match &spec.motion {
+        Some(MotionSpec::Walker { speed, .. }) => WALKER_SPEED_FACTOR * speed,
+        Some(_) => trajectory(spec)
+            .ok()
+            .flatten()
+            .map_or(0.0, |t| t.max_speed()),
+        None => 0.0,
+    }
+}
+
+/// The indices of the obstacles that move, in mover order.
+pub fn mover_indices(obstacles: &[Obstacle]) -> Vec<usize> {
+    (0..obstacles.len())
+        .filter(|&i| obstacles[i].spec.motion.is_some())
+        .collect()
+}
+
+/// How one mover moves.
+#[derive(Debug, Clone)]
+enum Motion {
+    Scripted(Trajectory),
+    /// Index into the crowd.
+    Walker(usize),
+}
+
+/// The static obstacles as a walker sees them: distance and direction away from each.
+#[derive(Debug, Clone)]
+struct Statics {
+    barriers: Vec<ObstacleBarrier>,
+}
+
+impl Surroundings for Statics {
+    fn near(&self, p: [f64; 2], range: f64) -> Vec<(f64, [f64; 2])> {
+        const H: f64 = 1e-3;
+        let mut out = Vec::new();
+        for b in &self.barriers {
+            let at = |x: f64, y: f64| b.clearance(nalgebra::Vector2::new(x, y));
+            let d = at(p[0], p[1]);
+            // NaN (a non-finite position) is not near: skipped
+            if d.partial_cmp(&range) != Some(std::cmp::Ordering::Less) {
+                continue;
+            }
+            let g = [
+                at(p[0] + H, p[1]) - at(p[0] - H, p[1]),
+                at(p[0], p[1] + H) - at(p[0], p[1] - H),
+            ];
+            let n = g[0].hypot(g[1]);
+            if n > 0.0 && n.is_finite() {
+                out.push((d, [g[0] / n, g[1] / n]));
+            }
+        }
+        out
+    }
+}
+
+/// The movers of one run and their state.
+#[derive(Debug, Clone)]
+pub struct MoverSet {
+    /// The obstacle index of each mover.
+    obstacles: Vec<usize>,
+    /// Each mover's position at t = 0 \[m\].
+    origins: Vec<[f64; 2]>,
+    motions: Vec<Motion>,
+    crowd: Vec<Walker>,
+    /// Each walker's position at the start of the current control step, and that step's time.
+    crowd_start: Vec<[f64; 2]>,
+    step_start: f64,
+    /// Each walker's acceleration bound \[m/s²\].
+    crowd_accel: Vec<f64>,
+    model: SocialForce,
+    statics: Statics,
+    states: Vec<MoverState>,
+}
+
+impl MoverSet {
+    /// The movers of `obstacles`, walkers seeded from `seed` and their obstacle's name (so a
+    /// rerun with the same seed walks the same). `statics_cfg` is the barrier geometry a walker
+    /// keeps off the static obstacles with (its own radius is added by the social force).
+    pub fn new(obstacles: &[Obstacle], statics_cfg: &BarrierConfig, seed: u64) -> Self {
+        let model = SocialForce::default();
+        let mut set = Self {
+            obstacles: Vec::new(),
+            origins: Vec::new(),
+            motions: Vec::new(),
+            crowd: Vec::new(),
+            crowd_start: Vec::new(),
+            step_start: 0.0,
+            crowd_accel: Vec::new(),
+            model,
+            statics: Statics {
+                barriers: Vec::new(),
+            },
+            states: Vec::new(),
+        };
+        let bare = BarrierConfig {
+            robot_radius: 0.0,
+            margin: 0.0,
+            k: 0.0,
+            ..*statics_cfg
+        };
+        for (i, o) in obstacles.iter().enumerate() {
+            let spec = &o.spec;
+            let origin = [spec.position[0], spec.position[1]];
+            let motion = match (&spec.motion, trajectory(spec)) {
+                (None, _) => {
+                    set.statics.barriers.push(o.barrier(&bare));
+                    continue;
+                }
+                (Some(MotionSpec::Walker { goals, speed }), _) => {
+                    let mut rng = stream_rng(seed, "walker", &spec.name);
+                    let radius = walker_radius(spec).unwrap_or(0.0);
+                    // Checked when the world was loaded (`check_motion`).
+                    let Ok(w) = Walker::new(origin, radius, goals, *speed, rng.next_u64()) else {
+                        continue;
+                    };
+                    let cap = w.max_speed(&model);
+                    set.crowd_accel.push((w.desired_speed() + cap) / model.tau);
+                    set.crowd_start.push(origin);
+                    set.crowd.push(w);
+                    Motion::Walker(set.crowd.len() - 1)
+                }
+                (Some(_), Ok(Some(t))) => Motion::Scripted(t),
+                (Some(_), _) => continue,
+            };
+            set.obstacles.push(i);
+            set.origins.push(origin);
+            set.motions.push(motion);
+            set.states.push(MoverState::default());
+        }
+        set
+    }
+
+    /// Whether there is anything to move.
+    pub fn is_empty(&self) -> bool {
+        self.obstacles.is_empty()
+    }
+
+    /// The obstacle index of each mover.
+    pub fn obstacles(&self) -> &[usize] {
+        &self.obstacles
+    }
+
+    /// The readings of the current control step (see [`MoverSet::control_step`]).
+    pub fn states(&self) -> &[MoverState] {
+        &self.states
+    }
+
+    /// Starts the control step at time `t` \[s\] lasting `dt`: walkers take their social-force
+    /// step (keeping off the robot, a disc of `robot.1` at `robot.0`), and every mover's
+    /// reading is set to its state at `t`.
+    pub fn control_step(&mut self, t: f64, dt: f64, robot: ([f64; 2], f64)) {
+        if !self.crowd.is_empty() {
+            for (s, w) in self.crowd_start.iter_mut().zip(&self.crowd) {
+                *s = w.position;
+            }
+            step_crowd(&mut self.crowd, &self.model, &self.statics, Some(robot), dt);
+            // The crowd's new positions are those of t + dt; within the step each walker moves
+            // from its start at its new velocity.
+        }
+        self.step_start = t;
+        let mut states = std::mem::take(&mut self.states);
+        self.states_at(t, &mut states);
+        self.states = states;
+    }
+
+    /// Every mover's state at `tau` \[s\], within the current control step (a walker on its
+    /// straight line of this step; a scripted mover exactly).
+    pub fn states_at(&self, tau: f64, out: &mut Vec<MoverState>) {
+        out.clear();
+        for (k, m) in self.motions.iter().enumerate() {
+            let o = self.origins[k];
+            let (p, v, a) = match m {
+                Motion::Scripted(t) => {
+                    let (p, v) = t.state(tau);
+                    (p, v, 0.0)
+                }
+                Motion::Walker(w) => {
+                    let v = self.crowd[*w].velocity;
+                    let s = self.crowd_start[*w];
+                    let e = tau - self.step_start;
+                    ([s[0] + v[0] * e, s[1] + v[1] * e], v, self.crowd_accel[*w])
+                }
+            };
+            out.push(MoverState {
+                displacement: [p[0] - o[0], p[1] - o[1]],
+                velocity: v,
+                accel_bound: a,
+            });
+        }
+    }
+
+    /// Whether mover `k` is a walker.
+    pub fn is_walker(&self, k: usize) -> bool {
+        matches!(self.motions.get(k), Some(Motion::Walker(_)))
+    }
+}
+
+/// Where a scripted mover ends its motion, if it does (`once`, or a zero velocity).
+fn parks_at(t: &Trajectory) -> Option<[f64; 2]> {
+    match t {
+        Trajectory::Waypoints(p) if p.repeat == Repeat::Once => p.points.last().copied(),
+        Trajectory::Velocity { origin, velocity } if velocity == &[0.0, 0.0] => Some(*origin),
+        _ => None,
+    }
+}
+
+/// Whether the robot at rest at `p` is kept out by mover barrier `b` standing with
+/// displacement `d` (its value below h̄ at the largest γ).
+fn keeps_out(b: &dyn Barrier, gamma: f64, p: [f64; 2], d: [f64; 2], n: usize) -> bool {
+    let mut states = vec![MoverState::default(); n];
+    if let Some(m) = b.mover() {
+        if let Some(s) = states.get_mut(m) {
+            s.displacement = d;
+        }
+    }
+    let x = State::new(p[0], p[1], 0.0, 0.0);
+    b.eval_moving(&x, &states).0.value < b.h_bar(gamma)
+}
+
+/// What liveness with movers is decided over: the world's obstacles, the controller's
+/// barriers (a mover's found by its [`Barrier::mover`] number), the largest error bound γ, the
+/// run's duration \[s\] and the goal's centre \[m\].
+pub struct LiveInputs<'a> {
+    /// The world's obstacles.
+    pub obstacles: &'a [Obstacle],
+    /// The controller's barriers.
+    pub barriers: &'a [std::sync::Arc<dyn Barrier>],
+    /// The largest γ of the filters whose rows run.
+    pub gamma: f64,
+    /// The run's duration \[s\].
+    pub duration: f64,
+    /// The goal's centre \[m\].
+    pub goal: [f64; 2],
+    /// The robot's speed bound \[m/s\].
+    pub v_max: f64,
+}
+
+/// The share of its speed bound the robot is taken to cross a mover's stretch of its path at
+/// (it starts from rest, where it waited, and its rows slow it near the mover).
+pub const CROSSING_SPEED_FRACTION: f64 = 0.5;
+
+/// Where mover `spec` (starting at `origin`) is at `tau` \[s\]: its scripted path, or a
+/// walker's straight legs between its goals in turn at its `speed` (its social force steers it
+/// off them near other bodies: the legs are what it aims for).
+fn mover_at(spec: &ObstacleSpec, traj: Option<&Trajectory>, tau: f64) -> [f64; 2] {
+    let origin = [spec.position[0], spec.position[1]];
+    if let Some(t) = traj {
+        return t.state(tau).0;
+    }
+    let Some(MotionSpec::Walker { goals, speed }) = &spec.motion else {
+        return origin;
+    };
+    let mut left = tau * speed;
+    let mut from = origin;
+    // Origin to the first goal, then the goals in turn, round and round.
+    for j in 0..(goals.len() * 10_000).max(1) {
+        let Some(to) = goals.get(j % goals.len().max(1)).copied() else {
+            return origin;
+        };
+        let len = (to[0] - from[0]).hypot(to[1] - from[1]);
+        if left <= len || (goals.len() == 1 && j > 0) {
+            let s = if len > 0.0 {
+                (left / len).min(1.0)
+            } else {
+                1.0
+            };
+            return [
+                from[0] + s * (to[0] - from[0]),
+                from[1] + s * (to[1] - from[1]),
+            ];
+        }
+        left -= len;
+        from = to;
+    }
+    from
+}
+
+/// One mover against the robot's path, for liveness: its barrier `b` (at error bound γ, one of
+/// `n` movers), its spec and scripted path (None: a walker, taken along its legs).
+struct Window<'a> {
+    b: &'a dyn Barrier,
+    gamma: f64,
+    n: usize,
+    spec: &'a ObstacleSpec,
+    traj: Option<&'a Trajectory>,
+}
+
+impl Window<'_> {
+    fn covers(&self, p: [f64; 2], tau: f64) -> bool {
+        let q = mover_at(self.spec, self.traj, tau);
+        let d = [q[0] - self.spec.position[0], q[1] - self.spec.position[1]];
+        keeps_out(self.b, self.gamma, p, d, self.n)
+    }
+
+    /// Whether the robot, leaving the start of `band` (points every few cm, `cum` their arc
+    /// lengths from it) at `t0` \[s\] at `speed` \[m/s\], crosses it without the mover keeping
+    /// out the point it is at (sampled every 0.1 s).
+    fn passes(&self, band: &[[f64; 2]], cum: &[f64], t0: f64, speed: f64) -> bool {
+        const DT: f64 = 0.1;
+        let total = cum.last().copied().unwrap_or(0.0);
+        let mut j = 0;
+        let mut tau = 0.0;
+        loop {
+            let s = (speed * tau).min(total);
+            while j + 1 < cum.len() && cum[j + 1] <= s {
+                j += 1;
+            }
+            if self.covers(band[j], t0 + tau) {
+                return false;
+            }
+            if s >= total {
+                return true;
+            }
+            tau += DT;
+        }
+    }
+}
+
+/// Arc length of `path` from point `a` to point `b` (indices, a ≤ b) \[m\].
+fn arc(path: &[[f64; 2]], a: usize, b: usize) -> f64 {
+    path.get(a..=b).map_or(0.0, |w| {
+        w.windows(2)
+            .map(|q| (q[1][0] - q[0][0]).hypot(q[1][1] - q[0][1]))
+            .sum()
+    })
+}
+
+/// Liveness with movers along `path` (points every few cm): the movers that block it for good
+/// (a line each: one that stops across the path, or is over the goal when the run ends) and
+/// those the robot may wait for (they cross the path and move on).
+pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec<String>) {
+    let movers = mover_indices(inputs.obstacles);
+    let (mut blocked, mut waits) = (Vec::new(), Vec::new());
+    if movers.is_empty() {
+        return (blocked, waits);
+    }
+    let gamma = inputs.gamma;
+    let n = movers.len();
+    let barriers = inputs.barriers;
+    for (k, &i) in movers.iter().enumerate() {
+        let o = &inputs.obstacles[i];
+        let Some(b) = barriers.iter().find(|b| b.mover() == Some(k)) else {
+            continue;
+        };
+        let origin = [o.spec.position[0], o.spec.position[1]];
+        let traj = trajectory(&o.spec).ok().flatten();
+        if let Some(end) = traj.as_ref().and_then(parks_at) {
+            let d = [end[0] - origin[0], end[1] - origin[1]];
+            if let Some(p) = path
+                .iter()
+                .find(|&&p| keeps_out(b.as_ref(), gamma, p, d, n))
+            {
+                blocked.push(format!(
+                    "mover `{}` stops at ({:.2}, {:.2}) and stays there, across the path at ({:.2}, {:.2}): the robot is blocked for good",
+                    o.name, end[0], end[1], p[0], p[1]
+                ));
+                continue;
+            }
+        }
+        // Is it over the goal when the run ends (the robot cannot settle there)?
+        let goal = inputs.goal;
+        let duration = inputs.duration;
+        let end_window = crate::summary::SETTLE_WINDOW + 1.0;
+        if let Some(t) = &traj {
+            let over = (0..=(end_window / 0.1).ceil() as usize)
+                .map(|s| duration - s as f64 * 0.1)
+                .find(|&tau| {
+                    let (q, _) = t.state(tau);
+                    keeps_out(
+                        b.as_ref(),
+                        gamma,
+                        goal,
+                        [q[0] - origin[0], q[1] - origin[1]],
+                        n,
+                    )
+                });
+            if let Some(tau) = over {
+                blocked.push(format!(
+                    "mover `{}` is over the goal at t = {tau:.1} s, within the run's last {end_window} s: the robot cannot settle there",
+                    o.name
+                ));
+                continue;
+            }
+        }
+        // Does it ever come onto the path? Sampled every 0.1 s over the run.
+        let steps = (duration / 0.1).ceil() as usize;
+        let crosses = match &traj {
+            Some(t) => (0..=steps).any(|s| {
+                let (q, _) = t.state(s as f64 * 0.1);
+                let d = [q[0] - origin[0], q[1] - origin[1]];
+                path.iter().any(|&p| keeps_out(b.as_ref(), gamma, p, d, n))
+            }),
+            None => true,
+        };
+        if crosses {
+            let win = Window {
+                b: b.as_ref(),
+                gamma,
+                n,
+                spec: &o.spec,
+                traj: traj.as_ref(),
+            };
+            if let Some(line) = never_free(inputs, &win, path, &o.name) {
+                blocked.push(line);
+                continue;
+            }
+            waits.push(match traj {
+                Some(_) => format!("the robot may wait for mover `{}` to pass (it crosses the path and moves on)", o.name),
+                None => format!("the robot may wait for walker `{}` to pass (taken along the legs between its goals; its walk is not predicted exactly, and it never stops)", o.name),
+            });
+        }
+    }
+    (blocked, waits)
+}
+
+/// A line when the robot, crossing the stretch of `path` mover `name` ever comes onto at
+/// [`CROSSING_SPEED_FRACTION`] of its speed bound, meets the mover there whenever it leaves
+/// (from when it can reach the stretch to the last departure that leaves time to settle):
+/// blocked (it keeps crossing, the robot keeps waiting).
+fn never_free(
+    inputs: &LiveInputs<'_>,
+    win: &Window<'_>,
+    path: &[[f64; 2]],
+    name: &str,
+) -> Option<String> {
+    const DT: f64 = 0.1;
+    let steps = (inputs.duration / DT).ceil() as usize;
+    let covered: Vec<bool> = path
+        .iter()
+        .map(|&p| (0..=steps).any(|s| win.covers(p, s as f64 * DT)))
+        .collect();
+    let first = covered.iter().position(|&c| c)?;
+    let last = covered.iter().rposition(|&c| c)?;
+    let speed = CROSSING_SPEED_FRACTION * inputs.v_max;
+    if speed.is_nan() || speed <= 0.0 {
+        return None;
+    }
+    let arrive = arc(path, 0, first) / inputs.v_max;
+    let need = arc(path, first, last) / speed;
+    let after = arc(path, last, path.len().saturating_sub(1)) / inputs.v_max;
+    let latest = inputs.duration - crate::summary::SETTLE_WINDOW - after;
+    let band: Vec<[f64; 2]> = path[first..=last].to_vec();
+    let mut cum = vec![0.0; band.len()];
+    for j in 1..band.len() {
+        cum[j] = cum[j - 1] + (band[j][0] - band[j - 1][0]).hypot(band[j][1] - band[j - 1][1]);
+    }
+    // Departures every 0.1 s from when the robot can reach the stretch to the last one that
+    // crosses it in time to settle.
+    let departures = ((latest - need - arrive) / DT).floor();
+    let crosses = departures >= 0.0
+        && (0..=departures as usize)
+            .any(|k| win.passes(&band, &cum, arrive + k as f64 * DT, speed));
+    (!crosses).then(|| {
+        format!(
+            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}): leaving it at any time from t = {arrive:.1} s (when the robot can reach it) to {:.1} s (to cross it in time to settle) at {speed:.2} m/s, which takes {need:.1} s, the robot meets it there: it waits for good",
+            path[first][0],
+            path[first][1],
+            path[last][0],
+            path[last][1],
+            (latest - need).max(arrive)
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(motion: MotionSpec) -> ObstacleSpec {
+        ObstacleSpec {
+            name: "m".into(),
+            position: [1.0, 2.0, 0.2],
+            rpy: [0.0; 3],
+            shape: ShapeSpec::Cylinder {
+                radius: 0.15,
+                half_height: 0.2,
+            },
+            motion: Some(motion),
+        }
+    }
+
+    #[test]
+    fn bad_motions_name_their_key() {
+        let e = check_motion(&spec(MotionSpec::Waypoints {
+            points: vec![],
+            speed: 0.1,
+            repeat: RepeatSpec::Loop,
+            start: 0.0,
+        }))
+        .unwrap_err();
+        assert!(e.contains("`points`"), "{e}");
+        let e = check_motion(&spec(MotionSpec::Walker {
+            goals: vec![[0.0, 0.0]],
+            speed: f64::NAN,
+        }))
+        .unwrap_err();
+        assert!(e.contains("`speed`"), "{e}");
+        let e = check_motion(&spec(MotionSpec::Velocity {
+            velocity: [f64::INFINITY, 0.0],
+        }))
+        .unwrap_err();
+        assert!(e.contains("`velocity`"), "{e}");
+        let mut boxed = spec(MotionSpec::Walker {
+            goals: vec![[0.0, 0.0]],
+            speed: 1.0,
+        });
+        boxed.shape = ShapeSpec::Cuboid {
+            half_extents: [0.1; 3],
+        };
+        assert!(check_motion(&boxed).unwrap_err().contains("round body"));
+    }
+
+    #[test]
+    fn scripted_readings_are_displacements_from_the_start_and_walkers_repeat_with_the_seed() {
+        let cfg = BarrierConfig {
+            robot_radius: 0.1,
+            centre_height: 0.1,
+            margin: 0.0,
+            k: 0.0,
+            v_max: 0.2,
+            fd_step: 2e-3,
+        };
+        let mk = |s: &ObstacleSpec| Obstacle::from_spec(s, None).unwrap();
+        let obstacles = [
+            mk(&spec(MotionSpec::Velocity {
+                velocity: [0.1, 0.0],
+            })),
+            mk(&ObstacleSpec {
+                name: "w".into(),
+                ..spec(MotionSpec::Walker {
+                    goals: vec![[4.0, 2.0]],
+                    speed: 0.5,
+                })
+            }),
+        ];
+        let run = |seed| {
+            let mut set = MoverSet::new(&obstacles, &cfg, seed);
+            for k in 0..100 {
+                set.control_step(k as f64 * 0.02, 0.02, ([10.0, 10.0], 0.1));
+            }
+            set.states().to_vec()
+        };
+        let a = run(1);
+        // Velocity: 1.98 s at 0.1 m/s.
+        assert!((a[0].displacement[0] - 0.198).abs() < 1e-12);
+        assert_eq!(a[0].velocity, [0.1, 0.0]);
+        assert_eq!(a[0].accel_bound, 0.0);
+        // The walker heads +x at about its speed (0.4–0.6 m/s) after 2 s.
+        assert!(
+            a[1].velocity[0] > 0.3 && a[1].velocity[0] < 0.8,
+            "{:?}",
+            a[1]
+        );
+        assert_eq!(a, run(1), "same seed, same walk");
+        assert_ne!(a[1], run(2)[1], "another seed, another walk");
+    }
+}
