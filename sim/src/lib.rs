@@ -16,7 +16,6 @@ pub mod drivetrain;
 pub mod environment;
 pub mod model;
 pub mod movers;
-pub mod moving;
 pub mod observe;
 pub mod obstacles;
 pub mod physics;

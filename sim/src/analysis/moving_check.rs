@@ -18,13 +18,13 @@
 //! turns a quarter turn and accelerates to v_o while the mover closes in: that must fit in
 //! margin + k·v_o). Two movers pinning the robot between them stays assumed.
 //!
-//! **Liveness** with movers is [`crate::moving::liveness`] (in the liveness prediction): a mover
+//! **Liveness** with movers is [`crate::movers::fleet::liveness`] (in the liveness prediction): a mover
 //! that ends its motion (`repeat = "once"`, or a zero velocity) where the robot's path passes,
 //! or stands over the goal when the run ends, blocks it for good; a mover that crosses the path
 //! and goes on makes the robot wait for it to pass.
 
 use crate::model::setup::{mover_lift, quarter_turn_time, ControlSetup};
-use crate::moving::{max_speed, mover_indices};
+use crate::movers::fleet::{max_speed, mover_indices};
 use crate::obstacles::{BarrierConfig, MotionSpec, Obstacle, ObstacleBarrier, ShapeSpec};
 use crate::world::structure::obstacle_barrier_config;
 use crate::world::World;
@@ -182,7 +182,7 @@ fn swept_centres(world: &World, o: &Obstacle) -> Vec<[f64; 2]> {
             }
             out
         }
-        _ => match crate::moving::trajectory(&o.spec) {
+        _ => match crate::movers::fleet::trajectory(&o.spec) {
             Ok(Some(t)) => {
                 let v = t.max_speed().max(1e-3);
                 let dt = STEP / v;

@@ -353,7 +353,7 @@ impl ControlSetup {
             // A moving obstacle's barrier at its start, moved by its reading; its h̄_γ bound
             // is for the relative speed (the robot's bound plus the obstacle's).
             let cfg = BarrierConfig {
-                v_max: bcfg.v_max + crate::moving::max_speed(&ob.spec),
+                v_max: bcfg.v_max + crate::movers::fleet::max_speed(&ob.spec),
                 k: mover_lift(world, &ob.spec, &bcfg),
                 ..bcfg
             };
@@ -448,7 +448,7 @@ pub fn mover_lift(
     spec: &crate::obstacles::ObstacleSpec,
     bcfg: &BarrierConfig,
 ) -> f64 {
-    let v_o = crate::moving::max_speed(spec);
+    let v_o = crate::movers::fleet::max_speed(spec);
     match quarter_turn_time(world) {
         Some(t) if v_o > 0.0 => {
             let a = world.brake_deceleration();

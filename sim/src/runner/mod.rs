@@ -49,7 +49,7 @@ use ftcbf_controller::Input;
 use std::borrow::Cow;
 
 use crate::attacks::AttackStack;
-use crate::moving::MoverSet;
+use crate::movers::fleet::MoverSet;
 use crate::observe::{Frame, Observer, Scene};
 use crate::sensors::SensorSuite;
 use crate::summary::{AttackWindow, FailClosedCounts, RunSummary, SmoothnessMeter, StepCounts};

@@ -16,7 +16,7 @@ use crate::world::{GoalMetric, World};
 use ftcbf_controller::MoverState;
 
 use crate::model::setup::ControlSetup;
-use crate::moving::MoverSet;
+use crate::movers::fleet::MoverSet;
 use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.

@@ -901,7 +901,7 @@ impl Validator<'_> {
                 .map_err(|e| self.err(format!("obstacles[{i}]"), e.to_string()))?;
             if spec.motion.is_some() {
                 let key = format!("obstacles[{i}].motion");
-                crate::moving::check_motion(spec).map_err(|e| self.err(&key, e))?;
+                crate::movers::fleet::check_motion(spec).map_err(|e| self.err(&key, e))?;
                 if file.dynamics == Dynamics::Linear {
                     return Err(self.err(
                         key,

@@ -17,6 +17,11 @@
 //!
 //! The module knows nothing of rapier or parry: a walker sees the static obstacles through
 //! [`Surroundings`], which the simulator answers from its shapes.
+//!
+//! [`fleet`] holds the moving obstacles of one run: the world's movers numbered, moved each
+//! step, and read by the controller.
+
+pub mod fleet;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
