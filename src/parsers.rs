@@ -87,6 +87,7 @@ pub fn kind_parser() -> impl TypedValueParser<Value = OneOrEvery<Kind>> {
             Kind::Doorway => "A wall with a door, free-standing or between two rooms",
             Kind::Clutter => "A field of boxes, bins and balls",
             Kind::LTurn => "An L-shaped corridor",
+            Kind::Map => "A start and a goal on an occupancy map (drawn with --map only)",
         },
         ("all", "Every kind in turn"),
     )

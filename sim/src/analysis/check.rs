@@ -1990,7 +1990,10 @@ fn rest_gradients(world: &World, setup: &ControlSetup, bi: usize) -> (Vec<State>
             ),
         }
     } else {
-        let ob = &world.obstacles[bi - n_safe];
+        // a map gives one barrier per outline piece: barrier index ≠ obstacle index
+        let Some(ob) = crate::obstacles::obstacle_of_barrier(&world.obstacles, bi - n_safe) else {
+            return (Vec::new(), false);
+        };
         if ob.is_half_space() {
             (vec![barrier.eval(&State::zeros()).gradient], true)
         } else {

@@ -621,16 +621,18 @@ fn quarter_turns(mut l: Layout, k: u32) -> Layout {
 }
 
 /// Draws one layout of `kind`.
-pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Layout {
+pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Option<Layout> {
     let l = match kind {
         Kind::Room => room(rng, keep),
         Kind::Corridor => corridor(rng, keep),
         Kind::Doorway => doorway(rng, keep),
         Kind::Clutter => clutter(rng, keep),
         Kind::LTurn => l_turn(rng, keep),
+        // a map's scene is the map (super::on_map), not drawn here
+        Kind::Map => return None,
     };
     let k = rng.random_range(0..4);
-    quarter_turns(l, k)
+    Some(quarter_turns(l, k))
 }
 
 #[cfg(test)]
@@ -682,7 +684,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         for _ in 0..50 {
             for kind in Kind::ALL {
-                let l = draw(&mut rng, kind, keep);
+                let l = draw(&mut rng, kind, keep).expect("a layout kind");
                 for o in l.obstacles.iter().filter(|o| !o.name.contains("wall")) {
                     if o.name.starts_with("fence") {
                         continue;

@@ -130,6 +130,8 @@ pub(crate) struct WorldText {
     pub goal: [f64; 2],
     pub goal_radius: f64,
     pub obstacles: Vec<Obstacle>,
+    /// `[environment] map`, relative to the file's directory.
+    pub map: Option<String>,
     pub sensors: Vec<Sensor>,
     pub patterns: Vec<(String, Vec<String>)>,
     pub attack: Attack,
@@ -169,6 +171,11 @@ impl WorldText {
         w!("[goal]");
         w!("center = {}", list(&self.goal));
         w!("radius = {}", num(self.goal_radius));
+        if let Some(m) = &self.map {
+            w!("");
+            w!("[environment]");
+            w!("map = \"{m}\"");
+        }
         for o in &self.obstacles {
             w!("");
             w!("[[obstacles]]");
