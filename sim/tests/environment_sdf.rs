@@ -328,7 +328,12 @@ fn a_dqn_style_stage_places_its_walls_and_leaves_out_what_a_plugin_moves() {
     // The wrapper model `ftcbf_arena` (static, at the origin) around the included square.
     let east = find(o, "ftcbf_arena::ftcbf_square::Wall_E::Wall_E_Collision");
     near(east.position, [1.925, 0.0, 0.25], "Wall_E");
-    assert!((yaw(east) - 1.5708).abs() < 1e-4, "{:?}", east.rpy);
+    // 1.5708 in the file: a quarter turn within 4e-6 rad.
+    assert!(
+        (yaw(east) - std::f64::consts::FRAC_PI_2).abs() < 1e-4,
+        "{:?}",
+        east.rpy
+    );
     assert_eq!(
         east.shape,
         ShapeSpec::Cuboid {
