@@ -203,17 +203,17 @@ fn corridor_step2_test_flags_the_spoofed_filter_and_spares_the_honest_one() {
             },
         )
         .expect("simulation");
-        let theta = sim.setup().params.ft.theta[0];
+        let theta = sim.setup().config.ft.theta[0];
         let schedule = sim
             .setup()
-            .params
+            .config
             .ft
             .theta_schedule
             .clone()
             .expect("θ_ij(t)");
         let dt = w.control_dt();
-        let eta_half = sim.setup().params.ft.eta[0] / 2.0;
-        let metric = sim.setup().params.ft.increment_metric[0];
+        let eta_half = sim.setup().config.ft.eta[0] / 2.0;
+        let metric = sim.setup().config.ft.increment_metric[0];
         let window = (1.0 / w.control_dt()).round() as usize;
         // separations x̂_a − x̂_12 of the last `window` steps (zero at the start)
         let mut hist: Vec<[[f64; 4]; 2]> = vec![[[0.0; 4]; 2]; window];
@@ -765,12 +765,12 @@ fn a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap() {
     for c in gnss1 {
         assert_eq!((c.period, c.missed, c.every), (5, 6, 35), "{c:?}");
     }
-    let eps1 = |s: &ControlSetup| s.params.computed.as_ref().expect("auto").eps_per_sample;
+    let eps1 = |s: &ControlSetup| s.params.derivation.as_ref().expect("auto").eps_per_sample;
     assert!((eps1(&setup) / eps1(&fast) - 0.5).abs() < 1e-12);
     // γ here is set by the start uncertainty (P0 over the first steps), so it grows only by the
     // halved ε; η_12, the 1 s increment of the separation, sees the gaps: 12.7 → 17.2 (measured).
-    assert!(setup.params.ft.gamma[1] > fast.params.ft.gamma[1]);
-    let (e_fast, e_slow) = (fast.params.ft.eta[0], setup.params.ft.eta[0]);
+    assert!(setup.config.ft.gamma[1] > fast.config.ft.gamma[1]);
+    let (e_fast, e_slow) = (fast.config.ft.eta[0], setup.config.ft.eta[0]);
     assert!(
         e_slow > 1.3 * e_fast,
         "η_12 {e_slow} vs every tick {e_fast}"

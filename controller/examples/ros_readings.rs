@@ -23,7 +23,7 @@ use ftcbf_controller::odometry::{
     body_speed_to_world_velocity, fused_yaw_variance, world_velocity_variance, wrap_angle,
     yaw_from_quaternion, HeadingFilter, HeadingFilterParams,
 };
-use ftcbf_controller::params::{BoundMethod, FtParameters, UpdateSchedule};
+use ftcbf_controller::params::{BoundMethod, FtComputed, UpdateSchedule};
 use ftcbf_controller::{
     Controller, ControllerConfig, Input, LinearModel, ProblemForm, State, StateMatrix,
     TrackerConfig,
@@ -61,7 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let patterns = vec![vec![0, 1], vec![2, 3]];
     let p0 = StateMatrix::from_diagonal(&State::new(1e-4, 1e-4, 1e-4, 1e-4));
-    let params = FtParameters::compute_scheduled(
+    let params = FtComputed::compute_scheduled(
         &model,
         &patterns,
         DT,

@@ -208,7 +208,7 @@ impl ControllerConfigBuilder {
     }
 
     /// Initial estimate x̂(0) and its covariance P0. Default: the origin with P0 = 0, a start
-    /// known exactly (the setting of [`crate::params::FtParameters::compute`]).
+    /// known exactly (the setting of [`crate::params::FtComputed::compute`]).
     pub fn start(mut self, x0: State, p0: StateMatrix) -> Self {
         self.0.x0 = x0;
         self.0.p0 = p0;

@@ -35,7 +35,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use ftcbf_controller::drive::{Compensator, CompensatorConfig, LowSpeedLaw};
-//! use ftcbf_controller::params::{BoundMethod, FtParameters, UpdateSchedule};
+//! use ftcbf_controller::params::{BoundMethod, FtComputed, UpdateSchedule};
 //! use ftcbf_controller::{
 //!     Controller, ControllerConfig, HalfPlane, Input, LinearModel, ProblemForm, State,
 //!     StateMatrix, TrackerConfig,
@@ -55,7 +55,7 @@
 //! )?;
 //! let patterns = vec![vec![0, 1], vec![2, 3]]; // each receiver may fail
 //! let p0 = StateMatrix::from_diagonal(&State::new(1e-4, 1e-4, 1e-4, 1e-4));
-//! let params = FtParameters::compute_scheduled(
+//! let params = FtComputed::compute_scheduled(
 //!     &model, &patterns, dt, 0.05, 500, &p0, BoundMethod::Horizon, &UpdateSchedule::every_step(),
 //! );
 //! let limit = Input::new(1.0, 1.0);

@@ -9,7 +9,7 @@
 //! from N(x̂0, P0); measurements y = Cx + v, v ~ N(0, R) per channel, every step.
 
 use ftcbf_controller::estimator::EstimatorBank;
-use ftcbf_controller::params::{BoundMethod, FtParameters, UpdateSchedule};
+use ftcbf_controller::params::{BoundMethod, FtComputed, UpdateSchedule};
 use ftcbf_controller::{Input, LinearModel, State, StateMatrix};
 use nalgebra::RowVector4;
 use rand::{Rng, SeedableRng};
@@ -49,12 +49,8 @@ fn normal4(rng: &mut ChaCha8Rng) -> State {
 }
 
 /// The horizon bounds for ε = [`EPS`] over [`STEPS`] with every channel fresh every step.
-fn every_step_bounds(
-    model: &LinearModel,
-    patterns: &[Vec<usize>],
-    p0: &StateMatrix,
-) -> FtParameters {
-    FtParameters::compute_scheduled(
+fn every_step_bounds(model: &LinearModel, patterns: &[Vec<usize>], p0: &StateMatrix) -> FtComputed {
+    FtComputed::compute_scheduled(
         model,
         patterns,
         DT,
@@ -74,10 +70,10 @@ fn gamma_and_theta_bound_the_fault_free_errors_as_epsilon_promises() {
     let params = every_step_bounds(&model, &patterns, &p0);
     // The separation bound is tighter than the §4.3 triangle bound.
     assert!(
-        params.ft.theta[0] < params.theta_triangle[0],
+        params.ft.theta[0] < params.derivation.theta_triangle[0],
         "{} vs {}",
         params.ft.theta[0],
-        params.theta_triangle[0]
+        params.derivation.theta_triangle[0]
     );
     let seen = monte_carlo(&model, &patterns, &params, &p0, &Timing::EVERY_STEP, RUNS);
     let (runs_exceeding, worst_gamma_ratio, worst_theta_ratio) = (
@@ -122,7 +118,7 @@ struct Seen {
 fn monte_carlo(
     model: &LinearModel,
     patterns: &[Vec<usize>],
-    params: &FtParameters,
+    params: &FtComputed,
     p0: &StateMatrix,
     timing: &Timing,
     runs: u64,
@@ -206,7 +202,7 @@ fn slow_lossy_receivers_get_gamma_and_theta_from_their_schedule() {
     let updates = UpdateSchedule {
         every: vec![timing.every * (n + 1); 4],
     };
-    let scheduled = FtParameters::compute_scheduled(
+    let scheduled = FtComputed::compute_scheduled(
         &model,
         &patterns,
         DT,

@@ -12,7 +12,7 @@
 use std::sync::Arc;
 
 use ftcbf_controller::barrier::{Barrier, HalfPlane};
-use ftcbf_controller::params::{ln_gamma, FtParameters, FtParams};
+use ftcbf_controller::params::{ln_gamma, FtComputed, FtParams};
 use ftcbf_controller::policy::{Stage, Verdict};
 use ftcbf_controller::{
     ClfConfig, Controller, ControllerConfig, ControllerKind, Input, LinearModel, QpOutcome,
@@ -340,9 +340,9 @@ fn computed_parameters_for_eps_005() {
     let m = model();
     let steps = (T_END / DT).round() as usize;
     for (label, horizon) in [("pointwise", 1usize), ("whole-horizon", steps)] {
-        let fp = FtParameters::compute(&m, &[vec![1], vec![3]], DT, 0.05, horizon);
+        let fp = FtComputed::compute(&m, &[vec![1], vec![3]], DT, 0.05, horizon);
         println!("{label}: {fp}");
-        assert!(fp.all_converged);
+        assert!(fp.derivation.all_converged);
         assert_eq!((fp.ft.gamma.len(), fp.ft.theta.len()), (2, 1));
         assert!(fp.ft.theta[0] > 2.0 * fp.ft.gamma[0]);
         let p = fp.ft.clone();

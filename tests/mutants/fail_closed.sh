@@ -102,14 +102,14 @@ mutant "a run is SAFE with a non-finite barrier value" sim/src/runner/mod.rs \
 mutant "the summary names NaN but not an infinite barrier minimum" sim/src/summary.rs \
   '.find(|b| !b.value.is_finite())' '.find(|b| b.value.is_nan())' \
   the_first_non_finite_quantity_is_named -p ftcbf-sim --lib
-mutant "a check hypothesis that computed NaN or inf keeps its status" sim/src/analysis/check.rs \
+mutant "a check hypothesis that computed NaN or inf keeps its status" sim/src/analysis/check/report.rs \
   'if let Some(w) = shows_non_finite(&h.detail) {' 'if let Some(w) = None::<&str> {' \
   a_hypothesis_showing_nan_or_inf_fails_and_the_verdict_cannot_apply -p ftcbf-sim --lib
-mutant "check does not test the start against the safe sets and obstacles" sim/src/analysis/check.rs \
+mutant "check does not test the start against the safe sets and obstacles" sim/src/analysis/check/safety.rs \
   'if !(h.is_finite() && h >= 0.0) {' 'if false {' \
   a_start_outside_the_safe_set_fails_theorem_3 \
   --test reliability a_start_outside_the_safe_set_fails_theorem_3
-mutant "check is silent about a goal inside an obstacle" sim/src/analysis/check.rs \
+mutant "check is silent about a goal inside an obstacle" sim/src/analysis/check/safety.rs \
   'if !(h.is_finite() && h + f.goal.radius >= 0.0) {' 'if false {' \
   a_goal_inside_an_obstacle_fails \
   --test reliability a_goal_inside_an_obstacle_fails
@@ -178,8 +178,8 @@ mutant "gamma, theta, eta ignore the filter channels' rates and dropouts" sim/sr
   '            &timing.schedule,' '            &ftcbf_controller::params::UpdateSchedule::every_step(),' \
   a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap \
   --test guarantees a_slow_lossy_receiver_widens_the_bounds_by_its_worst_gap
-mutant "check ignores a declared bias on a filter channel" sim/src/analysis/check.rs \
-  '    check_white_noise(world, setup, &mut found); // 1d' '' \
+mutant "check ignores a declared bias on a filter channel" sim/src/analysis/check/mod.rs \
+  '    check_white_noise(cx, &mut found); // 1d' '' \
   a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis \
   --test guarantees a_declared_bias_on_a_filter_channel_fails_the_white_noise_hypothesis
 # Issue #36: a filter none of whose channels gave a reading for a whole χ² window ranks after

@@ -7,7 +7,7 @@ use crate::types::StateMatrix;
 
 use super::*;
 
-/// How [`FtParameters`] bounds the estimation errors.
+/// How [`FtComputed`] bounds the estimation errors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BoundMethod {
     /// The paper's §4.3: γ from the steady-state covariance (a finite-horizon covariance from
@@ -23,9 +23,9 @@ pub enum BoundMethod {
 
 /// The parameters the controller's conditions are stated with (§4.3): γ_i, γ of the
 /// all-channel filter, θ_ij, and Step 2's increment test (η_ij with its norm W_ij) and θ_ij(t).
-/// One type for the three places that hold them: computed ([`FtParameters::ft`]), in force for
-/// a world (the simulator's parameter report) and handed to the controller
-/// ([`crate::ControllerConfig::ft`]).
+/// One type wherever they are held: computed ([`FtComputed::ft`], with its
+/// [`FtDerivation`] beside) and handed to the controller ([`crate::ControllerConfig::ft`], where
+/// the simulator keeps the values in force for a world).
 ///
 /// Per-pair lists are in the packed order of [`PairTable`] ((0,1), (0,2), …, (1,2), …); `theta`,
 /// `eta` and `increment_metric` may instead hold one value for every pair.
@@ -77,18 +77,28 @@ impl FtParams {
     }
 }
 
-/// γ_i, γ_ij and θ_ij computed for a model, patterns, sampling period, ε and horizon.
+/// γ_i, γ_ij and θ_ij computed for a model, patterns, sampling period, ε and horizon
+/// ([`FtComputed::compute_scheduled`]): the parameters, and how they were obtained.
 #[derive(Debug, Clone, PartialEq)]
-pub struct FtParameters {
+pub struct FtComputed {
     /// The parameters the controller takes: γ_i per pattern, γ of the baseline (all channels)
     /// at the same per-sample ε', θ_ij per pair, and for [`BoundMethod::Horizon`] η_ij, W_ij
     /// and θ_ij(t) (empty/None for [`BoundMethod::Paper`]: the paper's Step 2 has no increment
     /// test).
     pub ft: FtParams,
+    /// How they were obtained.
+    pub derivation: FtDerivation,
+}
+
+/// How [`FtComputed::compute_scheduled`] obtained its [`FtParams`] (§4.3): the pair filters'
+/// γ_ij, the triangle bound, ε', the Riccati recursions. It holds none of the parameters
+/// themselves, so a report keeps them in one place (the parameters in force) and this beside.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FtDerivation {
     /// γ_ij per pair in packed order ([`PairTable`]).
     pub gamma_pair: Vec<f64>,
-    /// The §4.3 triangle bound 2(max(γ_i, γ_j) + γ_ij) in the same order (equal to `ft.theta`
-    /// for [`BoundMethod::Paper`]).
+    /// The §4.3 triangle bound 2(max(γ_i, γ_j) + γ_ij) in the same order (equal to
+    /// [`FtParams::theta`] for [`BoundMethod::Paper`]).
     pub theta_triangle: Vec<f64>,
     /// Per-sample, per-event ε' = ε/(N m).
     pub eps_per_sample: f64,
@@ -130,10 +140,10 @@ impl ThetaSchedule {
 /// the last second.
 pub const STEP2_WINDOW: f64 = 1.0;
 
-impl FtParameters {
+impl FtComputed {
     /// Compute for total failure probability `eps` over `horizon_samples` samples, for filters
     /// started from a known state (P0 = 0) whose channels all update every step, by the paper's
-    /// method. See [`FtParameters::compute_scheduled`].
+    /// method. See [`FtComputed::compute_scheduled`].
     pub fn compute(
         model: &LinearModel,
         patterns: &[Vec<usize>],
@@ -265,14 +275,16 @@ impl FtParameters {
                     }),
                 },
             },
-            gamma_pair,
-            theta_triangle,
-            eps_per_sample: eps1,
-            riccati_iterations: iterations,
-            all_converged,
-            riccati_converged: converged,
-            patterns: patterns.len(),
-            method,
+            derivation: FtDerivation {
+                gamma_pair,
+                theta_triangle,
+                eps_per_sample: eps1,
+                riccati_iterations: iterations,
+                all_converged,
+                riccati_converged: converged,
+                patterns: patterns.len(),
+                method,
+            },
         }
     }
 }
@@ -292,7 +304,7 @@ fn kept_channels(q: usize, drop: &[&Vec<usize>]) -> Vec<bool> {
 
 /// The horizon method's bounds on one pair of patterns, from the separation moments of each
 /// single-drop filter against the pair filter (issue #45 split this out of
-/// [`FtParameters::compute_scheduled`]; the arithmetic is unchanged).
+/// [`FtComputed::compute_scheduled`]; the arithmetic is unchanged).
 struct HorizonSeparation<'a> {
     model: &'a LinearModel,
     updates: &'a UpdateSchedule,
@@ -346,20 +358,40 @@ impl HorizonSeparation<'_> {
     }
 }
 
-impl fmt::Display for FtParameters {
+impl fmt::Display for FtComputed {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.derivation.write_report(f, &self.ft)
+    }
+}
+
+impl FtDerivation {
+    /// The report of parameters `ft` obtained this way: ε', γ_i, the baseline's γ, per pair γ_ij
+    /// and θ_ij (with the triangle bound and η_ij for the horizon method), the Riccati line.
+    /// A θ or η given as one value for all pairs is shown for each pair.
+    pub fn report(&self, ft: &FtParams) -> String {
+        struct Shown<'a>(&'a FtDerivation, &'a FtParams);
+        impl fmt::Display for Shown<'_> {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                self.0.write_report(f, self.1)
+            }
+        }
+        Shown(self, ft).to_string()
+    }
+
+    fn write_report(&self, f: &mut fmt::Formatter<'_>, ft: &FtParams) -> fmt::Result {
+        let per_pair = |values: &[f64], k: usize| match values {
+            [one] => Some(*one),
+            many => many.get(k).copied(),
+        };
         writeln!(f, "per-sample epsilon' = {:.3e}", self.eps_per_sample)?;
-        for (i, g) in self.ft.gamma.iter().enumerate() {
+        for (i, g) in ft.gamma.iter().enumerate() {
             writeln!(f, "gamma_{} = {:.6}", i + 1, g)?;
         }
-        writeln!(f, "gamma_baseline = {:.6}", self.ft.gamma_baseline)?;
-        for (k, ((g, t), tri)) in self
-            .gamma_pair
-            .iter()
-            .zip(&self.ft.theta)
-            .zip(&self.theta_triangle)
-            .enumerate()
-        {
+        writeln!(f, "gamma_baseline = {:.6}", ft.gamma_baseline)?;
+        for (k, (g, tri)) in self.gamma_pair.iter().zip(&self.theta_triangle).enumerate() {
+            let Some(t) = per_pair(&ft.theta, k) else {
+                break;
+            };
             match self.method {
                 BoundMethod::Paper => {
                     writeln!(f, "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6}")?
@@ -367,7 +399,7 @@ impl fmt::Display for FtParameters {
                 BoundMethod::Horizon => writeln!(
                     f,
                     "pair {k}: gamma_ij = {g:.6}, theta_ij = {t:.6} (solution separation; the triangle bound of §4.3 would be {tri:.6}), eta_ij = {:.6} (separation increment over {STEP2_WINDOW} s, in the covariance-weighted norm ‖z‖_W)",
-                    self.ft.eta.get(k).copied().unwrap_or(f64::NAN)
+                    per_pair(&ft.eta, k).unwrap_or(f64::NAN)
                 )?,
             }
         }
@@ -375,7 +407,7 @@ impl fmt::Display for FtParameters {
     }
 }
 
-impl FtParameters {
+impl FtDerivation {
     /// The filter a Riccati recursion belongs to, by its index in `riccati_iterations`:
     /// `filter 2` (pattern 2 dropped), `pair (1, 2)`, `baseline`.
     fn filter_name(&self, k: usize) -> String {

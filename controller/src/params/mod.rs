@@ -68,7 +68,7 @@ mod tests {
         assert!(vel[2] > 0.0 && vel[2] < 0.1, "{vel}");
     }
 
-    /// The packed layout is the order (0,1), (0,2), …, (1,2), … in which [`FtParameters`]
+    /// The packed layout is the order (0,1), (0,2), …, (1,2), … in which [`FtComputed`]
     /// computes its pair values, whichever way round a pair is asked for.
     #[test]
     fn pair_table_packs_pairs_in_the_computation_order() {

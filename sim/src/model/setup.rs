@@ -9,7 +9,7 @@ use ftcbf_controller::controller::ControllerConfig;
 use ftcbf_controller::lyapunov::{ClfConfig, QuadraticClf};
 use ftcbf_controller::model::LinearModel;
 use ftcbf_controller::params::{
-    gain_product, steady_state_riccati, BoundMethod, FtParameters, FtParams,
+    gain_product, steady_state_riccati, BoundMethod, FtComputed, FtDerivation, FtParams,
 };
 use ftcbf_controller::policy::DEFAULT_EVIDENCE_ALPHA;
 use ftcbf_controller::{Barrier, Fallback, Input, ProblemForm, State, StateMatrix, TrackerConfig};
@@ -24,8 +24,8 @@ use crate::world::{
 };
 
 use crate::world::structure::{
-    check_h_bar_inputs, horizon_ticks, model_patterns, obstacle_barrier_config, sensor_timing,
-    speed_bound, Channels, Conversion, SensorTiming, StructureError,
+    check_h_bar_inputs, model_patterns, obstacle_barrier_config, sensor_timing, speed_bound,
+    Channels, Conversion, SensorTiming, StructureError,
 };
 
 use super::RunError;
@@ -61,7 +61,7 @@ pub struct ControlSetup {
     /// Number of closed-form safe sets (the first barriers).
     pub safe_sets: usize,
     /// The parameters used, and how they were obtained (for `check` and logs).
-    pub params: ParamReport,
+    pub params: ParamSources,
     /// κ in force and how it was chosen.
     pub gain: GainChoice,
 }
@@ -172,7 +172,7 @@ pub fn choose_gain(
     world: &World,
     model: &LinearModel,
     patterns: &[Vec<usize>],
-    params: &ParamReport,
+    ft: &FtParams,
     obstacles: &[Arc<dyn Barrier>],
 ) -> GainChoice {
     let c = &world.file.control;
@@ -183,8 +183,8 @@ pub fn choose_gain(
             world,
             model,
             patterns,
-            &params.ft.gamma,
-            params.ft.gamma_baseline,
+            &ft.gamma,
+            ft.gamma_baseline,
             obstacles,
         )
     };
@@ -222,19 +222,17 @@ pub fn choose_gain(
     }
 }
 
-/// The parameters in force, for reports.
+/// Where the parameters in force came from, for reports. The parameters themselves (γ_i, γ of
+/// the all-channel filter, θ_ij, and η_ij, W_ij and θ_ij(t) of Step 2's increment test) are held
+/// once, in the controller's configuration ([`ControlSetup::config`]'s `ft`).
 #[derive(Debug, Clone)]
-pub struct ParamReport {
-    /// γ_i, γ of the all-channel filter, θ_ij (per pair or one value for all), and η_ij, W_ij and
-    /// θ_ij(t) of Step 2's increment test (computed, `theta = "auto"` with the horizon bounds
-    /// only; empty/None with a given θ or `bounds = "paper"`).
-    pub ft: FtParams,
+pub struct ParamSources {
     /// δ (∞ = constraints always active).
     pub delta: f64,
     /// δ was not given and was chosen for Prop. 1 ([`auto_delta`]).
     pub delta_auto: bool,
-    /// Computed by §4.3 (`auto`), with the details.
-    pub computed: Option<FtParameters>,
+    /// How §4.3 computed them (`auto`); None when the world file gives γ and θ.
+    pub derivation: Option<FtDerivation>,
     /// ε the computed parameters are for.
     pub epsilon: f64,
     /// How the filter channels' readings arrive in the worst case γ, θ and η are computed for.
@@ -273,7 +271,7 @@ pub fn ellipse_prop1(
     spec: &SafeSetSpec,
 ) -> Option<LiftedProp1> {
     let e = lifted_ellipse(world, spec)?;
-    let p = &setup.params.ft;
+    let p = &setup.config.ft;
     let theta_bar = p.theta.iter().copied().fold(0.0_f64, f64::max);
     let h_bar = p
         .gamma
@@ -343,14 +341,14 @@ impl ControlSetup {
             }
         }
         let barrier_names = barriers.iter().map(|b| b.name().to_string()).collect();
-        let params = parameters(world, &model, &patterns, &ch.sensor_of_channel);
-        let gain = choose_gain(world, &model, &patterns, &params, &barriers[safe_sets..]);
+        let (ft, params) = parameters(world, &model, &patterns, &ch.sensor_of_channel);
+        let gain = choose_gain(world, &model, &patterns, &ft, &barriers[safe_sets..]);
         let form = problem_form(
             world,
             &bcfg,
             &model,
             &patterns,
-            &params.ft.gamma,
+            &ft.gamma,
             &barriers[..safe_sets],
             &gain,
         )?;
@@ -362,7 +360,7 @@ impl ControlSetup {
             _ => 1,
         };
         let index = active_index(world, &bcfg, units, safe_sets, barriers.len());
-        let builder = ControllerConfig::builder(model, patterns, params.ft.clone());
+        let builder = ControllerConfig::builder(model, patterns, ft);
         let builder = match index {
             Some(index) => builder.barrier_index(index),
             None => builder,
@@ -994,15 +992,15 @@ fn parameters(
     model: &LinearModel,
     patterns: &[Vec<usize>],
     sensor_of_channel: &[usize],
-) -> ParamReport {
+) -> (FtParams, ParamSources) {
     let file = &world.file;
     let control_dt = world.control_dt();
-    let horizon = horizon_ticks(world);
+    let horizon = world.horizon_ticks();
     let timing = sensor_timing(world, sensor_of_channel, horizon);
     let needs_auto =
         matches!(file.control.gamma, Param::Auto) || matches!(file.control.theta, Param::Auto);
     let computed = needs_auto.then(|| {
-        FtParameters::compute_scheduled(
+        FtComputed::compute_scheduled(
             model,
             patterns,
             control_dt,
@@ -1017,7 +1015,10 @@ fn parameters(
         )
     });
     // Computed where `auto` (all of it, or nothing when both are given), then the given values.
-    let mut ft = computed.as_ref().map(|p| p.ft.clone()).unwrap_or_default();
+    let (mut ft, derivation) = match computed {
+        Some(c) => (c.ft, Some(c.derivation)),
+        None => (FtParams::default(), None),
+    };
     if let Param::Value(g) = file.control.gamma {
         ft.gamma = vec![g; patterns.len()];
         ft.gamma_baseline = g;
@@ -1036,14 +1037,14 @@ fn parameters(
         Some(_) => None,
         None => auto_delta(world, &ft.theta, &ft.gamma),
     };
-    ParamReport {
-        ft,
+    let sources = ParamSources {
         delta: file.control.delta.or(auto).unwrap_or(f64::INFINITY),
         delta_auto: auto.is_some(),
-        computed,
+        derivation,
         epsilon: file.control.epsilon,
         timing,
-    }
+    };
+    (ft, sources)
 }
 
 /// δ for a world that gives none and has an inside (arena) ellipse: Prop. 1 needs the estimates

@@ -9,23 +9,25 @@ use crate::attacks::AttackStack;
 use crate::summary::EstimationError;
 use crate::world::World;
 
-use crate::model::setup::ParamReport;
+use crate::model::setup::ControlSetup;
 
 /// The γ each filter of the bank is held to: γ_i for the filter that drops pattern i, γ_ij for
 /// the one that drops i and j (computed bounds only), γ of the baseline for `all`.
-pub fn filter_gammas(bank: &EstimatorBank, params: &ParamReport) -> Vec<Option<f64>> {
+pub fn filter_gammas(bank: &EstimatorBank, setup: &ControlSetup) -> Vec<Option<f64>> {
+    let ft = &setup.config.ft;
     let m = bank.patterns();
     bank.filters()
         .iter()
         .map(|f| match f.role() {
-            FilterRole::DropPattern(i) => params.ft.gamma.get(i).copied(),
-            // γ_ij in the packed pair order of FtParameters::gamma_pair.
-            FilterRole::DropPair(i, j) => params
-                .computed
+            FilterRole::DropPattern(i) => ft.gamma.get(i).copied(),
+            // γ_ij in the packed pair order of FtDerivation::gamma_pair.
+            FilterRole::DropPair(i, j) => setup
+                .params
+                .derivation
                 .as_ref()
                 .zip(pair_slot(m, i, j))
                 .and_then(|(c, k)| c.gamma_pair.get(k).copied()),
-            FilterRole::Baseline => Some(params.ft.gamma_baseline),
+            FilterRole::Baseline => Some(ft.gamma_baseline),
         })
         .map(|g| g.filter(|g| g.is_finite() && *g > 0.0))
         .collect()

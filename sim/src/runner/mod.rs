@@ -275,7 +275,7 @@ impl<'w> Simulation<'w> {
         let errors = match law.estimators() {
             Some(bank) => ErrorMeter::new(
                 &filters,
-                &errors::filter_gammas(bank, &setup.params),
+                &errors::filter_gammas(bank, &setup),
                 &errors::honest_filters(bank, &attacks, world),
             ),
             None => ErrorMeter::default(),

@@ -249,6 +249,13 @@ impl World {
         (duration / self.control_dt()).round().max(1.0) as u64
     }
 
+    /// The control ticks the bounds cover, ⌈T/dt⌉ for the file's duration T (at least 1): the
+    /// horizon γ, θ, η, the gap budget and the analyses' worst cases are taken over. Never fewer
+    /// than the run's [`World::control_steps`] (a rounded count), so the bounds cover the run.
+    pub fn horizon_ticks(&self) -> usize {
+        (self.file.duration / self.control_dt()).ceil().max(1.0) as usize
+    }
+
     /// Plant step \[s\] (physics or linear integration).
     pub fn plant_dt(&self) -> f64 {
         match self.file.dynamics {
@@ -563,7 +570,9 @@ impl Validator<'_> {
         Ok(())
     }
 
-    /// `[[safe_sets]]`: their number, and each one's half-plane or ellipse.
+    /// `[[safe_sets]]`: their number, and each one's half-plane (a non-zero normal) or ellipse
+    /// (positive semi-axes: [`ranges::SIZE`] starts above 0). The one walk over the safe sets'
+    /// numbers; [`ranges::Range::contains`] also refuses NaN and ±∞.
     fn check_safe_set_ranges(&self, file: &WorldFile) -> Result<(), WorldError> {
         use ranges as r;
         self.count("safe_sets", file.safe_sets.len(), r::MAX_SAFE_SETS)?;
@@ -573,6 +582,11 @@ impl Validator<'_> {
                 SafeSetSpec::HalfPlane { a, b, .. } => {
                     self.ranges(&format!("{key}.a"), a, r::NORMAL_COMPONENT)?;
                     self.range(&format!("{key}.b"), *b, r::OFFSET)?;
+                    if a.iter().all(|v| *v == 0.0) {
+                        return Err(
+                            self.err(format!("{key}.a"), "expected a non-zero normal vector")
+                        );
+                    }
                 }
                 SafeSetSpec::EllipseInside {
                     center,
@@ -914,7 +928,7 @@ impl Validator<'_> {
             _ => None,
         };
         let environment = self.load_environment(&mut file, base, robot.as_ref())?;
-        let mut names = self.check_safe_sets(&file)?;
+        let mut names = Self::safe_set_names(&file);
         let mut obstacles = Vec::with_capacity(file.obstacles.len());
         for (i, spec) in file.obstacles.iter().enumerate() {
             let ob = Obstacle::from_spec(spec, Some(base))
@@ -1121,49 +1135,12 @@ impl Validator<'_> {
         Ok(ticks)
     }
 
-    /// `[[safe_sets]]`: finite numbers, a non-zero half-plane normal, positive semi-axes.
-    /// Returns each set's name with its key, for the uniqueness check.
-    fn check_safe_sets<'f>(
-        &self,
-        file: &'f WorldFile,
-    ) -> Result<Vec<(&'f str, String)>, WorldError> {
-        let mut names: Vec<(&str, String)> = Vec::new();
-        for (i, s) in file.safe_sets.iter().enumerate() {
-            let key = format!("safe_sets[{i}]");
-            match s {
-                SafeSetSpec::HalfPlane { a, b, .. } => {
-                    self.finite(&format!("{key}.a"), a)?;
-                    self.finite(&format!("{key}.b"), &[*b])?;
-                    if a.iter().all(|v| *v == 0.0) {
-                        return Err(
-                            self.err(format!("{key}.a"), "expected a non-zero normal vector")
-                        );
-                    }
-                }
-                SafeSetSpec::EllipseInside {
-                    center,
-                    semi_axes,
-                    angle,
-                    lift,
-                    ..
-                }
-                | SafeSetSpec::EllipseOutside {
-                    center,
-                    semi_axes,
-                    angle,
-                    lift,
-                    ..
-                } => {
-                    self.finite(&format!("{key}.center"), center)?;
-                    self.finite(&format!("{key}.angle"), &[*angle])?;
-                    self.positive(&format!("{key}.semi_axes[0]"), semi_axes[0])?;
-                    self.positive(&format!("{key}.semi_axes[1]"), semi_axes[1])?;
-                    self.non_negative(&format!("{key}.lift"), *lift)?;
-                }
-            }
-            names.push((s.name(), key));
-        }
-        Ok(names)
+    /// Each safe set's name with its key, for the uniqueness check (their numbers were checked
+    /// with the ranges: [`Validator::check_safe_set_ranges`]).
+    fn safe_set_names(file: &WorldFile) -> Vec<(&str, String)> {
+        (file.safe_sets.iter().enumerate())
+            .map(|(i, s)| (s.name(), format!("safe_sets[{i}]")))
+            .collect()
     }
 
     /// No two safe sets or obstacles share a name (`names`: name and key, in file order).

@@ -133,11 +133,6 @@ fn sampled_by(sensors: &[crate::sensors::ChannelSpec], si: usize) -> Vec<usize> 
     crate::sensors::wheel_sources(sensors, si).map_or(vec![si], |w| w.to_vec())
 }
 
-/// The run's control ticks, ⌈T/dt⌉ (at least 1): the horizon γ, θ, η and the gap budget cover.
-pub(crate) fn horizon_ticks(world: &World) -> usize {
-    (world.file.duration / world.control_dt()).ceil().max(1.0) as usize
-}
-
 /// The sensors whose dropouts the gap budget of [`sensor_timing`] covers: every sensor a filter
 /// channel is read from (both wheels of one derived from wheels) and, when a channel turns a
 /// speed into world-frame velocity, the heading channel it is turned with (a lost heading sample
@@ -219,7 +214,7 @@ pub fn heading_hold(world: &World) -> Option<HeadingHold> {
         return None;
     }
     let lossy = lossy_sensors(world, &channel_sensors).len();
-    let (_, _, every) = sample_gaps(world, h, horizon_ticks(world), lossy);
+    let (_, _, every) = sample_gaps(world, h, world.horizon_ticks(), lossy);
     let fused = heading_fusion(world).is_some();
     let age = match (fused, every) {
         (true, _) => 0.0,
@@ -646,4 +641,50 @@ pub(crate) fn model_patterns(
         patterns.push(mapped);
     }
     Ok(patterns)
+}
+
+/// Declared attacks that touch more than one fault pattern (or a sensor in none): Theorem 3
+/// covers one pattern at a time.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the declared attacks touch {}; Theorem 3 covers one fault pattern at a time", .touched.join(" and "))]
+pub struct AttacksAcrossPatterns {
+    /// The fault patterns touched, by name, in the order the attacked sensors are declared; a
+    /// sensor in no pattern as `name (in no pattern)`.
+    pub touched: Vec<String>,
+    /// The first pattern (index in `[[fault_patterns]]`) holding an attacked sensor, if any.
+    pub first: Option<usize>,
+}
+
+/// The fault pattern the declared attacks lie in: the one (index in `[[fault_patterns]]`) whose
+/// sensors contain every attacked sensor; `Ok(None)` without attacks. The one definition of
+/// "the attacked pattern": `check` states it as a hypothesis, liveness places the spoofed
+/// estimates with it (falling back to [`AttacksAcrossPatterns::first`]).
+pub fn attacked_pattern(world: &World) -> Result<Option<usize>, AttacksAcrossPatterns> {
+    let sensors = &world.file.sensors;
+    let mut attacked: Vec<usize> = Vec::new();
+    for c in world.file.attacks.iter().flat_map(|a| &a.channels) {
+        if let Some(i) = sensors.iter().position(|s| &s.name == c) {
+            if !attacked.contains(&i) {
+                attacked.push(i);
+            }
+        }
+    }
+    if attacked.is_empty() {
+        return Ok(None);
+    }
+    if let Some(pi) = (world.patterns.iter()).position(|p| attacked.iter().all(|c| p.contains(c))) {
+        return Ok(Some(pi));
+    }
+    let mut touched: Vec<String> = Vec::new();
+    for &c in &attacked {
+        let name = match world.patterns.iter().position(|p| p.contains(&c)) {
+            Some(pi) => world.file.fault_patterns[pi].name.clone(),
+            None => format!("{} (in no pattern)", sensors[c].name),
+        };
+        if !touched.contains(&name) {
+            touched.push(name);
+        }
+    }
+    let first = (world.patterns.iter()).position(|p| attacked.iter().any(|c| p.contains(c)));
+    Err(AttacksAcrossPatterns { touched, first })
 }
