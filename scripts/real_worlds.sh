@@ -114,6 +114,34 @@ page() {
             echo "| $name | ($s) → ($g) | $verdict | $safe/$n $(wilson "$safe" "$n") | $settled/$n $(wilson "$settled" "$n") | $live | $ok | ${secs} s | $at |"
         done <"$rows"
     } >"$out/real-worlds.md"
+    readme_rows >"$out/readme-rows.md"
+}
+
+# The README's table: the rows summed per world (name up to its last `_`), in the order the
+# worlds first appear.
+readme_rows() {
+    echo "| world | pairs | Theorem 3 applies | safe | settled in the goal | \`check\` predicted live, matched |"
+    echo "|---|---:|---:|---|---|---:|"
+    local w
+    for w in $(cut -f1 "$rows" | sed 's/_[^_]*$//' | awk '!seen[$0]++'); do
+        read -r pairs applies safe settled n live matched < <(awk -F'\t' -v w="$w" '
+            { g = $1; sub(/_[^_]*$/, "", g) }
+            g == w { p++; a += ($2 == "applies"); s += $4; t += $5; n += $6
+                if ($3 == "live") { l++; m += ($5 >= 0.95 * $6) } }
+            END { print p, a, s, t, n, l + 0, m + 0 }' "$rows")
+        local label
+        case $w in
+            sdf_world) label="SDF: \`turtlebot3_world.world\`" ;;
+            map_world) label="nav2 map of turtlebot3_world" ;;
+            map_office) label="map fixture \`tests/worlds_map/office.yaml\`" ;;
+            house) label="SDF: \`turtlebot3_house.world\`" ;;
+            dqn1) label="SDF: \`turtlebot3_dqn_stage1.world\`" ;;
+            dqn2) label="SDF: \`turtlebot3_dqn_stage2.world\`" ;;
+            dqn3 | dqn4) label="SDF: \`turtlebot3_${w/dqn/dqn_stage}.world\` (static parts)" ;;
+            *) label=$w ;;
+        esac
+        echo "| $label | $pairs | $applies | $safe/$n $(wilson "$safe" "$n") | $settled/$n $(wilson "$settled" "$n") | $matched of $live |"
+    done
 }
 
 rows="$out/rows.tsv"
@@ -138,5 +166,6 @@ for entry in "${pairs[@]}"; do
     mv "$rows.new" "$rows"
     page # after each pair, so a run stopped half-way leaves the pairs it finished
 done
+page # also when no pair ran: PAIRS=none rewrites the page from OUT/rows.tsv
 cat "$out/real-worlds.md"
 
