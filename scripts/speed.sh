@@ -157,7 +157,7 @@ batch_row "paired with the baseline (the default controllers)"
 step_bench=$(ls -t "$root"/target/release/deps/step-* 2>/dev/null | grep -v '\.d$' | head -1 || true)
 bench_txt=""
 if [[ -n "$step_bench" ]]; then
-  bench_txt=$("$step_bench" --bench clutter 2>/dev/null | grep -E '^step_m2_clutter|time:' | paste - - | sed -E 's/ +/ /g' || true)
+  bench_txt=$("$step_bench" --bench clutter 2>/dev/null | grep -E '^step_m2_clutter|time:' || true)
 fi
 
 commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD || echo "+dirty")
@@ -219,10 +219,29 @@ if batches:
     L.append("")
 L.append("## Criterion: the control step with far barriers\n")
 L.append("`target/release/deps/step-* --bench clutter` (controller/benches/step.rs): the m = 2 closed loop "
-         "with the floor and 1 or 199 far discs, δ = ∞. Target: 200 ≤ 1.5× 2.\n")
-L.append("```text")
-L.append(bench.strip() or "(no bench executable found: build with --all-targets)")
-L.append("```\n")
+         "with the floor and 1 or 199 far discs, δ = ∞, the discs in the controller library's "
+         "`EllipseIndex` (as a user of the library would put them); `200_unindexed`: the same "
+         "200 barriers without the index. Target: 200 ≤ 1.5× 2.\n")
+import re
+unit = {"ns": 1e-3, "µs": 1.0, "us": 1.0, "ms": 1e3, "s": 1e6}
+times, name = {}, None
+for line in bench.splitlines():
+    m = re.match(r"^(step_m2_clutter_\S+)", line)
+    if m:
+        name = m.group(1)
+    t = re.search(r"time:\s+\[(\S+) (\S+) (\S+) (\S+) (\S+) (\S+)\]", line)
+    if t and name:
+        times[name] = [float(t.group(i)) * unit[t.group(i + 1)] for i in (1, 3, 5)]
+        name = None
+if times:
+    L.append("| bench | time (criterion's interval) [µs] | × 2 barriers (medians) |")
+    L.append("|---|---:|---:|")
+    two = times.get("step_m2_clutter_2", [float("nan")] * 3)[1]
+    for n, (lo, mid, hi) in times.items():
+        L.append(f"| `{n}` | {lo:.1f} / **{mid:.1f}** / {hi:.1f} | {mid / two:.2f} |")
+    L.append("")
+else:
+    L.append("(no bench executable found: build with --all-targets)\n")
 L.append("## Other benches\n")
 L.append("Not run by this script (run them for figures; the page keeps no hand-written numbers): "
          "`target/release/deps/step-* --bench` (every control-step bench: m = 2 and 3, static, "

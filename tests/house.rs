@@ -244,6 +244,39 @@ fn no_function_in_any_crate_is_over_120_lines() {
     );
 }
 
+/// Lines beyond which a source file must say in its module docs why it is one file.
+const LONG_FILE: usize = 1_000;
+
+/// A long file says why it is one ("One file (…): …" in its leading `//!` docs), so that a
+/// file grows past the size only with a reason a reviewer can judge; test modules are exempt.
+#[test]
+fn a_file_over_a_thousand_lines_says_why_it_is_one_file() {
+    let mut long = 0;
+    let mut silent = Vec::new();
+    for (_, file, text) in sources() {
+        let lines = text.lines().count();
+        let is_tests = file.file_stem().is_some_and(|s| s == "tests");
+        if lines <= LONG_FILE || is_tests {
+            continue;
+        }
+        long += 1;
+        let docs: String = (text.lines())
+            .take_while(|l| l.starts_with("//!"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        if !docs.contains("One file (") {
+            silent.push(format!("{} ({lines} lines)", shown(&file)));
+        }
+    }
+    println!("{long} files over {LONG_FILE} lines");
+    assert!(
+        silent.is_empty(),
+        "files over {LONG_FILE} lines whose module docs do not say why they are one file \
+         (\"One file (…): …\"):\n{}",
+        silent.join("\n")
+    );
+}
+
 /// The scan itself: braces in strings, raw strings, characters and comments do not count,
 /// lifetimes are not character literals, nested functions count towards their holder,
 /// declarations without a body and function-pointer types are not functions.

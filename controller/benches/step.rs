@@ -17,8 +17,10 @@
 //!
 //! `step_m2_clutter_N` (issue #52): the m = 2 closed loop with N barriers, the floor half-plane
 //! and N − 1 discs of radius 0.1 m at least 3 m from the path, δ = ∞ (every row imposed at
-//! every step, as in a world without `delta`): a far obstacle should cost next to nothing.
-//! Target: N = 200 within 1.5× of N = 2.
+//! every step, as in a world without `delta`), the discs in an
+//! [`ftcbf_controller::ellipse_index::EllipseIndex`] as a user of the library would put them:
+//! a far obstacle should cost next to nothing. Target: N = 200 within 1.5× of N = 2.
+//! `step_m2_clutter_200_unindexed`: the same 200 barriers without the index (every row built).
 //!
 //! Plus `feasibility_m3_infeasible`: the geometric test alone on an infeasible m = 3 set
 //! (6 rows + box, every vertex enumerated: its worst case).
@@ -30,6 +32,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion};
 use ftcbf_controller::barrier::{Barrier, EllipsoidOutside, HalfPlane};
 use ftcbf_controller::constraints::HalfSpace;
+use ftcbf_controller::ellipse_index::EllipseIndex;
 use ftcbf_controller::feasibility::check_half_spaces;
 use ftcbf_controller::params::FtParams;
 use ftcbf_controller::{
@@ -96,8 +99,9 @@ fn controller_in(patterns: Vec<Vec<usize>>, form: ProblemForm) -> Controller {
     .expect("config")
 }
 
-/// The m = 2 paper-form controller with the floor and `n − 1` far discs, δ = ∞.
-fn clutter(patterns: Vec<Vec<usize>>, n: usize) -> Controller {
+/// The m = 2 paper-form controller with the floor and `n − 1` far discs, δ = ∞, the discs in
+/// an [`EllipseIndex`] when `indexed`.
+fn clutter(patterns: Vec<Vec<usize>>, n: usize, indexed: bool) -> Controller {
     let m = patterns.len();
     let model = LinearModel::paper_double_integrator(1e-3, 1e-3).expect("model");
     let probe = QuadraticClf::new(
@@ -108,24 +112,30 @@ fn clutter(patterns: Vec<Vec<usize>>, n: usize) -> Controller {
         &ClfConfig::paper(0.0),
     )
     .expect("clf");
+    let discs: Vec<EllipsoidOutside> = (0..n.saturating_sub(1))
+        .map(|i| {
+            let (col, row) = (i % 20, i / 20);
+            let y = (3.5 + 0.5 * (row / 2) as f64) * if row % 2 == 0 { 1.0 } else { -1.0 };
+            EllipsoidOutside::disc(format!("c{i}"), -2.0 + 0.4 * col as f64, y, 0.1)
+        })
+        .collect();
+    // The floor first, then the discs at positions 1..n.
+    let index = EllipseIndex::new(n, discs.iter().enumerate().map(|(i, d)| (i + 1, d)))
+        .expect("planar discs");
     let mut barriers: Vec<Arc<dyn Barrier>> = vec![Arc::new(HalfPlane::new(
         "h",
         State::new(0.0, 1.0, 0.0, 0.2),
         -0.05,
     ))];
-    for i in 0..n.saturating_sub(1) {
-        let (col, row) = (i % 20, i / 20);
-        let y = (3.5 + 0.5 * (row / 2) as f64) * if row % 2 == 0 { 1.0 } else { -1.0 };
-        barriers.push(Arc::new(EllipsoidOutside::disc(
-            format!("c{i}"),
-            -2.0 + 0.4 * col as f64,
-            y,
-            0.1,
-        )));
+    barriers.extend(discs.into_iter().map(|d| Arc::new(d) as Arc<dyn Barrier>));
+    let mut builder =
+        ControllerConfig::builder(model, patterns, FtParams::uniform(m, 0.001, 0.045))
+            .barriers(barriers);
+    if indexed {
+        builder = builder.barrier_index(Arc::new(index));
     }
     Controller::new(
-        ControllerConfig::builder(model, patterns, FtParams::uniform(m, 0.001, 0.045))
-            .barriers(barriers)
+        builder
             .goal(State::zeros(), 0.05)
             .clf(ClfConfig::paper(probe.v_bar_inside_ball(0.025)))
             .input_limit(Input::new(2.0, 2.0))
@@ -142,15 +152,23 @@ fn clutter(patterns: Vec<Vec<usize>>, n: usize) -> Controller {
 type Make = fn(Vec<Vec<usize>>) -> Controller;
 
 fn clutter_2(patterns: Vec<Vec<usize>>) -> Controller {
-    clutter(patterns, 2)
+    clutter(patterns, 2, true)
 }
 
 fn clutter_200(patterns: Vec<Vec<usize>>) -> Controller {
-    clutter(patterns, 200)
+    clutter(patterns, 200, true)
+}
+
+fn clutter_200_unindexed(patterns: Vec<Vec<usize>>) -> Controller {
+    clutter(patterns, 200, false)
 }
 
 fn bench_clutter(c: &mut Criterion) {
-    let make: [(usize, Make); 2] = [(2, clutter_2), (200, clutter_200)];
+    let make: [(&str, Make); 3] = [
+        ("2", clutter_2),
+        ("200", clutter_200),
+        ("200_unindexed", clutter_200_unindexed),
+    ];
     for (n, make) in make {
         let mut cl = ClosedLoop::new(vec![vec![1], vec![3]], make);
         for _ in 0..300 {

@@ -1,6 +1,12 @@
 //! The top-level controller the simulator's runner calls: FT-CBF-CLF, the all-channel
 //! baseline (the paper's comparison, same CBF-CLF QP over one filter) and a nominal
 //! CLF-only controller (all-channel filter, no barriers).
+//!
+//! One file (about 1,250 lines of code): the [`Controller`], its configuration and its step are
+//! one sequence — readings → filters → each unit's rows (with the active-barrier index) →
+//! [`crate::policy::resolve`] → the record — and the builder's documented defaults sit beside
+//! the fields they fill. What stands alone already lives beside it: the rows
+//! ([`crate::constraints`]), the policy, the estimator bank, the reach rule ([`crate::reach`]).
 
 use std::sync::Arc;
 
@@ -553,8 +559,7 @@ struct Reach {
     covered: Vec<bool>,
     /// Per unit, the largest h̄_γ over the covered barriers.
     h_bar: Vec<f64>,
-    /// ‖G‖_F and ‖L‖₂ of the input box.
-    g_norm: f64,
+    /// ‖L‖₂ of the input box.
     limit_norm: f64,
     /// The barriers found near an estimate (capacity: every barrier).
     near: Vec<usize>,
@@ -598,7 +603,6 @@ impl Reach {
             index,
             covered,
             h_bar,
-            g_norm: cfg.model.g.norm(),
             limit_norm: limit.norm(),
             near: Vec::with_capacity(nb),
             radius: 0.0,
@@ -624,7 +628,7 @@ impl Reach {
     ) -> f64 {
         let terms = ReachTerms::new(
             &model.f,
-            self.g_norm,
+            &model.g,
             self.limit_norm,
             x,
             m,

@@ -19,6 +19,7 @@
 //! [`qp`] (problem 5.3 through clarabel), [`policy`] (Steps 1–3 with a decision record),
 //! [`params`] (γ, θ, χ² quantiles, checks of Lemma 1 / Prop. 1 / Thm. 5),
 //! [`conditions`] (condition (4.4) of Theorem 3 decided on the barriers that run) and
+//! [`reach`] and [`ellipse_index`] (active barriers: rows only for the obstacles within reach),
 //! [`controller`] (the top-level FT-CBF-CLF, baseline and nominal controllers) and
 //! [`drive`] (the compensator 6.3–6.4 turning u into a body command (v, ω)) and [`nominal`]
 //! (the path-tracking nominal law of the safety-filter form); [`odometry`] turns ROS-style
@@ -120,6 +121,7 @@ pub mod conditions;
 pub mod constraints;
 pub mod controller;
 pub mod drive;
+pub mod ellipse_index;
 pub mod estimator;
 pub mod feasibility;
 pub mod interface;

@@ -83,6 +83,10 @@
 //! with the test's witness, which is certified to meet every hard row ([`settle`], counted in
 //! [`DecisionRecord::witness_inputs`]): a numerical failure on a set shown feasible never makes
 //! Step 3 drop a unit (issue #30).
+//!
+//! One file (about 1,300 lines): Steps 1–3 and the fallback read one [`PolicyProblem`] in one
+//! order and write one [`DecisionRecord`]; kept together, the order of the stages and what each
+//! one drops can be read top to bottom, as the paper states them.
 
 use clarabel::solver::SolverStatus;
 

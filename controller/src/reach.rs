@@ -42,8 +42,24 @@
 //! The radius D_i of unit i is the smallest distance (to within 1 mm) at which the reach
 //! condition holds; the index returns the barriers whose region comes within D_i of p̂ (a
 //! superset of them is fine), and only those are evaluated.
+//!
+//! # Planar barriers, and indexes with their own condition
+//!
+//! A barrier whose h depends on the position (x₀, x₁) only has ∂h = (∂h_p, 0) and a Hessian
+//! with only its position block, so each term above needs only the position rows (subscript p)
+//! of G, F x̂, M and the position block of N: the right side is at most
+//! `‖∂h_p‖·A_p + ‖∇²h_pp‖_F·B_p` with `A_p = ‖G_p‖_F‖L‖₂ + ‖(F x̂)_p‖₂ + γ‖M_p‖_F` and
+//! `B_p = ½‖N_pp‖_F` ([`ReachTerms::a_planar`], [`ReachTerms::b_planar`]; A_p ≤ A, B_p ≤ B). For
+//! the double integrator G_p = 0: the box term vanishes.
+//!
+//! Bounds of h, ‖∂h‖ and ‖∇²h‖ that hold at every distance ≥ D do not exist for every barrier:
+//! the quadratic h of an ellipse grows with the distance and so does its gradient. An index
+//! may therefore decide the reach condition itself ([`BarrierIndex::out_of_reach`]) from a
+//! sharper argument, as long as what it certifies is the reach condition, barrier by barrier,
+//! for every covered barrier at distance ≥ D, and stays true for every larger D (the radius is
+//! found by bisection). [`crate::ellipse_index::EllipseIndex`] does so for ellipses.
 
-use crate::types::{State, StateMatrix};
+use crate::types::{InputMatrix, State, StateMatrix};
 
 /// Bounds certified for every covered barrier at a planar distance ≥ `dist` from its region.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,6 +86,13 @@ pub trait BarrierIndex: Send + Sync + std::fmt::Debug {
     /// Appends to `out` every covered barrier whose region comes within `radius` of the planar
     /// point `p` (more is allowed). Must not allocate when `out` has room for every barrier.
     fn near(&self, p: [f64; 2], radius: f64, out: &mut Vec<usize>);
+    /// Whether the reach condition (module docs) holds for every covered barrier at planar
+    /// distance ≥ `dist` from its region under `terms`; once true at a distance it must be true
+    /// at every larger one. Default: the condition on [`BarrierIndex::far_bounds`]
+    /// ([`ReachTerms::slack_under`]).
+    fn out_of_reach(&self, terms: &ReachTerms, dist: f64) -> bool {
+        terms.slack_under(&self.far_bounds(dist, terms.speed))
+    }
 }
 
 /// The terms of the reach condition of one unit at one step.
@@ -83,6 +106,11 @@ pub struct ReachTerms {
     pub a: f64,
     /// B = ½‖N‖_F.
     pub b: f64,
+    /// A_p = ‖G_p‖_F‖L‖₂ + ‖(F x̂)_p‖₂ + γ‖M_p‖_F (position rows only): A for barriers that
+    /// depend on the position only (module docs). At most A; A itself is a valid value.
+    pub a_planar: f64,
+    /// B_p = ½‖N_pp‖_F (position block only). At most B; B itself is a valid value.
+    pub b_planar: f64,
     /// δ of Step 1 (+∞: none).
     pub delta: f64,
     /// ‖v̂‖ \[m/s\].
@@ -90,11 +118,13 @@ pub struct ReachTerms {
 }
 
 impl ReachTerms {
-    /// The terms for estimate `x` with the filter's gain terms `m` (K c̄) and `n` (Kν̄ν̄ᵀKᵀ).
+    /// The terms for estimate `x` of a model with drift `f` and input map `g`, the input box
+    /// of norm `limit_norm` = ‖L‖₂, with the filter's gain terms `m` (K c̄) and `n`
+    /// (Kν̄ν̄ᵀKᵀ).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         f: &StateMatrix,
-        g_norm: f64,
+        g: &InputMatrix,
         limit_norm: f64,
         x: &State,
         m: &StateMatrix,
@@ -104,31 +134,47 @@ impl ReachTerms {
         h_bar: f64,
         delta: f64,
     ) -> Self {
+        let fx = f * x;
         Self {
             kappa,
             h_bar,
-            a: g_norm * limit_norm + (f * x).norm() + gamma * m.norm(),
+            a: g.norm() * limit_norm + fx.norm() + gamma * m.norm(),
             b: 0.5 * n.norm(),
+            a_planar: g.fixed_rows::<2>(0).norm() * limit_norm
+                + fx.fixed_rows::<2>(0).norm()
+                + gamma * m.fixed_rows::<2>(0).norm(),
+            b_planar: 0.5 * n.fixed_view::<2, 2>(0, 0).norm(),
             delta,
             speed: x[2].hypot(x[3]),
         }
     }
 
-    /// Whether the reach condition (module docs) holds at distance `dist`.
-    pub fn out_of_reach_at(&self, index: &dyn BarrierIndex, dist: f64) -> bool {
-        let fb = index.far_bounds(dist, self.speed);
-        let h_hat = fb.h_lower - self.h_bar;
-        let need = fb.gradient * self.a + fb.hessian * self.b;
+    /// Whether the reach condition (module docs) holds with the bounds `fb`:
+    /// κ(h_lower − h̄) > gradient·A + hessian·B, and h_lower − h̄ ≥ δ when δ is finite.
+    pub fn slack_under(&self, fb: &FarBounds) -> bool {
+        self.condition(fb.h_lower, fb.gradient * self.a + fb.hessian * self.b)
+    }
+
+    /// κ(h_lower − h̄) > `need`, h_lower − h̄ ≥ δ when δ is finite, `need` finite: the reach
+    /// condition once its right side `need` is bounded.
+    pub fn condition(&self, h_lower: f64, need: f64) -> bool {
+        let h_hat = h_lower - self.h_bar;
         let slack = self.kappa * h_hat > need;
         let outside_delta = self.delta == f64::INFINITY || h_hat >= self.delta;
         // Non-finite terms compare false: never out of reach.
         slack && outside_delta && need.is_finite()
     }
 
+    /// Whether the reach condition (module docs) holds at distance `dist`.
+    pub fn out_of_reach_at(&self, index: &dyn BarrierIndex, dist: f64) -> bool {
+        index.out_of_reach(self, dist)
+    }
+
     /// The reach radius D (module docs): the smallest distance, to within 1 mm, at which the
     /// reach condition holds; +∞ when it holds nowhere up to 10⁶ m or a term is not finite.
     pub fn radius(&self, index: &dyn BarrierIndex) -> f64 {
-        if !(self.kappa > 0.0 && self.a.is_finite() && self.b.is_finite()) {
+        let finite = [self.a, self.b, self.a_planar, self.b_planar];
+        if !(self.kappa > 0.0 && finite.iter().all(|v| v.is_finite())) {
             return f64::INFINITY;
         }
         if !(self.h_bar.is_finite() && self.speed.is_finite()) {
@@ -181,6 +227,8 @@ mod tests {
             h_bar: 0.5,
             a: 1.5,
             b: 0.0,
+            a_planar: 1.5,
+            b_planar: 0.0,
             delta,
             speed: 0.0,
         }

@@ -8,6 +8,10 @@
 //! compares them with what is there (`ftcbf report --check`, run in CI, so the pages in the
 //! repository are exactly what the stored JSON gives). Nothing here is measured or typed by
 //! hand: every number on the pages comes from a JSON file the stamp names.
+//!
+//! One file (about 970 lines of code): every results page is one function over the same
+//! measured inputs and the same table writers, so `ftcbf report --check` regenerates them all
+//! in one place; the data they read are produced by `batch`, `falsify` and `regress`.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

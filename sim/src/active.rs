@@ -207,10 +207,9 @@ pub fn out_of_reach(
         .filter(|(b, _)| index.covers(*b))
         .map(|(_, b)| b.h_bar(gamma))
         .fold(0.0_f64, f64::max);
-    let g_norm = cfg.model.g.norm();
     let terms = ReachTerms::new(
         &cfg.model.f,
-        g_norm,
+        &cfg.model.g,
         limit.norm(),
         x,
         m,

@@ -68,6 +68,10 @@
 //! is not beyond `+threshold·s` in direction `d` (and `max_bias` does not bind), the attacked
 //! innovation is within `±threshold·s`. With no prediction (`NoDetector`, `None`, or a non-finite /
 //! non-positive prediction or reading) the bias grows at `max_rate` (up to `max_bias`).
+//!
+//! One file (about 1,100 lines): every attack kind is matched on the same [`AttackKind`] by its
+//! validation, its injector and its closed-form offset ([`open_loop_offset`]), so a new kind is
+//! added in one place and no match can miss it.
 
 use rand::Rng;
 use rand_chacha::ChaCha20Rng;

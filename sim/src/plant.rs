@@ -49,6 +49,16 @@ pub enum Plant {
     },
 }
 
+/// The physics settings of `world`'s rapier plant: its `[physics]` step and friction, the
+/// rest at their defaults. The drive's identification runs with them and keys its cache on them.
+pub fn physics_config(world: &World) -> PhysicsConfig {
+    PhysicsConfig {
+        dt: world.file.physics.dt,
+        friction: world.file.physics.friction,
+        ..PhysicsConfig::default()
+    }
+}
+
 impl Plant {
     /// Builds the plant of `world`.
     pub fn new(world: &World, seed: u64) -> Result<Self, String> {
@@ -103,13 +113,8 @@ impl Plant {
             .robot
             .as_ref()
             .ok_or_else(|| "rapier dynamics without a robot".to_string())?;
-        let cfg = PhysicsConfig {
-            dt: world.file.physics.dt,
-            friction: world.file.physics.friction,
-            ..PhysicsConfig::default()
-        };
-        let physics =
-            PhysicsWorld::new(robot, start, obstacles, &cfg).map_err(|e| e.to_string())?;
+        let physics = PhysicsWorld::new(robot, start, obstacles, &physics_config(world))
+            .map_err(|e| e.to_string())?;
         let drive = Drive::new(
             &robot.wheels.geometry,
             &robot.limits,

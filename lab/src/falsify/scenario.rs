@@ -20,6 +20,10 @@
 //! variants), each on its run's variant and seed (so ρ is a deterministic function of the
 //! attack). Variants are drawn from seeded streams, checked and run on the batch pool and
 //! collected in order: the same seed gives the same report for any `--jobs` (the time aside).
+//!
+//! One file (about 1,100 lines of code): the ranges a variant is drawn from, the variant, its
+//! check, the search over variants and the files it writes all read the same [`Ranges`] and
+//! [`Variant`]; the attack search it calls is `super::search`.
 
 use std::fmt::Write as _;
 use std::path::Path;

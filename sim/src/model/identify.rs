@@ -30,7 +30,7 @@ use crate::physics::Pose2;
 use crate::sensors::stream_rng;
 use crate::world::World;
 
-use crate::plant::{drive_config, Plant};
+use crate::plant::{drive_config, physics_config, Plant};
 
 /// Length of the identification run \[s\].
 pub const IDENT_SECONDS: f64 = 30.0;
@@ -277,7 +277,9 @@ pub mod disk {
 /// What the identification depends on: the robot's dynamics (bodies' mass, inertia and
 /// colliders, joints, wheels, limits; not its visual meshes, which can hold thousands of
 /// vertices and would be formatted for every run of a batch), the drive as configured for the
-/// world's form, the physics step and friction, the control rate and the excitation amplitude.
+/// world's form, every physics setting the plant runs with ([`physics_config`]: step, friction,
+/// gravity, motors, solver iterations, contacts; a changed default is a changed key, so a disk
+/// entry made with other physics is never used), the control rate and the excitation amplitude.
 fn cache_key(world: &World) -> Result<String, String> {
     let robot = world
         .robot
@@ -290,13 +292,12 @@ fn cache_key(world: &World) -> Result<String, String> {
         .collect();
     let f = &world.file;
     Ok(format!(
-        "{dynamics:?}|{:?}|{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}",
+        "{dynamics:?}|{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}",
         robot.joints,
         robot.wheels,
         robot.limits,
         drive_config(world, &robot.limits),
-        f.physics.dt,
-        f.physics.friction,
+        physics_config(world),
         world.control_dt(),
         world.ticks_per_control,
         f.control.input_limit,

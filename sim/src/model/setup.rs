@@ -1,5 +1,10 @@
 //! From a validated [`World`] to the controller's configuration: which channels the linear model
 //! observes, its noise model, the barriers, and the parameters (given, or computed per §4.3).
+//!
+//! One file (about 1,100 lines): [`ControlSetup::new`] derives in one order — channels, noise,
+//! barriers, parameters, gain, problem form, configuration — and each step's helper sits where
+//! the order needs it; the world's own structure (channels as sensors, timing, bounds) is in
+//! `crate::world::structure`, the identification of q in `identify`.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;

@@ -1,5 +1,10 @@
 //! World files: what a run is. A [`World`] is the validated, immutable description (parsed and
 //! checked once, like MuJoCo's `mjModel`); the runner keeps the mutable state.
+//!
+//! One file (about 1,250 lines): [`World`] and its validator, whose checks run section by
+//! section in the file's order so that the first error reported is the first one in the file.
+//! What stands apart lives beside it: the physical ranges (`ranges`), the sensing structure
+//! (`structure`), the error paths of a parse error (`parse_error`), the schema (`crate::spec`).
 
 mod overrides;
 mod parse_error;

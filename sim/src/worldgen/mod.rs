@@ -20,6 +20,10 @@
 //! World `i` of seed `S` draws from its own random stream (`sensors::stream_rng(S, "gen", i)`),
 //! so it does not depend on how many worlds are generated, and the same seed, options and
 //! output directory give byte-identical files.
+//!
+//! One file (about 740 lines of code and 310 of tests): the generator's kinds share one seeded
+//! draw and one writer; each kind's geometry is a function here, and the tests at the end pin
+//! every kind's determinism and reachability.
 
 mod attack;
 mod layout;

@@ -338,11 +338,14 @@ pub(super) fn active_barriers_line(
         .flat_map(|&b| gamma.iter().map(move |&g| bars[b].h_bar(g)))
         .fold(0.0_f64, f64::max);
     let radius = |s: f64| {
+        let a = setup.config.model.g.norm() * limit.norm() + s;
         ReachTerms {
             kappa: setup.config.cbf_gain,
             h_bar,
-            a: setup.config.model.g.norm() * limit.norm() + s,
+            a,
             b: 0.0,
+            a_planar: a,
+            b_planar: 0.0,
             delta: setup.config.delta,
             speed: s,
         }
