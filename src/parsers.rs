@@ -92,6 +92,7 @@ pub fn kind_parser() -> impl TypedValueParser<Value = OneOrEvery<Kind>> {
             Kind::CorridorWalker => "A corridor with a person walking down it and back (moving)",
             Kind::RoomPeople => "A room with two people walking across the route (moving)",
             Kind::DqnLoops => "A room with two cylinders on waypoint loops at 0.1 m/s, as the TurtleBot3 DQN stages (moving)",
+            Kind::Map => "A start and a goal on an occupancy map (drawn with --map only)",
         }
         },
         ("all", "Every kind in turn"),

@@ -32,6 +32,7 @@ fn a_generated_suite_runs_with_defaults_only_and_is_safe_where_theorem_3_applies
         suite: None,
         robots_dir: common::root().join("robots"),
         out_dir: out.clone(),
+        map: None,
     };
     // 6 worlds: every kind and every suite (kinds and suites are taken in turn), both robots
     let generated = generate(&cfg, 6).unwrap_or_else(|e| panic!("{e}"));

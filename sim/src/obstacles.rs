@@ -1102,6 +1102,21 @@ impl Obstacle {
     }
 }
 
+/// The obstacle that gives the `k`-th of all `obstacles`' barriers taken in order (each
+/// obstacle's [`Obstacle::barriers`] in turn): obstacle `k` when each gives one, the map for
+/// any of its outline pieces. `None` past the last barrier.
+pub fn obstacle_of_barrier(obstacles: &[Obstacle], mut k: usize) -> Option<&Obstacle> {
+    obstacles.iter().find(|o| {
+        let c = o.barrier_count();
+        if k < c {
+            true
+        } else {
+            k -= c;
+            false
+        }
+    })
+}
+
 /// Signed distance to the points within `radius` of (c, cz), and its gradient.
 fn round_sd(p: Vector3<f64>, c: Vector2<f64>, cz: f64, radius: f64) -> (f64, Vector3<f64>) {
     let e = Vector3::new(p.x - c.x, p.y - c.y, p.z - cz);

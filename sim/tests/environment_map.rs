@@ -535,3 +535,76 @@ fn the_office_map_places_its_desk_and_pillar_within_a_centimetre() {
         );
     }
 }
+
+/// A start or goal inside a blocked region of the map is an error naming the key, the map and
+/// the cell (issue #47): the outline pieces' distance is unsigned, so a barrier alone would
+/// not say so, and a run would start inside the walls.
+#[test]
+fn a_start_or_goal_in_a_blocked_cell_is_refused_naming_the_map_and_the_cell() {
+    let dir = fixture("");
+    let g = OccupancyGrid::load(&dir.join("room.yaml")).unwrap();
+    let base = include_str!("../../tests/worlds_map/room_world_base.toml");
+    let with = |start: [f64; 2], goal: [f64; 2]| {
+        let text = base
+            .replace(
+                "start = { x = 0.90, y = -1.086, theta = 0.5 }",
+                &format!(
+                    "start = {{ x = {}, y = {}, theta = 0.5 }}",
+                    start[0], start[1]
+                ),
+            )
+            .replace(
+                "center = [2.184, -0.726]",
+                &format!("center = [{}, {}]", goal[0], goal[1]),
+            );
+        World::from_str(
+            &format!("{text}\n[environment]\nmap = \"room.yaml\"\n"),
+            &dir.join("room.toml"),
+            &[],
+        )
+        .map(|_| ())
+    };
+    let (start, goal) = ([0.90, -1.086], [2.184, -0.726]);
+    with(start, goal).expect("the base world's start and goal are free");
+    // (6, 5): the lone occupied cell, 0.3 m from the free start cell.
+    let e = with(g.cell_centre(6, 5), goal).unwrap_err().to_string();
+    assert!(
+        e.contains("robot.start")
+            && e.contains("blocked cell (6, 5)")
+            && e.contains("room.yaml")
+            && e.contains("must be in a free cell"),
+        "{e}"
+    );
+    // (16, 12) is unknown, blocked by default.
+    let e = with(start, g.cell_centre(16, 12)).unwrap_err().to_string();
+    assert!(
+        e.contains("goal.center") && e.contains("blocked cell (16, 12)"),
+        "{e}"
+    );
+    // Beyond the map's edge (unknown = obstacle): the rim's cell, −1 on that side.
+    let e = with(g.to_world(-0.5, 3.5), goal).unwrap_err().to_string();
+    assert!(e.contains("blocked cell (-1, 3)"), "{e}");
+    // A point just inside a free cell next to the occupied one is not refused.
+    let c = g.to_world(7.05, 5.5);
+    assert!(g.cell(7, 5) == Cell::Free);
+    let field = MapField::new(&g, UnknownCells::Obstacle);
+    assert_eq!(field.blocked_cell_at(c), None);
+    assert_eq!(field.blocked_cell_at(g.to_world(6.95, 5.5)), Some((6, 5)));
+}
+
+/// `check` on a map world with an input box: its rest-demand pass samples each barrier's
+/// boundary and once read obstacle `k` for barrier `k`, past the end of the obstacle list when
+/// the map gives one barrier per outline piece (an index panic, found by `ftcbf gen --map`).
+#[test]
+fn check_runs_on_a_map_world_with_an_input_limit() {
+    let dir = fixture("");
+    let text = format!(
+        "{}\n[control]\ninput_limit = 1.0\n\n[environment]\nmap = \"room.yaml\"\n",
+        include_str!("../../tests/worlds_map/room_world_base.toml")
+    );
+    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
+    assert!(map.barrier_count() > 1, "{}", map.barrier_count());
+    let report = ftcbf_sim::analysis::check::check_world(&world).unwrap();
+    assert!(report.barrier_names.iter().any(|n| n.contains("map#1")));
+}

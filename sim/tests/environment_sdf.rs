@@ -316,3 +316,117 @@ fn a_per_axis_scale_is_accepted_in_a_world_file() {
         "{e}"
     );
 }
+
+/// tests/worlds_sdf/stage.world, in the style of the DQN stages: sub-models of one model
+/// directory (`model://ftcbf_arena/inner`), an include's pose in degrees replacing the model's
+/// own, a plugin on an include that moves a dynamic model, a dynamic model without one.
+#[test]
+fn a_dqn_style_stage_places_its_walls_and_leaves_out_what_a_plugin_moves() {
+    let env = load(&root().join("stage.world"), &opts(Some(0.2))).expect("loads");
+    let o = &env.obstacles;
+    let yaw = |spec: &ObstacleSpec| spec.rpy[2];
+    // The wrapper model `ftcbf_arena` (static, at the origin) around the included square.
+    let east = find(o, "ftcbf_arena::ftcbf_square::Wall_E::Wall_E_Collision");
+    near(east.position, [1.925, 0.0, 0.25], "Wall_E");
+    // 1.5708 in the file: a quarter turn within 4e-6 rad.
+    assert!(
+        (yaw(east) - std::f64::consts::FRAC_PI_2).abs() < 1e-4,
+        "{:?}",
+        east.rpy
+    );
+    assert_eq!(
+        east.shape,
+        ShapeSpec::Cuboid {
+            half_extents: [2.0, 0.075, 0.25]
+        }
+    );
+    near(
+        find(o, "ftcbf_arena::ftcbf_square::Wall_S::Wall_S_Collision").position,
+        [0.0, -1.925, 0.25],
+        "Wall_S",
+    );
+    // inner: the include's pose (0.5, −0.25, 0, yaw 30°) replaces the model's (5, 5, 0).
+    // inner_wall_1: link (1, 0, 0.25, yaw −90°) → R(30°)(1, 0) = (0.8660, 0.5) → (1.3660,
+    // 0.25, 0.25), yaw 30° − 90° = −60°.
+    let w1 = find(o, "inner_walls::inner_wall_1::inner_wall_1_collision");
+    near(w1.position, [1.3660, 0.25, 0.25], "inner_wall_1");
+    assert!((yaw(w1) + 60f64.to_radians()).abs() < 1e-4, "{:?}", w1.rpy);
+    // Its thin side faces along R(−60°)(0, 1) = (0.8660, 0.5): 0.5 m out, 0.5 − 0.075 away.
+    let d = sd(
+        o,
+        "inner_walls::inner_wall_1::inner_wall_1_collision",
+        [1.3660 + 0.5 * 0.8660, 0.25 + 0.5 * 0.5, 0.25],
+    );
+    assert!((d - 0.425).abs() < TOL, "inner_wall_1 distance {d}");
+    // inner_wall_2: link (0, 0.5, 0) and collision (−0.5, 0, 0.25) → (−0.5, 0.5) in the
+    // model → R(30°)(−0.5, 0.5) = (−0.6830, 0.1830) → (−0.1830, −0.0670, 0.25), yaw 30°.
+    let w2 = find(o, "inner_walls::inner_wall_2::inner_wall_2_collision");
+    near(w2.position, [-0.1830, -0.0670, 0.25], "inner_wall_2");
+    assert!((yaw(w2) - 30f64.to_radians()).abs() < 1e-4, "{:?}", w2.rpy);
+    near(
+        find(o, "pillars::pillar_1::pillar_1_collision").position,
+        [-1.0, -1.0, 0.25],
+        "pillar_1",
+    );
+    // crate_a (the include's <name>): model (1.2, −1.2, 0), link (0, 0, 0.2, yaw 45°),
+    // collision (0.1, 0, 0) in the link → (0.0707, 0.0707) → (1.2707, −1.1293, 0.2).
+    let crate_a = find(o, "crate_a::body::body_collision");
+    near(crate_a.position, [1.2707, -1.1293, 0.2], "crate_a");
+    assert!((yaw(crate_a) - 45f64.to_radians()).abs() < 1e-4);
+    assert_eq!(o.len(), 9, "{:?}", names(o));
+
+    let dropped = |r: DropReason| -> Vec<&str> {
+        env.report
+            .dropped
+            .iter()
+            .filter(|d| d.reason == r)
+            .map(|d| d.name.as_str())
+            .collect()
+    };
+    // The spinner is dynamic and its include attaches a plugin: Gazebo moves it, nothing
+    // here does, so it is left out (not frozen where it starts), and a warning says so.
+    assert_eq!(
+        dropped(DropReason::PluginDriven),
+        ["spinner::link::spinner_collision"]
+    );
+    assert!(!names(o).iter().any(|n| n.starts_with("spinner")));
+    assert!(
+        env.report.warnings.iter().any(|w| w.contains("`spinner`")
+            && w.contains("ftcbf_tests::SpinnerPlugin")
+            && w.contains("left out")),
+        "{:#?}",
+        env.report.warnings
+    );
+    // The crate is dynamic with no plugin: kept where it stands, with a warning.
+    assert!(
+        env.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("`crate_a` is not static")),
+        "{:#?}",
+        env.report.warnings
+    );
+    assert_eq!(
+        dropped(DropReason::Plugin),
+        [
+            "gz::sim::systems::Physics",
+            "gz::sim::systems::Imu",
+            "ftcbf_tests::SpinnerPlugin"
+        ]
+    );
+    assert_eq!(
+        dropped(DropReason::AboveRobot),
+        ["pillars::lamp::lamp_collision"]
+    );
+    assert_eq!(dropped(DropReason::Actor), ["pedestrian"]);
+    assert_eq!(dropped(DropReason::FuelInclude).len(), 1);
+    // check's lines name the plugin-driven drop on a line of its own.
+    assert!(
+        env.report
+            .lines()
+            .iter()
+            .any(|l| l.contains("moved by a plugin") && l.contains("spinner::link")),
+        "{:#?}",
+        env.report.lines()
+    );
+}

@@ -34,6 +34,11 @@ pub struct GenArgs {
     /// `robots/`).
     #[arg(long, value_name = "DIR", default_value = "robots")]
     pub robots: PathBuf,
+    /// Draw every world on this occupancy map (map_server YAML) instead of a drawn scene: a
+    /// start and a goal 1 to 5 m apart in its free cells that the planner joins, the map
+    /// referenced as `[environment] map` (relative to --out). Leave --kind at `all`.
+    #[arg(long, value_name = "FILE.yaml")]
+    pub map: Option<PathBuf>,
 }
 
 /// `ftcbf gen`: the library generates (`ftcbf_sim::worldgen`); this writes and lists.
@@ -58,6 +63,7 @@ pub fn command(a: &GenArgs) -> anyhow::Result<()> {
         suite: a.suite,
         robots_dir: a.robots.clone(),
         out_dir: a.out.clone(),
+        map: a.map.clone(),
     })
     .map_err(|e| match e {
         ftcbf_sim::worldgen::GenError::Io { .. } => anyhow::Error::new(e).context(out_flag()),

@@ -965,6 +965,24 @@ impl MapField {
         self.res
     }
 
+    /// The map cell that holds world point `p`, if it is blocked: (column, row) from the
+    /// bottom left, −1 or the width/height for the rim beyond the edge (blocked when unknown
+    /// cells are), and beyond that the cell the map's grid would have there. `None` when the
+    /// cell is free. Decided by the cell, not by the sign of [`MapField::signed_distance`]
+    /// (a lower bound that is negative next to blocked cells too).
+    pub fn blocked_cell_at(&self, p: [f64; 2]) -> Option<(i64, i64)> {
+        let (u, v) = self.node_coords(p);
+        let (i, j) = (u.round() as i64, v.round() as i64);
+        let (nx, ny) = (self.nx as i64, self.ny as i64);
+        let blocked = if (0..nx).contains(&i) && (0..ny).contains(&j) {
+            self.blocked[(j * nx + i) as usize]
+        } else {
+            // Beyond the padded grid: as its rim (cell 0 of the padding).
+            self.blocked[0]
+        };
+        blocked.then_some((i - 1, j - 1))
+    }
+
     /// The blocked cell whose centre is nearest `p` (world frame), searched ring by ring
     /// outwards from p's cell; `None` when no cell is blocked. For reports (`check`), not for
     /// the control loop: O(distance²) in cells.

@@ -24,6 +24,9 @@ pub enum DropReason {
     VisualOnly,
     /// A `<plugin>` (code Gazebo runs; nothing here runs it).
     Plugin,
+    /// The collision geometry of a model that is not static and carries a `<plugin>`: code
+    /// Gazebo runs moves it, nothing here does, so it is not frozen into an obstacle.
+    PluginDriven,
     /// An `<actor>` (animated; moving obstacles are not part of an environment).
     Actor,
     /// A `<heightmap>` (terrain, not an obstacle of a ground robot on flat ground).
@@ -42,6 +45,7 @@ impl DropReason {
             DropReason::Ground => "the ground (at or below z = 0)",
             DropReason::VisualOnly => "visual only (no collision geometry)",
             DropReason::Plugin => "plugin (not run)",
+            DropReason::PluginDriven => "moved by a plugin (not run; left out)",
             DropReason::Actor => "actor (moving; not loaded)",
             DropReason::Heightmap => "heightmap (terrain)",
             DropReason::FuelInclude => "Fuel include (not fetched)",

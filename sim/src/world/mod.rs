@@ -866,6 +866,46 @@ impl Validator<'_> {
             .map_err(|e| self.err("environment.map", e.to_string()))
     }
 
+    /// The start and the goal centre in free cells of the map: a point inside a blocked region
+    /// would get a barrier that does not say so (the outline pieces' distance is unsigned), so
+    /// it is an error naming the map and the cell.
+    fn check_clear_of_map(&self, file: &WorldFile, map: &Obstacle) -> Result<(), WorldError> {
+        let Some(field) = map.map_field() else {
+            return Ok(());
+        };
+        let map_file = match &map.spec.shape {
+            ShapeSpec::OccupancyMap { file, .. } => file.display().to_string(),
+            _ => "the map".into(),
+        };
+        let start = match (&file.robot, &file.linear) {
+            (Some(r), _) => Some(("robot.start", [r.start.x, r.start.y])),
+            (None, Some(l)) => Some(("linear.x0", [l.x0[0], l.x0[1]])),
+            (None, None) => None,
+        };
+        let goal = Some(("goal.center", file.goal.center));
+        for (key, p) in start.into_iter().chain(goal) {
+            if let Some((i, j)) = field.blocked_cell_at(p) {
+                let what = if key == "goal.center" {
+                    "goal"
+                } else {
+                    "start"
+                };
+                return Err(self.err(
+                    key,
+                    format!(
+                        "({:.3}, {:.3}) lies in blocked cell ({i}, {j}) (column, row from the \
+                         bottom left) of the map {map_file} ({} m cells): the {what} must be in \
+                         a free cell",
+                        p[0],
+                        p[1],
+                        field.resolution()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The parsed file checked, section by section in the file's order, into a [`World`]: the
     /// ranges, the plant, the control rate and parameters, the goal, the safe sets, the robot
     /// (`loaded`, else loaded from `[robot] urdf`), the obstacles, unique names, the channels.
@@ -914,6 +954,7 @@ impl Validator<'_> {
             obstacles.push(ob);
         }
         if let Some(ob) = self.environment_map(&file, base)? {
+            self.check_clear_of_map(&file, &ob)?;
             names.push(("map", "environment.map".into()));
             obstacles.push(ob);
         }

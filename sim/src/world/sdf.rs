@@ -93,6 +93,28 @@ struct Scope {
     frames: HashMap<String, FrameEntry>,
 }
 
+/// What an `<include>` says of the model it brings in.
+#[derive(Debug, Clone, Default)]
+struct Including {
+    /// Its `<name>`, which replaces the model's own.
+    name: Option<String>,
+    /// Its `<pose>` (world frame), which replaces the model's own.
+    pose: Option<Isometry3<f64>>,
+    /// The names of the `<plugin>`s it attaches to the model.
+    plugins: Vec<String>,
+    /// Its `<static>`, which overrides the model's own.
+    is_static: Option<bool>,
+}
+
+/// An SDF boolean (`true`/`1`, `false`/`0`); `None` for anything else.
+fn sdf_bool(text: Option<String>) -> Option<bool> {
+    match text.as_deref() {
+        Some("true" | "1") => Some(true),
+        Some("false" | "0") => Some(false),
+        _ => None,
+    }
+}
+
 /// One document being read: its path (for messages and relative URIs) and parsed text.
 struct Doc<'a, 'i> {
     path: &'a Path,
@@ -330,12 +352,12 @@ impl Loader {
         ));
     }
 
-    /// An SDF file: its world, or its model(s). `include` carries an including element's name
-    /// and pose (which replace the model's own).
+    /// An SDF file: its world, or its model(s). `include` is what an including element says
+    /// (its name and pose replace the model's own).
     fn file(
         &mut self,
         path: &Path,
-        include: Option<(Option<String>, Option<Isometry3<f64>>)>,
+        include: Option<Including>,
         parent: &Isometry3<f64>,
         prefix: &str,
         depth: usize,
@@ -362,10 +384,10 @@ impl Loader {
                 }
                 "model" if !found => {
                     found = true;
-                    let (name, pose) = include.clone().unwrap_or((None, None));
+                    let inc = include.clone().unwrap_or_default();
                     let own = doc.pose_of(n)?.map(|p| p.iso);
-                    let x = parent * pose.or(own).unwrap_or_else(Isometry3::identity);
-                    self.model(&doc, n, name, &x, prefix, depth)?;
+                    let x = parent * inc.pose.or(own).unwrap_or_else(Isometry3::identity);
+                    self.model(&doc, n, &inc, &x, prefix, depth)?;
                 }
                 "actor" => self.drop(attr_name(n, "actor"), DropReason::Actor),
                 "world" | "model" | "light" => {}
@@ -386,7 +408,7 @@ impl Loader {
                 "model" => {
                     let pose = doc.pose_of(n)?;
                     let x = scope.place(doc, n, pose.as_ref(), None)?;
-                    self.model(doc, n, None, &x, "", 1)?;
+                    self.model(doc, n, &Including::default(), &x, "", 1)?;
                 }
                 "include" => self.include(doc, n, &scope, &Isometry3::identity(), "", 1)?,
                 "actor" => self.drop(attr_name(n, "actor"), DropReason::Actor),
@@ -447,12 +469,16 @@ impl Loader {
         Ok(Scope { root, frames })
     }
 
-    /// A `<model>` at `x` (world frame); `rename` is an including element's `<name>`.
+    /// A `<model>` at `x` (world frame), brought in by `inc` (default: written in place).
+    ///
+    /// A model that is not static and carries a `<plugin>` (its own or its include's) is moved
+    /// by code nothing here runs (the DQN stages' turning obstacles): its collision geometry is
+    /// dropped, not frozen at its initial pose.
     fn model(
         &mut self,
         doc: &Doc,
         m: Node,
-        rename: Option<String>,
+        inc: &Including,
         x: &Isometry3<f64>,
         prefix: &str,
         depth: usize,
@@ -460,11 +486,18 @@ impl Loader {
         if depth > MAX_DEPTH {
             return Err(doc.err(m, format!("models nest more than {MAX_DEPTH} deep")));
         }
-        let own = rename.unwrap_or_else(|| attr_name(m, "model"));
+        let own = inc.name.clone().unwrap_or_else(|| attr_name(m, "model"));
         let name = scoped(prefix, &own);
-        if text_of(child(m, "static")).is_some_and(|s| s == "false" || s == "0")
-            && prefix.is_empty()
-        {
+        let is_static = inc.is_static.or(sdf_bool(text_of(child(m, "static"))));
+        let mut plugins = inc.plugins.clone();
+        plugins.extend(
+            elements(m)
+                .filter(|n| n.tag_name().name() == "plugin")
+                .map(plugin_name),
+        );
+        let driven = is_static != Some(true) && !plugins.is_empty();
+        let before = self.obstacles.len();
+        if is_static == Some(false) && prefix.is_empty() && !driven {
             self.warn(format!(
                 "{}: model `{name}` is not static in the SDF; its obstacles are fixed here at \
                  their initial poses",
@@ -478,13 +511,26 @@ impl Loader {
                 "model" => {
                     let pose = doc.pose_of(n)?;
                     let xc = x * scope.place(doc, n, pose.as_ref(), None)?;
-                    self.model(doc, n, None, &xc, &name, depth + 1)?;
+                    self.model(doc, n, &Including::default(), &xc, &name, depth + 1)?;
                 }
                 "include" => self.include(doc, n, &scope, x, &name, depth + 1)?,
                 "plugin" => self.drop(plugin_name(n), DropReason::Plugin),
                 "static" | "self_collide" | "allow_auto_disable" | "enable_wind" | "pose"
                 | "joint" | "gripper" | "frame" => {}
                 _ => self.unknown(doc, n, "model"),
+            }
+        }
+        if driven {
+            let moved: Vec<ObstacleSpec> = self.obstacles.drain(before..).collect();
+            self.warn(format!(
+                "{}: model `{name}` is not static and is moved by plugin {} (not run here): \
+                 its {} obstacle(s) are left out",
+                doc.at(m),
+                plugins.join(", "),
+                moved.len()
+            ));
+            for o in moved {
+                self.drop(o.name, DropReason::PluginDriven);
             }
         }
         Ok(())
@@ -503,9 +549,13 @@ impl Loader {
         let Some(uri) = text_of(child(n, "uri")) else {
             return Err(doc.err(n, "<include> needs a <uri>"));
         };
+        let mut plugins = Vec::new();
         for c in elements(n) {
             match c.tag_name().name() {
-                "plugin" => self.drop(plugin_name(c), DropReason::Plugin),
+                "plugin" => {
+                    plugins.push(plugin_name(c));
+                    self.drop(plugin_name(c), DropReason::Plugin);
+                }
                 "placement_frame" => self.warn(format!(
                     "{}: <placement_frame> is not supported; the include's <pose> places the \
                      model's own frame",
@@ -526,8 +576,13 @@ impl Loader {
             Some(p) => Some(scope.place(doc, n, Some(p), None)?),
             None => None,
         };
-        let name = text_of(child(n, "name"));
-        self.file(&file, Some((name, placed)), x, prefix, depth + 1)
+        let including = Including {
+            name: text_of(child(n, "name")),
+            pose: placed,
+            plugins,
+            is_static: sdf_bool(text_of(child(n, "static"))),
+        };
+        self.file(&file, Some(including), x, prefix, depth + 1)
     }
 
     /// The SDF file an include's URI names.

@@ -621,7 +621,7 @@ fn quarter_turns(mut l: Layout, k: u32) -> Layout {
 }
 
 /// Draws one layout of `kind`.
-pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Layout {
+pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Option<Layout> {
     let l = match kind {
         Kind::Room => room(rng, keep),
         Kind::Corridor => corridor(rng, keep),
@@ -632,9 +632,11 @@ pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, keep: KeepOut) -> Layout {
         Kind::AisleCrossing => clutter(rng, keep),
         Kind::CorridorWalker => corridor(rng, keep),
         Kind::RoomPeople | Kind::DqnLoops => room(rng, keep),
+        // a map's scene is the map (super::on_map), not drawn here
+        Kind::Map => return None,
     };
     let k = rng.random_range(0..4);
-    quarter_turns(l, k)
+    Some(quarter_turns(l, k))
 }
 
 #[cfg(test)]
@@ -686,7 +688,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         for _ in 0..50 {
             for kind in Kind::ALL {
-                let l = draw(&mut rng, kind, keep);
+                let l = draw(&mut rng, kind, keep).expect("a layout kind");
                 for o in l.obstacles.iter().filter(|o| !o.name.contains("wall")) {
                     if o.name.starts_with("fence") {
                         continue;

@@ -28,6 +28,7 @@
 mod attack;
 mod layout;
 mod moving;
+mod on_map;
 mod suite;
 mod text;
 
@@ -46,6 +47,7 @@ use crate::world::{World, WorldError};
 
 pub use attack::ATTACK_KINDS;
 use layout::{pick, KeepOut};
+pub use on_map::PAIR_DISTANCE;
 use text::{dec, Shape, WorldText};
 
 /// Clearance \[m\] the robot's footprint keeps from every obstacle at the start, on the whole
@@ -76,6 +78,9 @@ pub enum Kind {
     RoomPeople,
     /// A room with two small cylinders on waypoint loops at 0.1 m/s (TurtleBot3 DQN stages).
     DqnLoops,
+    /// A start and a goal on an occupancy map (`--map`): drawn only with a map, so not in
+    /// [`Kind::ALL`].
+    Map,
 }
 
 impl Kind {
@@ -122,6 +127,7 @@ impl Kind {
             Kind::CorridorWalker => "corridor_walker",
             Kind::RoomPeople => "room_people",
             Kind::DqnLoops => "dqn_loops",
+            Kind::Map => "map",
         }
     }
 
@@ -256,6 +262,9 @@ pub struct GenConfig {
     /// relative to this directory, as a world file's relative paths are (book/src/reference/world-file.md, `[robot]
     /// urdf`).
     pub out_dir: PathBuf,
+    /// An occupancy map (map_server YAML) to draw every world on instead of a drawn layout
+    /// ([`Kind::Map`]; `kind` must then be `None`).
+    pub map: Option<PathBuf>,
 }
 
 impl GenConfig {
@@ -270,6 +279,9 @@ impl GenConfig {
         }
         if let Some(s) = self.suite {
             c += &format!(" --suite {s}");
+        }
+        if let Some(m) = &self.map {
+            c += &format!(" --map {}", m.display());
         }
         c
     }
@@ -352,6 +364,14 @@ pub enum GenError {
         /// The builder's error.
         message: String,
     },
+    /// The map of `--map` cannot be used.
+    #[error("{}: cannot draw worlds on this map: {message}", path.display())]
+    Map {
+        /// The map's YAML file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
     /// A file or directory cannot be written.
     #[error("{}: {error}", path.display())]
     Io {
@@ -415,8 +435,19 @@ pub fn reach_among(
     spare: f64,
 ) -> Result<Route, Unreachable> {
     let bcfg = BarrierConfig::for_robot(robot, 0.0, 0.0);
-    let barriers: Vec<_> = obstacles.iter().map(|o| o.barrier(&bcfg)).collect();
+    let barriers: Vec<_> = obstacles.iter().flat_map(|o| o.barriers(&bcfg)).collect();
+    // A map's pieces measure an unsigned distance to its outline: inside a blocked region
+    // the clearance is the field's (negative) instead.
+    let fields: Vec<_> = obstacles.iter().filter_map(|o| o.map_field()).collect();
     let clear = |p: [f64; 2]| {
+        let inside = fields
+            .iter()
+            .filter(|f| f.blocked_cell_at(p).is_some())
+            .map(|f| f.signed_distance(p).0.min(-f.resolution()) - bcfg.robot_radius)
+            .fold(f64::INFINITY, f64::min);
+        if inside.is_finite() {
+            return inside;
+        }
         barriers
             .iter()
             .map(|b| b.clearance(nalgebra::Vector2::new(p[0], p[1])))
@@ -503,6 +534,7 @@ struct RobotInfo {
 pub struct Generator {
     cfg: GenConfig,
     robots: Vec<RobotInfo>,
+    map: Option<on_map::MapScene>,
 }
 
 /// `path` made absolute and normalised lexically (`.` dropped, `..` applied).
@@ -566,7 +598,25 @@ impl Generator {
                 })
             })
             .collect::<Result<Vec<_>, GenError>>()?;
-        Ok(Self { cfg, robots })
+        let map = match &cfg.map {
+            None => None,
+            Some(path) if cfg.kind.is_some() => {
+                return Err(GenError::Map {
+                    path: path.clone(),
+                    message: "a kind of scene does not apply to worlds drawn on a map (leave \
+                              --kind at `all`)"
+                        .into(),
+                })
+            }
+            Some(path) => {
+                let footprint = robots
+                    .iter()
+                    .map(|r| r.description.footprint_radius)
+                    .fold(0.0, f64::max);
+                Some(on_map::MapScene::load(path, &cfg.out_dir, footprint)?)
+            }
+        };
+        Ok(Self { cfg, robots, map })
     }
 
     /// The configuration.
@@ -579,7 +629,10 @@ impl Generator {
     /// robots alternating, the attack kinds a fresh shuffle of all twelve in every block of
     /// twelve worlds.
     pub fn plan_of(&self, i: usize) -> (Kind, RobotModel, Suite, &'static str) {
-        let kinds: Vec<Kind> = self.cfg.kind.map_or(Kind::ALL.to_vec(), |k| vec![k]);
+        let kinds: Vec<Kind> = match (&self.map, self.cfg.kind) {
+            (Some(_), _) => vec![Kind::Map],
+            (None, k) => k.map_or(Kind::ALL.to_vec(), |k| vec![k]),
+        };
         let suites: Vec<Suite> = self.cfg.suite.map_or(Suite::ALL.to_vec(), |s| vec![s]);
         let robots: Vec<RobotModel> = self.cfg.robot.map_or(RobotModel::ALL.to_vec(), |r| vec![r]);
         let kind = kinds[i % kinds.len()];
@@ -606,13 +659,26 @@ impl Generator {
         goal_radius: f64,
     ) -> Result<(layout::Layout, Route, usize), GenError> {
         let robot = &self.robots[model as usize];
+        let unreachable = GenError::NoReachableLayout {
+            index: i,
+            kind,
+            robot: model,
+            draws: MAX_DRAWS,
+        };
+        if let Some(map) = &self.map {
+            return map
+                .draw_reachable(rng, &robot.description, goal_radius)
+                .ok_or(unreachable);
+        }
         let fp = robot.description.footprint_radius;
         let keep = KeepOut {
             start: fp + SPARE,
             goal: fp + SPARE + goal_radius,
         };
         for draw in 1..=MAX_DRAWS {
-            let l = layout::draw(rng, kind.scene(), keep);
+            let Some(l) = layout::draw(rng, kind.scene(), keep) else {
+                break;
+            };
             let obstacles: Vec<Obstacle> = l
                 .obstacles
                 .iter()
@@ -633,12 +699,7 @@ impl Generator {
                 return Ok((l, r, draw));
             }
         }
-        Err(GenError::NoReachableLayout {
-            index: i,
-            kind,
-            robot: model,
-            draws: MAX_DRAWS,
-        })
+        Err(unreachable)
     }
 
     /// World `i` of the seed's sequence.
@@ -731,6 +792,7 @@ impl Generator {
             goal: l.goal,
             goal_radius,
             obstacles: l.obstacles,
+            map: self.map.as_ref().map(|m| m.key.clone()),
             sensors: sensors.sensors,
             patterns: sensors.patterns,
             attack: attack.clone(),
@@ -866,6 +928,7 @@ mod tests {
             suite: None,
             robots_dir: robots_dir(),
             out_dir: out_dir(tag),
+            map: None,
         }
     }
 

@@ -132,6 +132,8 @@ pub(crate) struct WorldText {
     pub obstacles: Vec<Obstacle>,
     /// Moving obstacles with their `motion` text (issue #51).
     pub movers: Vec<(Obstacle, String)>,
+    /// `[environment] map`, relative to the file's directory.
+    pub map: Option<String>,
     pub sensors: Vec<Sensor>,
     pub patterns: Vec<(String, Vec<String>)>,
     pub attack: Attack,
@@ -171,6 +173,11 @@ impl WorldText {
         w!("[goal]");
         w!("center = {}", list(&self.goal));
         w!("radius = {}", num(self.goal_radius));
+        if let Some(m) = &self.map {
+            w!("");
+            w!("[environment]");
+            w!("map = \"{m}\"");
+        }
         let all = self
             .obstacles
             .iter()

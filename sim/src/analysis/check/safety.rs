@@ -498,7 +498,10 @@ pub(super) fn rest_gradients(world: &World, setup: &ControlSetup, bi: usize) -> 
             ),
         }
     } else {
-        let ob = &world.obstacles[bi - n_safe];
+        // a map gives one barrier per outline piece: barrier index ≠ obstacle index
+        let Some(ob) = crate::obstacles::obstacle_of_barrier(&world.obstacles, bi - n_safe) else {
+            return (Vec::new(), false);
+        };
         if ob.is_half_space() {
             (vec![barrier.eval(&State::zeros()).gradient], true)
         } else {
