@@ -197,7 +197,9 @@ mod tests {
         ])
         .expect_err("maze");
         assert!(
-            e.contains("[possible values: room, corridor, doorway, clutter, l_turn, all]"),
+            e.contains(
+                "[possible values: room, corridor, doorway, clutter, l_turn, aisle_crossing, corridor_walker, room_people, dqn_loops, all]"
+            ),
             "{e}"
         );
     }
