@@ -278,14 +278,20 @@ fn the_distance_field_is_within_its_bound_of_brute_force() {
     assert!(worst > 0.5 && worst <= 3.0 / 2f64.sqrt(), "{worst}");
 }
 
+/// The room fixture's world (`room_world_base.toml`) with `extra` tables and
+/// `[environment] map = "room.yaml"`, loaded from the fixture folder.
+fn room_map_world(extra: &str) -> World {
+    let text = format!(
+        "{}\n{extra}\n[environment]\nmap = \"room.yaml\"\n",
+        include_str!("../../tests/worlds_map/room_world_base.toml")
+    );
+    World::from_str(&text, &fixture("").join("room.toml"), &[]).unwrap()
+}
+
 #[test]
 fn a_world_with_a_map_loads_and_its_boxes_agree_with_its_field() {
     let dir = fixture("");
-    let text = format!(
-        "{}\n[environment]\nmap = \"room.yaml\"\n",
-        include_str!("../../tests/worlds_map/room_world_base.toml")
-    );
-    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let world = room_map_world("");
     let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
     let field = map.map_field().unwrap();
     let grid = OccupancyGrid::load(&dir.join("room.yaml")).unwrap();
@@ -354,12 +360,7 @@ fn environment_keys_are_checked() {
 fn the_map_barrier_reads_the_field() {
     use ftcbf_sim::ftcbf_controller::{Barrier, State};
     use ftcbf_sim::obstacles::BarrierConfig;
-    let dir = fixture("");
-    let text = format!(
-        "{}\n[environment]\nmap = \"room.yaml\"\n",
-        include_str!("../../tests/worlds_map/room_world_base.toml")
-    );
-    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let world = room_map_world("");
     let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
     let field = map.map_field().unwrap();
     let cfg = BarrierConfig {
@@ -432,11 +433,7 @@ fn the_nearest_blocked_cell_is_found() {
 fn the_map_barriers_are_its_pieces_and_keep_the_robot_off_the_boxes() {
     use ftcbf_sim::obstacles::BarrierConfig;
     let dir = fixture("");
-    let text = format!(
-        "{}\n[environment]\nmap = \"room.yaml\"\n",
-        include_str!("../../tests/worlds_map/room_world_base.toml")
-    );
-    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let world = room_map_world("");
     let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
     let grid = OccupancyGrid::load(&dir.join("room.yaml")).unwrap();
     let cfg = BarrierConfig {
@@ -597,12 +594,7 @@ fn a_start_or_goal_in_a_blocked_cell_is_refused_naming_the_map_and_the_cell() {
 /// the map gives one barrier per outline piece (an index panic, found by `ftcbf gen --map`).
 #[test]
 fn check_runs_on_a_map_world_with_an_input_limit() {
-    let dir = fixture("");
-    let text = format!(
-        "{}\n[control]\ninput_limit = 1.0\n\n[environment]\nmap = \"room.yaml\"\n",
-        include_str!("../../tests/worlds_map/room_world_base.toml")
-    );
-    let world = World::from_str(&text, &dir.join("room.toml"), &[]).unwrap();
+    let world = room_map_world("[control]\ninput_limit = 1.0\n");
     let map = world.obstacles.iter().find(|o| o.name == "map").unwrap();
     assert!(map.barrier_count() > 1, "{}", map.barrier_count());
     let report = ftcbf_sim::analysis::check::check_world(&world).unwrap();

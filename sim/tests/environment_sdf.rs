@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use ftcbf_sim::environment::{DropReason, EnvironmentError};
 use ftcbf_sim::obstacles::{MeshScale, Obstacle, ObstacleSpec, ShapeSpec};
-use ftcbf_sim::world::sdf::{load, SdfOptions};
+use ftcbf_sim::world::sdf::{load, Environment, SdfOptions};
 use ftcbf_sim::world::World;
 use nalgebra::Vector3;
 
@@ -180,19 +180,20 @@ fn a_non_convex_polyline_is_a_prism_with_its_notch() {
     assert!((d - 0.3).abs() < TOL, "bottom distance {d}");
 }
 
+/// The names of the elements `env` dropped for reason `r`, in the report's order.
+fn dropped_for(env: &Environment, r: DropReason) -> Vec<&str> {
+    (env.report.dropped.iter())
+        .filter(|d| d.reason == r)
+        .map(|d| d.name.as_str())
+        .collect()
+}
+
 #[test]
 fn what_a_ground_robot_cannot_touch_is_dropped_and_said_why() {
     let env = load(&root().join("room.world"), &opts(Some(0.2))).expect("loads");
     let kept = names(&env.obstacles);
     assert_eq!(kept.len(), 10, "{kept:?}");
-    let dropped = |r: DropReason| -> Vec<&str> {
-        env.report
-            .dropped
-            .iter()
-            .filter(|d| d.reason == r)
-            .map(|d| d.name.as_str())
-            .collect()
-    };
+    let dropped = |r: DropReason| dropped_for(&env, r);
     assert_eq!(
         dropped(DropReason::AboveRobot),
         [
@@ -375,14 +376,7 @@ fn a_dqn_style_stage_places_its_walls_and_leaves_out_what_a_plugin_moves() {
     assert!((yaw(crate_a) - 45f64.to_radians()).abs() < 1e-4);
     assert_eq!(o.len(), 9, "{:?}", names(o));
 
-    let dropped = |r: DropReason| -> Vec<&str> {
-        env.report
-            .dropped
-            .iter()
-            .filter(|d| d.reason == r)
-            .map(|d| d.name.as_str())
-            .collect()
-    };
+    let dropped = |r: DropReason| dropped_for(&env, r);
     // The spinner is dynamic and its include attaches a plugin: Gazebo moves it, nothing
     // here does, so it is left out (not frozen where it starts), and a warning says so.
     assert_eq!(

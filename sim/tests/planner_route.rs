@@ -86,24 +86,16 @@ fn with_no_route_check_names_the_narrowest_gap_and_the_obstacles_that_make_it() 
     );
     // the width it names is 2 (r + clearance): the burger's footprint radius and the clearance
     let bcfg = obstacle_barrier_config(&w);
-    let clearance: f64 = n
-        .split("with clearance ")
-        .nth(1)
-        .unwrap()
-        .split(' ')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
-    let width: f64 = n
-        .split("gaps narrower than ")
-        .nth(1)
-        .unwrap()
-        .split(' ')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
+    // the number the message prints after `label`
+    let number_after = |label: &str| -> f64 {
+        let rest = n
+            .split(label)
+            .nth(1)
+            .unwrap_or_else(|| panic!("no {label:?} in {n}"));
+        rest.split(' ').next().unwrap().parse().unwrap()
+    };
+    let clearance = number_after("with clearance ");
+    let width = number_after("gaps narrower than ");
     assert!(
         (width - 2.0 * (bcfg.robot_radius + clearance)).abs() < 0.006,
         "{n}"

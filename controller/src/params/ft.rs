@@ -369,16 +369,13 @@ impl FtDerivation {
     /// and θ_ij (with the triangle bound and η_ij for the horizon method), the Riccati line.
     /// A θ or η given as one value for all pairs is shown for each pair.
     pub fn report(&self, ft: &FtParams) -> String {
-        struct Shown<'a>(&'a FtDerivation, &'a FtParams);
-        impl fmt::Display for Shown<'_> {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                self.0.write_report(f, self.1)
-            }
-        }
-        Shown(self, ft).to_string()
+        let mut out = String::new();
+        self.write_report(&mut out, ft)
+            .expect("writing to a String cannot fail");
+        out
     }
 
-    fn write_report(&self, f: &mut fmt::Formatter<'_>, ft: &FtParams) -> fmt::Result {
+    fn write_report(&self, f: &mut impl fmt::Write, ft: &FtParams) -> fmt::Result {
         let per_pair = |values: &[f64], k: usize| match values {
             [one] => Some(*one),
             many => many.get(k).copied(),

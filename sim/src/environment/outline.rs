@@ -70,12 +70,7 @@ impl Outline {
         let mut best = (f64::INFINITY, Vector2::zeros(), true);
         for (a, b) in self.edges() {
             let ab = b - a;
-            let l2 = ab.norm_squared();
-            let t = if l2 > 0.0 {
-                ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
+            let t = segment_parameter(p, a, b);
             let q = a + ab * t;
             let rho = (p - q).norm();
             if rho < best.0 {
@@ -217,15 +212,20 @@ fn farthest(pts: &[Vector2<f64>]) -> (f64, usize) {
     best
 }
 
-fn segment_distance(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
+/// Where the point of segment a–b nearest `p` lies: t ∈ [0, 1] along a → b (0 for a
+/// degenerate segment).
+fn segment_parameter(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
     let ab = b - a;
     let l2 = ab.norm_squared();
-    let t = if l2 > 0.0 {
+    if l2 > 0.0 {
         ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
     } else {
         0.0
-    };
-    (p - a - ab * t).norm()
+    }
+}
+
+fn segment_distance(p: Vector2<f64>, a: Vector2<f64>, b: Vector2<f64>) -> f64 {
+    (p - a - (b - a) * segment_parameter(p, a, b)).norm()
 }
 
 /// Douglas–Peucker on the open polyline `pts` with tolerance `tol`: the segments, each with
