@@ -272,3 +272,82 @@ fn frames_carry_the_movers_where_the_script_puts_them() {
     }
     assert!(seen > 900, "{seen} frames");
 }
+
+/// Every contact a run's frames carry, with who moved.
+fn contacts_of(
+    w: &World,
+    controller: ControllerKindSpec,
+) -> Vec<(ftcbf_sim::observe::Contact, Vec<String>)> {
+    use ftcbf_sim::runner::Simulation;
+    let mut sim = Simulation::new(w, &opts(1, controller)).expect("builds");
+    let mut out = Vec::new();
+    while let Some(f) = sim.step() {
+        for c in f.contacts {
+            out.push((c.clone(), f.events.to_vec()));
+        }
+    }
+    out
+}
+
+/// Contacts are marked by who moved: the nominal controller driving across the aisle meets
+/// the cart while moving (the robot's); a robot holding its goal at its start, which the cart
+/// drives into, is hit while stopped (the mover's). Both are named in the event text, and the
+/// run's counts agree.
+#[test]
+fn contacts_are_marked_by_who_moved() {
+    use ftcbf_sim::observe::ContactCause;
+    let w = world("tests/worlds_movers/aisle_crossing.toml");
+    let moving = contacts_of(&w, ControllerKindSpec::Nominal);
+    let (first, events) = moving.first().expect("the nominal robot meets the cart");
+    assert_eq!(first.obstacle, "cart");
+    assert_eq!(first.cause, ContactCause::RobotMoving);
+    assert_eq!(first.cause.whose(), "robot");
+    assert!(
+        events
+            .iter()
+            .any(|e| e.starts_with("collision with cart") && e.ends_with("the robot's")),
+        "{events:?}"
+    );
+    // The cart at the robot's start, coming at it along x at 0.1 m/s; the goal is the start.
+    let path = root().join("tests/worlds_movers/aisle_crossing.toml");
+    let text = std::fs::read_to_string(&path)
+        .expect("readable")
+        .replace("center = [3.0, 0.0]", "center = [0.0, 0.0]")
+        .replace("position = [1.5, -1.0, 0.2]", "position = [1.0, 0.0, 0.2]");
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("motion ="))
+        .expect("moves");
+    let text = text.replace(
+        line,
+        "motion = { kind = \"velocity\", velocity = [-0.1, 0.0] }",
+    );
+    let still = World::from_str(&text, Path::new(&path), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let hit = contacts_of(&still, ControllerKindSpec::Nominal);
+    let (first, events) = hit.first().expect("the cart reaches the robot");
+    assert_eq!(
+        first.cause,
+        ContactCause::MoverIntoStopped { walker: false }
+    );
+    assert_eq!(first.cause.whose(), "mover");
+    // The robot still at its start; the cart's 0.15 m body meets the burger's collision
+    // shapes, inside its footprint circle (0.1237 m) and short of its centre: the cart's
+    // centre between 0.274 m and 0.15 m off, so between t = 7.26 s and 8.5 s.
+    assert!(
+        first.at[0].abs() < 0.02 && first.at[1].abs() < 0.02,
+        "{:?}",
+        first.at
+    );
+    assert!((7.26..8.5).contains(&first.t), "t = {}", first.t);
+    assert!(
+        events
+            .iter()
+            .any(|e| e.contains("walked into the stopped robot")),
+        "{events:?}"
+    );
+    let s = run(&still, &opts(1, ControllerKindSpec::Nominal)).expect("runs");
+    assert!(
+        s.collisions.mover_robot_stopped >= 1 && s.collisions.mover_robot_moving == 0,
+        "{s}"
+    );
+}

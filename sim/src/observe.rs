@@ -152,6 +152,48 @@ pub struct Frame<'a> {
     /// Each moving obstacle's state at `t` (in [`Scene::movers`] order): its displacement from
     /// its start \[m\] and its velocity \[m/s\], world frame.
     pub movers: &'a [ftcbf_controller::MoverState],
+    /// Contacts that started this step, with who moved (also in `events`, as text).
+    pub contacts: &'a [Contact],
+}
+
+/// Who moved when a contact began (issue #51): the robot's guarantee covers its own motion,
+/// so a mover walking into the stopped robot is told apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactCause {
+    /// The robot touched an obstacle that stands still.
+    Static,
+    /// The robot, moving towards a mover (≥ [`crate::summary::STOPPED_SPEED`] towards its
+    /// centre), touched it.
+    RobotMoving,
+    /// A mover walked into the robot while it stood still, or moved only sideways or away
+    /// (pushed, or fleeing); `walker` when a walker did.
+    MoverIntoStopped {
+        /// The mover is a walker.
+        walker: bool,
+    },
+}
+
+impl ContactCause {
+    /// Whose contact it is: `"robot"` (static or the robot moving) or `"mover"`.
+    pub fn whose(self) -> &'static str {
+        match self {
+            Self::Static | Self::RobotMoving => "robot",
+            Self::MoverIntoStopped { .. } => "mover",
+        }
+    }
+}
+
+/// A contact between the robot and an obstacle that began at one plant tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    /// The obstacle's name.
+    pub obstacle: String,
+    /// Simulation time \[s\].
+    pub t: f64,
+    /// The robot's position, world frame \[m\].
+    pub at: [f64; 2],
+    /// Who moved.
+    pub cause: ContactCause,
 }
 
 /// Receives the scene once and every control step of a run.

@@ -383,10 +383,12 @@ pub const STOPPED_SPEED: f64 = 0.01;
 pub struct CollisionCounts {
     /// With an obstacle that stands still.
     pub static_obstacles: u64,
-    /// With a moving obstacle while the robot moved (|v| ≥ [`STOPPED_SPEED`]).
+    /// With a moving obstacle while the robot moved towards it (its velocity's component
+    /// towards the mover's centre ≥ [`STOPPED_SPEED`]): the robot's.
     pub mover_robot_moving: u64,
-    /// With a moving obstacle while the robot stood (|v| < [`STOPPED_SPEED`]): the mover ran
-    /// into it (a walker's among them are also in `walker_robot_stopped`).
+    /// With a moving obstacle while the robot stood, or moved only sideways or away from it
+    /// (pushed or fleeing; its velocity's component towards the mover < [`STOPPED_SPEED`]):
+    /// the mover ran into it (a walker's among them are also in `walker_robot_stopped`).
     pub mover_robot_stopped: u64,
     /// Of `mover_robot_stopped`, those with a walker: the walker's fault.
     pub walker_robot_stopped: u64,

@@ -11,12 +11,17 @@
 //! velocity jumps at a path's corners (the row does not see them coming), and a walker's
 //! acceleration bound, which covers the social force's driving term only.
 //!
+//! Two movers pinning the robot between them is decided as for a static obstacle: two
+//! scripted movers at the same instants, every 5 cm of the faster one's travel; a walker
+//! wherever its legs take it, whenever (it keeps no timetable), so against a walker the test
+//! is on the swept paths and errs on the side of refusing.
+//!
 //! Decided since (the trials of a generated aisle crossing were unsafe where these were
 //! assumed): a mover must not pin the robot against a static obstacle (somewhere on its path a
 //! gap to a static obstacle narrower than the robot with its margins, 2(r + margin), and wider
 //! than 0), and the drive must turn away in time (stopped on the mover's boundary, the robot
 //! turns a quarter turn and accelerates to v_o while the mover closes in: that must fit in
-//! margin + k·v_o). Two movers pinning the robot between them stays assumed.
+//! margin + k·v_o).
 //!
 //! **Liveness** with movers is [`crate::movers::fleet::liveness`] (in the liveness prediction): a mover
 //! that ends its motion (`repeat = "once"`, or a zero velocity) where the robot's path passes,
@@ -122,16 +127,15 @@ pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
             });
         }
     }
-    for &i in &movers {
-        out.push(pin_finding(world, i));
+    let sides = Sides::new(world);
+    for (k, &i) in movers.iter().enumerate() {
+        out.push(pin_finding(world, &sides, k, i));
         out.push(turn_finding(world, i));
     }
-    if movers.len() > 1 {
-        out.push(MoverFinding {
-            name: "movers do not corner the robot between them".into(),
-            holds: None,
-            detail: "no two movers pin the robot between them (the rows of two moving barriers at once): not decided".into(),
-        });
+    for (a, &i) in movers.iter().enumerate() {
+        for (b, &j) in movers.iter().enumerate().skip(a + 1) {
+            out.push(pair_pin_finding(world, &sides, (a, i), (b, j)));
+        }
     }
     out.push(MoverFinding {
         name: "what the guarantee covers with movers".into(),
@@ -139,6 +143,38 @@ pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
         detail: "the guarantee covers the robot's own motion: a mover that does not avoid the robot (a scripted path; a walker keeps off by its social force only) can walk into a robot that has stopped — such contacts are the mover's, counted apart by `ftcbf batch` (mover into the stopped robot), and are outside it".into(),
     });
     out
+}
+
+/// What the robot needs on each side not to be pinned (see [`pin_finding`]): its diameter,
+/// and from each body the distance its barrier keeps with the robot at rest — a static
+/// obstacle's margin, a mover's margin + k_m·v_o (its lift of the mover's approach speed).
+/// The rows' estimation-error terms (h̄_γ) are not in it: they are where the rows hold the
+/// robot at rest, not what they need to be met.
+struct Sides {
+    /// 2r \[m\].
+    diameter: f64,
+    /// The margin \[m\].
+    statics: f64,
+    /// margin + k_m·v_o per mover (in mover order) \[m\].
+    movers: Vec<f64>,
+}
+
+impl Sides {
+    fn new(world: &World) -> Self {
+        let bcfg = obstacle_barrier_config(world);
+        let movers = mover_indices(&world.obstacles)
+            .iter()
+            .map(|&i| {
+                let spec = &world.obstacles[i].spec;
+                bcfg.margin + mover_lift(world, spec, &bcfg) * max_speed(spec)
+            })
+            .collect();
+        Self {
+            diameter: 2.0 * bcfg.robot_radius,
+            statics: bcfg.margin,
+            movers,
+        }
+    }
 }
 
 /// The mover's planar footprint radius \[m\]: its own for a round body, else the half
@@ -194,11 +230,12 @@ fn swept_centres(world: &World, o: &Obstacle) -> Vec<[f64; 2]> {
     }
 }
 
-/// Whether mover `i` can pin the robot against a static obstacle: somewhere along its path the
-/// gap between its body and a static obstacle is positive but narrower than the robot with
-/// its margins, 2(r + margin): a robot in that gap when the mover comes has no way out (the
-/// rows of two barriers at once, which Theorem 3 does not cover).
-fn pin_finding(world: &World, i: usize) -> MoverFinding {
+/// Whether mover `i` (the `k`-th mover) can pin the robot against a static obstacle:
+/// somewhere along its path the gap between its body and a static obstacle is positive but
+/// narrower than the robot needs there ([`Sides`]: its diameter, the static obstacle's margin
+/// and the mover's margin + k_m·v_o): a robot in that gap when the mover comes cannot keep
+/// both barriers (two at once, which Theorem 3 does not cover).
+fn pin_finding(world: &World, sides: &Sides, k: usize, i: usize) -> MoverFinding {
     let o = &world.obstacles[i];
     let bcfg = obstacle_barrier_config(world);
     let bare = BarrierConfig {
@@ -207,7 +244,7 @@ fn pin_finding(world: &World, i: usize) -> MoverFinding {
         k: 0.0,
         ..bcfg
     };
-    let need = 2.0 * (bcfg.robot_radius + bcfg.margin);
+    let need = sides.diameter + sides.statics + sides.movers[k];
     let r_o = body_radius(o);
     let statics: Vec<(String, Vec<ObstacleBarrier>)> = world
         .obstacles
@@ -230,16 +267,20 @@ fn pin_finding(world: &World, i: usize) -> MoverFinding {
             }
         }
     }
+    let width = format!(
+        "the robot's diameter and the distance each barrier keeps with the robot at rest, 2r + margin + (margin + k_m·v_o) = {:.3} + {:.3} + {:.3} = {need:.3} m",
+        sides.diameter, sides.statics, sides.movers[k]
+    );
     MoverFinding {
         name: format!("`{}` cannot pin the robot against a static obstacle", o.name),
         holds: Some(worst.is_none()),
         detail: match worst {
             None => format!(
-                "along its path (every 5 cm) the gap between `{}` (body radius {r_o:.3} m) and each static obstacle is 0 or at least the robot's width with its margins, 2(r + margin) = {need:.3} m",
+                "along its path (every 5 cm) the gap between `{}` (body radius {r_o:.3} m) and each static obstacle is 0 or at least {width}",
                 o.name
             ),
             Some((gap, c, name)) => format!(
-                "at ({:.2}, {:.2}) on its path `{}` (body radius {r_o:.3} m) passes {gap:.3} m from `{name}`, less than the robot's width with its margins, 2(r + margin) = {need:.3} m: a robot in that gap when it comes is pinned between two barriers, which Theorem 3 does not cover (the guarantee does not apply with it)",
+                "at ({:.2}, {:.2}) on its path `{}` (body radius {r_o:.3} m) passes {gap:.3} m from `{name}`, less than {width}: a robot in that gap when it comes is pinned between two barriers, which Theorem 3 does not cover (the guarantee does not apply with it)",
                 c[0], c[1], o.name
             ),
         },
@@ -279,5 +320,72 @@ fn turn_finding(world: &World, i: usize) -> MoverFinding {
             bcfg.k,
             if holds { "" } else { " (the guarantee does not apply with it)" }
         ),
+    }
+}
+
+/// Whether movers `i` and `j` (the `ki`-th and `kj`-th movers) can pin the robot between them:
+/// somewhere the gap between their bodies is positive but narrower than the robot needs
+/// there, 2r + both movers' margin + k_m·v_o (see [`pin_finding`]). Two scripted
+/// movers are compared at the same instants over the run; with a walker, whose timing is its
+/// own, every point of one's swept path against every point of the other's.
+fn pair_pin_finding(
+    world: &World,
+    sides: &Sides,
+    (ki, i): (usize, usize),
+    (kj, j): (usize, usize),
+) -> MoverFinding {
+    let (oi, oj) = (&world.obstacles[i], &world.obstacles[j]);
+    let need = sides.diameter + sides.movers[ki] + sides.movers[kj];
+    let reach = body_radius(oi) + body_radius(oj);
+    let scripted = |o: &Obstacle| match crate::movers::fleet::trajectory(&o.spec) {
+        Ok(Some(t)) if !matches!(o.spec.motion, Some(MotionSpec::Walker { .. })) => Some(t),
+        _ => None,
+    };
+    let mut worst: Option<(f64, [f64; 2], [f64; 2])> = None;
+    let mut consider = |a: [f64; 2], b: [f64; 2]| {
+        let gap = (a[0] - b[0]).hypot(a[1] - b[1]) - reach;
+        if gap > 0.0 && gap < need && worst.is_none_or(|w| gap < w.0) {
+            worst = Some((gap, a, b));
+        }
+    };
+    let timed = match (scripted(oi), scripted(oj)) {
+        (Some(ti), Some(tj)) => {
+            let v = ti.max_speed().max(tj.max_speed()).max(1e-3);
+            let dt = 0.05 / v;
+            let n = (world.file.duration / dt).ceil().min(1e6) as usize;
+            for k in 0..=n {
+                let t = k as f64 * dt;
+                consider(ti.state(t).0, tj.state(t).0);
+            }
+            true
+        }
+        _ => {
+            let sj = swept_centres(world, oj);
+            for a in swept_centres(world, oi) {
+                for &b in &sj {
+                    consider(a, b);
+                }
+            }
+            false
+        }
+    };
+    let how = if timed {
+        "at the same instants over the run, every 5 cm"
+    } else {
+        "anywhere on their swept paths, whenever (a walker keeps no timetable)"
+    };
+    MoverFinding {
+        name: format!("`{}` and `{}` cannot pin the robot between them", oi.name, oj.name),
+        holds: Some(worst.is_none()),
+        detail: match worst {
+            None => format!(
+                "{how}, the gap between the bodies of `{}` and `{}` is 0 or at least the robot's diameter and the distance each barrier keeps with the robot at rest, 2r + 2 × (margin + k_m·v_o) = {need:.3} m",
+                oi.name, oj.name
+            ),
+            Some((gap, a, b)) => format!(
+                "`{}` at ({:.2}, {:.2}) and `{}` at ({:.2}, {:.2}) leave a gap of {gap:.3} m between their bodies ({how}), less than the robot's diameter and the distance each barrier keeps with the robot at rest, 2r + 2 × (margin + k_m·v_o) = {need:.3} m: a robot in it is pinned between two barriers, which Theorem 3 does not cover (the guarantee does not apply with them)",
+                oi.name, a[0], a[1], oj.name, b[0], b[1]
+            ),
+        },
     }
 }

@@ -391,33 +391,78 @@ struct Window<'a> {
 }
 
 impl Window<'_> {
+    /// Whether the mover, at `tau`, keeps the robot at rest off path point `p` (its barrier
+    /// there below h̄ at the largest γ).
     fn covers(&self, p: [f64; 2], tau: f64) -> bool {
         let q = mover_at(self.spec, self.traj, tau);
         let d = [q[0] - self.spec.position[0], q[1] - self.spec.position[1]];
         keeps_out(self.b, self.gamma, p, d, self.n)
     }
 
-    /// Whether the robot, leaving the start of `band` (points every few cm, `cum` their arc
-    /// lengths from it) at `t0` \[s\] at `speed` \[m/s\], crosses it without the mover keeping
-    /// out the point it is at (sampled every 0.1 s).
-    fn passes(&self, band: &[[f64; 2]], cum: &[f64], t0: f64, speed: f64) -> bool {
+    /// Whether the robot gets across `band` (points every few cm, `cum` their arc lengths
+    /// from its start) between `arrive` and `latest` \[s\]: it waits before the band (no
+    /// point there is ever covered) or at any point of it while the mover leaves it uncovered,
+    /// and moves forward from point to point at `speed` \[m/s\], never onto a point the mover
+    /// covers when it gets there nor staying on one it covers on the way; decided on a grid of
+    /// 0.1 s.
+    fn crosses(
+        &self,
+        band: &[[f64; 2]],
+        cum: &[f64],
+        arrive: f64,
+        latest: f64,
+        speed: f64,
+    ) -> bool {
         const DT: f64 = 0.1;
-        let total = cum.last().copied().unwrap_or(0.0);
-        let mut j = 0;
-        let mut tau = 0.0;
-        loop {
-            let s = (speed * tau).min(total);
-            while j + 1 < cum.len() && cum[j + 1] <= s {
-                j += 1;
-            }
-            if self.covers(band[j], t0 + tau) {
-                return false;
-            }
-            if s >= total {
-                return true;
-            }
-            tau += DT;
+        let n = band.len();
+        if n == 0 || latest < arrive || speed <= 0.0 {
+            return false;
         }
+        let (k0, k1) = (
+            (arrive / DT).ceil() as usize,
+            (latest / DT).floor() as usize,
+        );
+        let steps = k1 + 1;
+        // 0: not yet evaluated, 1: free, 2: covered; point-major.
+        let mut cov = vec![0u8; n * steps];
+        let mut covered = |j: usize, k: usize| {
+            let c = &mut cov[j * steps + k];
+            if *c == 0 {
+                *c = if self.covers(band[j], k as f64 * DT) {
+                    2
+                } else {
+                    1
+                };
+            }
+            *c == 2
+        };
+        // Steps to go from point j to j + 1.
+        let hop: Vec<usize> = cum
+            .windows(2)
+            .map(|w| (((w[1] - w[0]) / (speed * DT)).ceil() as usize).max(1))
+            .collect();
+        let mut at = vec![false; n * steps];
+        for k in k0..steps {
+            if !at[k] && !covered(0, k) {
+                at[k] = true; // entering from before the band
+            }
+            for j in 0..n {
+                if !at[j * steps + k] {
+                    continue;
+                }
+                if j == n - 1 {
+                    return true;
+                }
+                if k + 1 < steps && !covered(j, k + 1) {
+                    at[j * steps + k + 1] = true;
+                }
+                let t = k + hop[j];
+                if t < steps && (k + 1..t).all(|m| !covered(j, m)) && !covered(j + 1, t) {
+                    at[(j + 1) * steps + t] = true;
+                }
+            }
+        }
+        false
     }
 }
 
@@ -518,10 +563,11 @@ pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec
     (blocked, waits)
 }
 
-/// A line when the robot, crossing the stretch of `path` mover `name` ever comes onto at
-/// [`CROSSING_SPEED_FRACTION`] of its speed bound, meets the mover there whenever it leaves
-/// (from when it can reach the stretch to the last departure that leaves time to settle):
-/// blocked (it keeps crossing, the robot keeps waiting).
+/// A line when the robot cannot get across the stretch of `path` mover `name` ever comes onto
+/// in time to settle ([`Window::crosses`]): from when it can reach the stretch at v_max to the
+/// last moment that leaves it time to go on to the goal and settle, moving along it at up to
+/// [`CROSSING_SPEED_FRACTION`] of its speed bound and waiting wherever the mover leaves room,
+/// it never gets past: blocked (it keeps crossing, the robot keeps waiting).
 fn never_free(
     inputs: &LiveInputs<'_>,
     win: &Window<'_>,
@@ -541,7 +587,6 @@ fn never_free(
         return None;
     }
     let arrive = arc(path, 0, first) / inputs.v_max;
-    let need = arc(path, first, last) / speed;
     let after = arc(path, last, path.len().saturating_sub(1)) / inputs.v_max;
     let latest = inputs.duration - crate::summary::SETTLE_WINDOW - after;
     let band: Vec<[f64; 2]> = path[first..=last].to_vec();
@@ -549,20 +594,14 @@ fn never_free(
     for j in 1..band.len() {
         cum[j] = cum[j - 1] + (band[j][0] - band[j - 1][0]).hypot(band[j][1] - band[j - 1][1]);
     }
-    // Departures every 0.1 s from when the robot can reach the stretch to the last one that
-    // crosses it in time to settle.
-    let departures = ((latest - need - arrive) / DT).floor();
-    let crosses = departures >= 0.0
-        && (0..=departures as usize)
-            .any(|k| win.passes(&band, &cum, arrive + k as f64 * DT, speed));
-    (!crosses).then(|| {
+    (!win.crosses(&band, &cum, arrive, latest, speed)).then(|| {
         format!(
-            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}): leaving it at any time from t = {arrive:.1} s (when the robot can reach it) to {:.1} s (to cross it in time to settle) at {speed:.2} m/s, which takes {need:.1} s, the robot meets it there: it waits for good",
+            "mover `{name}` keeps coming back over the path between ({:.2}, {:.2}) and ({:.2}, {:.2}) ({:.2} m): from t = {arrive:.1} s (when the robot can reach it) to {latest:.1} s (to get across in time to settle), moving along it at up to {speed:.2} m/s and waiting wherever the mover leaves room, the robot never gets past it: it waits for good",
             path[first][0],
             path[first][1],
             path[last][0],
             path[last][1],
-            (latest - need).max(arrive)
+            cum.last().copied().unwrap_or(0.0)
         )
     })
 }

@@ -6,7 +6,10 @@
 //!   a half-space's wall patch cut to the ground, 0.3 m high), `world/movers/<name>/<name>` (a
 //!   moving obstacle, issue #51: its shape at its start, static, under `world/movers/<name>`,
 //!   whose translation over time is its displacement) and its path `world/trails/movers/<name>`,
-//!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`;
+//!   `world/safe_sets/<name>` (boundary at rest; half-planes cut to the ground), `world/goal`,
+//!   `world/collisions/{robot,mover}` (a marker where each contact began, by who moved: the
+//!   robot's — a static obstacle, or the robot moving into a mover — or a mover's walking into
+//!   the stopped robot; labelled with the obstacle and the time);
 //! - `world/robot/<link>` — link pose over time, its shapes (static) below it: the body's URDF
 //!   visual meshes where they were found, its collision shapes otherwise;
 //! - `world/estimates/<filter>` — each estimator's position over time (colour and radius
@@ -44,7 +47,10 @@ use rerun::sink::{FileSink, LogSink};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 
 use crate::observe::{Frame, Observer, Scene};
-use draw::{log_placed, palette, seg, Rect, GOAL, MOVER, ROBOT, SAFE_SET, TRUTH};
+use draw::{
+    log_placed, palette, seg, Rect, COLLISION_MOVER, COLLISION_ROBOT, GOAL, MOVER, ROBOT, SAFE_SET,
+    TRUTH,
+};
 use plots::Plots;
 
 pub use layout::EYE_ELEVATION;
@@ -132,6 +138,8 @@ pub struct Recorder {
     mover_moves: Vec<Vec<[f32; 3]>>,
     /// Per mover, its start in the plane and its path (a point every [`TRAIL_EVERY`] steps).
     mover_trails: Vec<([f32; 2], Vec<[f32; 3]>)>,
+    /// Contacts so far: (the robot's, position, label); markers under `world/collisions/`.
+    contacts: Vec<(bool, [f32; 3], String)>,
     last_policy: String,
     last_attacks: Vec<bool>,
     first_error: Option<String>,
@@ -171,6 +179,7 @@ impl Recorder {
             trails: Vec::new(),
             mover_moves: Vec::new(),
             mover_trails: Vec::new(),
+            contacts: Vec::new(),
             last_policy: String::new(),
             last_attacks: Vec::new(),
             first_error: None,
@@ -443,6 +452,46 @@ impl Recorder {
             }
         }
         for r in results {
+            self.keep(r);
+        }
+        if !f.contacts.is_empty() {
+            self.log_contacts(f.contacts);
+        }
+    }
+
+    /// Marks contacts where the robot was, by who moved: `world/collisions/robot` (red: a
+    /// static obstacle, or the robot moving into a mover) and `world/collisions/mover` (purple:
+    /// a mover walking into the stopped robot), each labelled with the obstacle and the time.
+    /// Every marker so far is re-logged, so all stay drawn from their time on.
+    fn log_contacts(&mut self, new: &[crate::observe::Contact]) {
+        for c in new {
+            let whose = c.cause.whose();
+            self.contacts.push((
+                whose == "robot",
+                [c.at[0] as f32, c.at[1] as f32, 0.05],
+                format!("{} ({whose}'s) t = {:.2} s", c.obstacle, c.t),
+            ));
+        }
+        for (robots, path, colour) in [
+            (true, "world/collisions/robot", COLLISION_ROBOT),
+            (false, "world/collisions/mover", COLLISION_MOVER),
+        ] {
+            let (pts, labels): (Vec<[f32; 3]>, Vec<String>) = self
+                .contacts
+                .iter()
+                .filter(|c| c.0 == robots)
+                .map(|c| (c.1, c.2.clone()))
+                .unzip();
+            if pts.is_empty() {
+                continue;
+            }
+            let r = self.rec.log(
+                path,
+                &rerun::Points3D::new(pts)
+                    .with_colors([colour])
+                    .with_radii([0.04f32])
+                    .with_labels(labels),
+            );
             self.keep(r);
         }
     }

@@ -389,6 +389,7 @@ impl<'w> Simulation<'w> {
         truth.t = t;
         self.view.truth = truth;
         self.view.events.clear();
+        self.view.contacts.clear();
         let samples = self.suite.sample(&truth);
         for (v, s) in self.view.channels.iter_mut().zip(samples.iter()) {
             v.clean = s.value;
@@ -507,7 +508,7 @@ impl<'w> Simulation<'w> {
             }
             self.plant.tick();
             self.monitor
-                .after_tick(&self.plant, self.world, &mut self.view.events);
+                .after_tick(&self.plant, self.world, &self.mover_now, &mut self.view);
         }
         self.monitor.after_step(
             &self.plant,
@@ -541,6 +542,7 @@ impl<'w> Simulation<'w> {
             link_poses: &v.link_poses,
             events: &v.events,
             movers: self.movers.states(),
+            contacts: &v.contacts,
         }
     }
 

@@ -17,6 +17,7 @@ use ftcbf_controller::MoverState;
 
 use crate::model::setup::ControlSetup;
 use crate::movers::fleet::MoverSet;
+use crate::observe::{Contact, ContactCause};
 use crate::plant::Plant;
 
 /// Safety and goal bookkeeping of one run.
@@ -126,7 +127,14 @@ impl Monitor {
 
     /// After one plant tick: safe sets on the truth, contacts (with an event when one starts),
     /// the goal.
-    pub(super) fn after_tick(&mut self, plant: &Plant, world: &World, events: &mut Vec<String>) {
+    pub(super) fn after_tick(
+        &mut self,
+        plant: &Plant,
+        world: &World,
+        movers: &[MoverState],
+        view: &mut super::view::StepView,
+    ) {
+        let events = &mut view.events;
         let tt = plant.truth();
         let x = tt.planar();
         if self.non_finite.is_none() && !x.iter().all(|v| v.is_finite()) {
@@ -158,16 +166,55 @@ impl Monitor {
             let now = plant.in_contact(oi);
             if now && !*touching {
                 let c = &mut self.collisions;
-                match self.mover_of[oi] {
-                    None => c.static_obstacles += 1,
-                    Some(_) if tt.vx.hypot(tt.vy) >= STOPPED_SPEED => c.mover_robot_moving += 1,
-                    Some((_, walker)) => {
+                // The robot's speed towards the mover's centre (its own speed when the mover's
+                // state is not at hand).
+                let speed = match self.mover_of[oi].and_then(|(k, _)| movers.get(k)) {
+                    Some(m) => {
+                        let p = &world.obstacles[oi].spec.position;
+                        let d = [
+                            p[0] + m.displacement[0] - tt.x,
+                            p[1] + m.displacement[1] - tt.y,
+                        ];
+                        let n = d[0].hypot(d[1]);
+                        if n > 0.0 {
+                            (tt.vx * d[0] + tt.vy * d[1]) / n
+                        } else {
+                            tt.vx.hypot(tt.vy)
+                        }
+                    }
+                    None => tt.vx.hypot(tt.vy),
+                };
+                let cause = match self.mover_of[oi] {
+                    None => ContactCause::Static,
+                    Some(_) if speed >= STOPPED_SPEED => ContactCause::RobotMoving,
+                    Some((_, walker)) => ContactCause::MoverIntoStopped { walker },
+                };
+                match cause {
+                    ContactCause::Static => c.static_obstacles += 1,
+                    ContactCause::RobotMoving => c.mover_robot_moving += 1,
+                    ContactCause::MoverIntoStopped { walker } => {
                         c.mover_robot_stopped += 1;
                         c.walker_robot_stopped += u64::from(walker);
                     }
                 }
                 let name = world.obstacles[oi].name.clone();
-                events.push(format!("collision with {name} at t = {:.3} s", tt.t));
+                events.push(match cause {
+                    ContactCause::Static => format!("collision with {name} at t = {:.3} s", tt.t),
+                    ContactCause::RobotMoving => format!(
+                        "collision with {name} at t = {:.3} s: the robot moved into the mover ({speed:.3} m/s towards it): the robot's",
+                        tt.t
+                    ),
+                    ContactCause::MoverIntoStopped { .. } => format!(
+                        "collision with {name} at t = {:.3} s: the mover walked into the stopped robot (robot {speed:.3} m/s towards it): the mover's, outside the guarantee",
+                        tt.t
+                    ),
+                });
+                view.contacts.push(Contact {
+                    obstacle: name.clone(),
+                    t: tt.t,
+                    at: [tt.x, tt.y],
+                    cause,
+                });
                 if self.first_collision.is_none() {
                     self.first_collision = Some(CollisionEvent {
                         t: tt.t,

@@ -28,6 +28,8 @@ pub(super) struct StepView {
     pub(super) attacks_active: Vec<bool>,
     pub(super) link_poses: Vec<(String, [f32; 3], [f32; 4])>,
     pub(super) events: Vec<String>,
+    /// Contacts that began this step, with who moved.
+    pub(super) contacts: Vec<crate::observe::Contact>,
 }
 
 impl StepView {
@@ -60,6 +62,7 @@ impl StepView {
             attacks_active: vec![false; attacks],
             link_poses: Vec::new(),
             events: Vec::new(),
+            contacts: Vec::new(),
         }
     }
 

@@ -4,8 +4,15 @@
 //! plugins move theirs (ROBOTIS turtlebot3_gazebo: obstacle1/obstacle2, 0.1 m/s, radius 0.12 m).
 //!
 //! Movers are placed relative to the planned route (start → path → goal) and kept where they
-//! can be: a scripted mover's whole path and a walker's goals clear of the static obstacles by
-//! its radius and 5 cm, and no mover within reach of the robot's start in the first seconds.
+//! cannot pin the robot (`ftcbf check`'s pinning hypotheses): a scripted mover's whole path
+//! and a walker's legs between its goals keep [`Scene::room`] between the mover's body and
+//! every static obstacle, and two movers of one world keep [`Scene::apart`] between their
+//! bodies wherever either goes (their swept paths, regardless of time); no mover comes within
+//! reach of the robot's start in the first seconds. The room is what `check` asks — the
+//! robot's diameter and the distance each barrier keeps with the robot at rest, the margin
+//! from a static obstacle and margin + k_m·v_o from a mover — with those taken at
+//! [`STATIC_SIDE`] and [`MOVER_SIDE`], above what generated worlds give (a test checks every
+//! generated mover against `check`).
 //! Speeds stay at or below 0.14 m/s (a walker's desired speed at or below 0.12 m/s, so its
 //! largest, 1.56 ×, stays below the burger's 0.22 m/s): people at a shuffle, carts at a crawl —
 //! the movers a TurtleBot3 can get out of the way of (`ftcbf check` says so per world).
@@ -32,6 +39,44 @@ pub(crate) struct Scene<'a> {
     pub footprint: f64,
     /// The goal's radius \[m\].
     pub goal_radius: f64,
+    /// The room a mover's body keeps from a static obstacle \[m\] ([`room_for`]).
+    pub room: f64,
+    /// The room two movers' bodies keep from each other \[m\] ([`room_for`]).
+    pub apart: f64,
+}
+
+/// What a static obstacle's barrier keeps from it with the robot at rest, the margin (0.02 m
+/// by default), taken at \[m\]:
+pub(crate) const STATIC_SIDE: f64 = 0.05;
+/// What a mover's barrier keeps from it with the robot at rest, margin + k_m·v_o (at most
+/// 0.02 + 1.5 s × 0.14 m/s for the generated movers' speeds), taken at \[m\]:
+pub(crate) const MOVER_SIDE: f64 = 0.25;
+
+/// The rooms ([`Scene::room`], [`Scene::apart`]) for a robot of footprint radius `footprint`:
+/// its diameter, each side's distance ([`STATIC_SIDE`], [`MOVER_SIDE`]) and 5 cm.
+pub(crate) fn room_for(footprint: f64) -> (f64, f64) {
+    let d = 2.0 * footprint + 0.05;
+    (d + STATIC_SIDE + MOVER_SIDE, d + 2.0 * MOVER_SIDE)
+}
+
+/// Where a mover's centre goes: `points` joined in order (and back to the first when
+/// `closed`), every 5 cm.
+fn sweep(points: &[[f64; 2]], closed: bool) -> Vec<[f64; 2]> {
+    let mut out = vec![points[0]];
+    let back = closed.then(|| points[0]);
+    for w in points
+        .windows(2)
+        .map(|w| (w[0], w[1]))
+        .chain(back.map(|b| (points[points.len() - 1], b)))
+    {
+        let (a, b) = w;
+        let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / 0.05).ceil().max(1.0) as usize;
+        out.extend((1..=n).map(|k| {
+            let s = k as f64 / n as f64;
+            [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s]
+        }));
+    }
+    out
 }
 
 /// The geometry settings of the static obstacles as movers see them.
@@ -47,9 +92,10 @@ pub(crate) fn bare_config() -> BarrierConfig {
 }
 
 impl Scene<'_> {
+    /// A body of radius `r` at `p` keeps [`Scene::room`] from every static obstacle.
     fn clear(&self, p: [f64; 2], r: f64) -> bool {
         let q = nalgebra::Vector2::new(p[0], p[1]);
-        self.statics.iter().all(|b| b.clearance(q) >= r + 0.05)
+        self.statics.iter().all(|b| b.clearance(q) >= r + self.room)
     }
 
     fn segment_clear(&self, a: [f64; 2], b: [f64; 2], r: f64) -> bool {
@@ -155,7 +201,7 @@ fn scripted_off_start(
 fn cart<R: Rng>(rng: &mut R, scene: &Scene<'_>) -> Option<Mover> {
     let r = pick(rng, 0.1, 0.2, 0.01);
     let speed = pick(rng, 0.05, 0.14, 0.01);
-    for _ in 0..30 {
+    for _ in 0..60 {
         let (p, t) = scene.at(pick(rng, 0.25, 0.75, 0.01));
         let Some((a, b)) = scene.across(p, [-t[1], t[0]], pick(rng, 0.8, 1.5, 0.1), r) else {
             continue;
@@ -172,22 +218,46 @@ fn cart<R: Rng>(rng: &mut R, scene: &Scene<'_>) -> Option<Mover> {
     None
 }
 
-/// A person of radius 0.2 m walking between `goals`, starting at the first.
+/// The swept paths (centres every 5 cm) and body radii of the movers placed so far.
+type Placed = Vec<(Vec<[f64; 2]>, f64)>;
+
+/// A body of radius `r` along `path` keeps `room` from every placed mover's body, wherever
+/// either is on its path.
+fn apart(placed: &Placed, path: &[[f64; 2]], r: f64, room: f64) -> bool {
+    placed.iter().all(|(q, rq)| {
+        path.iter().all(|a| {
+            q.iter()
+                .all(|b| (a[0] - b[0]).hypot(a[1] - b[1]) >= r + rq + room)
+        })
+    })
+}
+
+/// A person of radius 0.2 m walking between `goals`, starting at the first, on a leg clear of
+/// the static obstacles and apart from the movers `placed`.
 fn person<R: Rng>(
     rng: &mut R,
     scene: &Scene<'_>,
+    placed: &Placed,
     name: &str,
     goals: [[f64; 2]; 2],
-) -> Option<Mover> {
+) -> Option<(Mover, Vec<[f64; 2]>)> {
     let r = 0.2;
     let speed = pick(rng, 0.06, 0.12, 0.01);
     let [a, b] = [round2(goals[0]), round2(goals[1])];
-    (scene.clear(a, r) && scene.clear(b, r) && scene.off_start(a, r))
-        .then(|| (cylinder(name, a, r, 0.85), walker(&[b, a], speed)))
+    let path = sweep(&[a, b], false);
+    (scene.segment_clear(a, b, r) && scene.off_start(a, r) && apart(placed, &path, r, scene.apart))
+        .then(|| ((cylinder(name, a, r, 0.85), walker(&[b, a], speed)), path))
 }
 
-/// A small cylinder going round a loop of 3–4 clear points near the route at 0.1 m/s.
-fn looper<R: Rng>(rng: &mut R, scene: &Scene<'_>, name: &str, around: f64) -> Option<Mover> {
+/// A small cylinder going round a loop of 3–4 clear points near the route at 0.1 m/s, apart
+/// from the movers `placed`.
+fn looper<R: Rng>(
+    rng: &mut R,
+    scene: &Scene<'_>,
+    placed: &Placed,
+    name: &str,
+    around: f64,
+) -> Option<(Mover, Vec<[f64; 2]>)> {
     let r = 0.12;
     let (c, _) = scene.at(around);
     for _ in 0..40 {
@@ -201,37 +271,64 @@ fn looper<R: Rng>(rng: &mut R, scene: &Scene<'_>, name: &str, around: f64) -> Op
             })
             .collect();
         let closed: Vec<[f64; 2]> = pts.iter().chain(pts.first()).copied().collect();
-        let ok = pts.iter().all(|&p| scene.clear(p, r))
-            && closed
-                .windows(2)
-                .all(|w| scene.segment_clear(w[0], w[1], r))
+        let ok = closed
+            .windows(2)
+            .all(|w| scene.segment_clear(w[0], w[1], r))
             && scripted_off_start(scene, pts[0], &pts[1..], 0.1, Repeat::Loop, r);
-        if ok {
+        let path = sweep(&pts, true);
+        if ok && apart(placed, &path, r, scene.apart) {
             return Some((
-                cylinder(name, pts[0], r, 0.25),
-                waypoints(&pts[1..], 0.1, "loop"),
+                (
+                    cylinder(name, pts[0], r, 0.25),
+                    waypoints(&pts[1..], 0.1, "loop"),
+                ),
+                path,
             ));
         }
     }
     None
 }
 
+/// Keeps mover `m` of body radius `r`, if drawn, with its swept path.
+fn keep(m: Option<(Mover, Vec<[f64; 2]>)>, r: f64, out: &mut Vec<Mover>, placed: &mut Placed) {
+    if let Some((m, path)) = m {
+        out.push(m);
+        placed.push((path, r));
+    }
+}
+
 /// The movers of a moving-obstacle `kind` (empty for the static kinds, or where none fits).
 pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, scene: &Scene<'_>) -> Vec<Mover> {
     let mut out = Vec::new();
+    let mut placed: Placed = Vec::new();
     match kind {
         Kind::AisleCrossing => out.extend(cart(rng, scene)),
         Kind::CorridorWalker => {
-            // Down the route from near the goal towards the start, and back.
+            // Down the route from near the goal towards the start, and back: the longest leg
+            // that fits, shifted sideways off the route if that is where the room is.
             let goal = scene.route[scene.route.len() - 1];
-            let far = (0..4)
-                .map(|k| scene.at(0.85 - 0.05 * k as f64).0)
-                .find(|p| {
-                    (p[0] - goal[0]).hypot(p[1] - goal[1])
-                        >= 0.2 + scene.footprint + scene.goal_radius + 0.1
-                });
-            if let Some(far) = far {
-                out.extend(person(rng, scene, "person", [far, scene.at(0.2).0]));
+            let far_ok = |p: &[f64; 2]| {
+                (p[0] - goal[0]).hypot(p[1] - goal[1])
+                    >= 0.2 + scene.footprint + scene.goal_radius + 0.1
+            };
+            let legs = [0.85, 0.8, 0.75, 0.7, 0.65].into_iter().flat_map(|f| {
+                [0.2, 0.3, 0.4].into_iter().flat_map(move |g| {
+                    [0.0, 0.1, -0.1, 0.2, -0.2, 0.3, -0.3].map(|off| (f, g, off))
+                })
+            });
+            for (f, g, off) in legs {
+                let (far, near) = (scene.at(f).0, scene.at(g).0);
+                let len = (near[0] - far[0]).hypot(near[1] - far[1]);
+                if !far_ok(&far) || len < 1.0 {
+                    continue;
+                }
+                let n = [-(near[1] - far[1]) / len, (near[0] - far[0]) / len];
+                let shift = |p: [f64; 2]| [p[0] + n[0] * off, p[1] + n[1] * off];
+                let m = person(rng, scene, &placed, "person", [shift(far), shift(near)]);
+                if m.is_some() {
+                    keep(m, 0.2, &mut out, &mut placed);
+                    break;
+                }
             }
         }
         Kind::RoomPeople => {
@@ -243,8 +340,9 @@ pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, scene: &Scene<'_>) -> Vec<Mo
                         continue;
                     };
                     let (a, b) = if rng.random_bool(0.5) { (a, b) } else { (b, a) };
-                    if let Some(m) = person(rng, scene, name, [a, b]) {
-                        out.push(m);
+                    let m = person(rng, scene, &placed, name, [a, b]);
+                    if m.is_some() {
+                        keep(m, 0.2, &mut out, &mut placed);
                         break;
                     }
                 }
@@ -252,7 +350,8 @@ pub(crate) fn draw<R: Rng>(rng: &mut R, kind: Kind, scene: &Scene<'_>) -> Vec<Mo
         }
         Kind::DqnLoops => {
             for (name, f) in [("obstacle1", 0.4), ("obstacle2", 0.7)] {
-                out.extend(looper(rng, scene, name, f));
+                let m = looper(rng, scene, &placed, name, f);
+                keep(m, 0.12, &mut out, &mut placed);
             }
         }
         _ => {}
