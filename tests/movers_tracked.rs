@@ -46,11 +46,7 @@ fn the_controller_reads_the_filter_and_its_error_stays_within_the_bounds() {
     let w = world(TRACKED);
     let mut sim = Simulation::new(&w, &opts(3)).expect("builds");
     let (mut steps, mut differ, mut worst) = (0u64, 0u64, [0.0f64; 2]);
-    loop {
-        let truth = match sim.step() {
-            Some(f) => f.movers.to_vec(),
-            None => break,
-        };
+    while let Some(truth) = sim.step().map(|f| f.movers.to_vec()) {
         let read = sim.mover_readings();
         assert_eq!(read.len(), 2);
         for (r, t) in read.iter().zip(&truth) {

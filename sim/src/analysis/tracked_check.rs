@@ -26,7 +26,10 @@ pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
     let limit = setup.config.input_limit.map(|l| l[0].min(l[1]));
     let mut out = Vec::new();
     for o in &world.obstacles {
-        let (Some(spec), Some((cfg, _))) = (&o.spec.tracker, tracker_config(&o.spec, eps)) else {
+        let (Some(spec), Some((cfg, _))) = (
+            &o.spec.tracker,
+            tracker_config(&o.spec, max_speed(&o.spec), eps),
+        ) else {
             continue;
         };
         let name = &o.name;

@@ -249,7 +249,8 @@ impl MoverSet {
     /// ([`crate::model::setup::tracker_eps`]). Movers without one stay exact.
     pub fn track(&mut self, obstacles: &[Obstacle], eps_per_sample: f64, seed: u64) {
         for (slot, &i) in self.tracked.iter_mut().zip(&self.obstacles) {
-            *slot = TrackedMover::new(&obstacles[i].spec, eps_per_sample, seed);
+            let spec = &obstacles[i].spec;
+            *slot = TrackedMover::new(spec, max_speed(spec), eps_per_sample, seed);
         }
     }
 

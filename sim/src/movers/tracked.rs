@@ -22,7 +22,6 @@ use rand::Rng;
 use rand_chacha::ChaCha20Rng;
 use rand_distr::StandardNormal;
 
-use crate::movers::fleet::max_speed;
 use crate::movers::SocialForce;
 use crate::obstacles::{MotionSpec, ObstacleSpec, TrackerAttackSpec, TrackerSpec};
 use crate::sensors::stream_rng;
@@ -30,30 +29,31 @@ use crate::sensors::stream_rng;
 /// The largest detection noise accepted \[m\] (a detector worse than this is not one).
 pub const MAX_POSITION_STD: f64 = 10.0;
 
-/// The bound on mover `spec`'s acceleration the tracker's error bound uses \[m/s²\]: a
-/// walker's (v_des + v_cap)/τ at its largest desired speed, 0 for a scripted path.
-pub fn accel_bound(spec: &ObstacleSpec) -> f64 {
+/// The bound on mover `spec`'s acceleration the tracker's error bound uses \[m/s²\], given its
+/// largest speed `v_max` ([`crate::movers::fleet::max_speed`]): a walker's (v_des + v_cap)/τ at
+/// its largest desired speed, 0 for a scripted path.
+pub fn accel_bound(spec: &ObstacleSpec, v_max: f64) -> f64 {
     match spec.motion {
-        Some(MotionSpec::Walker { .. }) => {
-            max_speed(spec) * (1.0 / 1.3 + 1.0) / SocialForce::default().tau
-        }
+        Some(MotionSpec::Walker { .. }) => v_max * (1.0 / 1.3 + 1.0) / SocialForce::default().tau,
         _ => 0.0,
     }
 }
 
-/// The filter of mover `spec` (None without a `tracker`) at per-sample probability
+/// The filter of mover `spec` moving at up to `v_max` m/s
+/// ([`crate::movers::fleet::max_speed`]; None without a `tracker`) at per-sample probability
 /// `eps_per_sample` (ε/(N·M), see [`crate::model::setup::tracker_eps`]), and its detection
 /// period \[s\]: the speed and acceleration bounds of its motion, the gain's `accel_std`
 /// (default: the acceleration bound, else the speed bound per second, else the noise's
 /// σ·rate²).
 pub fn tracker_config(
     spec: &ObstacleSpec,
+    v_max: f64,
     eps_per_sample: f64,
 ) -> Option<(MoverTrackerConfig, f64)> {
     let t = spec.tracker.as_ref()?;
     spec.motion.as_ref()?;
-    let a = accel_bound(spec);
-    let v = max_speed(spec);
+    let a = accel_bound(spec, v_max);
+    let v = v_max;
     let design = if a > 0.0 {
         a
     } else if v > 0.0 {
@@ -154,10 +154,10 @@ pub struct TrackedMover {
 }
 
 impl TrackedMover {
-    /// The tracked mover of `spec` at `eps_per_sample` for the run of `seed` (None without a
-    /// tracker).
-    pub fn new(spec: &ObstacleSpec, eps_per_sample: f64, seed: u64) -> Option<Self> {
-        let (cfg, period) = tracker_config(spec, eps_per_sample)?;
+    /// The tracked mover of `spec` (moving at up to `v_max` m/s) at `eps_per_sample` for the
+    /// run of `seed` (None without a tracker).
+    pub fn new(spec: &ObstacleSpec, v_max: f64, eps_per_sample: f64, seed: u64) -> Option<Self> {
+        let (cfg, period) = tracker_config(spec, v_max, eps_per_sample)?;
         let TrackerSpec { attack, .. } = spec.tracker.as_ref()?;
         Some(Self {
             // Checked when the world was loaded (`check_tracker`); ε' is in (0, 1).
