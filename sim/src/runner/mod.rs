@@ -552,6 +552,7 @@ impl<'w> Simulation<'w> {
             link_poses: &v.link_poses,
             events: &v.events,
             movers: self.movers.truth(),
+            mover_readings: self.movers.states(),
         }
     }
 
