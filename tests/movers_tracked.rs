@@ -141,6 +141,12 @@ fn check_states_the_trackers_bounds_and_refuses_a_declared_attack() {
     assert_eq!(s, Status::Holds);
     let r = check_world(&w).expect("checks");
     assert!(r.verdict.applies, "{:?}", r.verdict.reasons);
+    // The tracked readings' ε is added to the claim: 1 − 0.05 − 0.05.
+    assert!(
+        r.verdict.line().contains("1 − ε − ε_tracked = 0.9 "),
+        "{}",
+        r.verdict.line()
+    );
     let attacked = world("tests/worlds_movers/tracked_crossing_attacked.toml");
     let (s, d) = status_of(&attacked, "attack on the tracker of `cart`");
     assert_eq!(s, Status::Fails);

@@ -215,3 +215,93 @@ impl TrackedMover {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::obstacles::ShapeSpec;
+
+    fn cart(attack: Option<TrackerAttackSpec>) -> ObstacleSpec {
+        ObstacleSpec {
+            name: "cart".into(),
+            position: [1.0, -1.0, 0.2],
+            rpy: [0.0; 3],
+            shape: ShapeSpec::Cylinder {
+                radius: 0.15,
+                half_height: 0.2,
+            },
+            motion: Some(MotionSpec::Velocity {
+                velocity: [0.0, 0.1],
+            }),
+            tracker: Some(TrackerSpec {
+                position_std: 0.02,
+                rate: 10.0,
+                accel_std: None,
+                attack,
+            }),
+        }
+    }
+
+    /// Runs `spec`'s tracker over 3 s of 50 Hz control steps against its true motion; the
+    /// largest position error of the readings from `from` s on, the readings whose error
+    /// exceeds their bound γ_p, and the tracker.
+    fn run(spec: &ObstacleSpec, from: f64) -> (f64, usize, TrackedMover) {
+        let mut tr = TrackedMover::new(spec, 0.1, 1e-5, 7).expect("tracked");
+        let (mut worst, mut over) = (0.0f64, 0);
+        for k in 0..150 {
+            let t = k as f64 * 0.02;
+            let truth = MoverState {
+                displacement: [0.0, 0.1 * t],
+                velocity: [0.0, 0.1],
+                ..MoverState::default()
+            };
+            let r = tr.step(t, &truth);
+            let e = (r.displacement[0] - truth.displacement[0])
+                .hypot(r.displacement[1] - truth.displacement[1]);
+            over += usize::from(e > r.position_bound);
+            if t >= from {
+                worst = worst.max(e);
+            }
+        }
+        (worst, over, tr)
+    }
+
+    /// Honest detections: none refused, the estimate within a few cm after a second and within
+    /// its bound at every step. A bias of 1 m (far past the gate) in [1, 2) s: its 10
+    /// detections are refused and the readings stay within their (growing) bounds. A 5 cm bias
+    /// passes the gate, moves the estimate, and breaks the bound: an attack on the detections
+    /// is outside it.
+    #[test]
+    fn detections_every_period_and_a_declared_bias_in_its_window() {
+        let (honest, over, tr) = run(&cart(None), 1.0);
+        assert_eq!((tr.refused, over), (0, 0));
+        assert!(honest < 0.05, "{honest}");
+        let window = |b: f64| TrackerAttackSpec {
+            bias: [b, 0.0],
+            start: 1.0,
+            end: Some(2.0),
+        };
+        let (_, over, tr) = run(&cart(Some(window(1.0))), 0.0);
+        assert_eq!((tr.refused, over), (10, 0));
+        let (small, over, tr) = run(&cart(Some(window(0.05))), 1.5);
+        assert_eq!(tr.refused, 0);
+        assert!(
+            small > honest && over > 0,
+            "{small} vs {honest}, {over} over"
+        );
+    }
+
+    #[test]
+    fn a_tracker_on_a_standing_obstacle_or_with_bad_values_is_refused() {
+        let mut s = cart(None);
+        assert_eq!(check_tracker(&s, 50.0), Ok(()));
+        s.motion = None;
+        let (key, msg) = check_tracker(&s, 50.0).unwrap_err();
+        assert!(key.is_empty() && msg.contains("no `motion`"), "{msg}");
+        let mut s = cart(None);
+        if let Some(t) = s.tracker.as_mut() {
+            t.rate = 60.0;
+        }
+        assert_eq!(check_tracker(&s, 50.0).unwrap_err().0, "rate");
+    }
+}
