@@ -14,7 +14,9 @@
 - no value of a plotted series lies outside the documented plot range (|v| < 1e6).
 
 Each moving obstacle (`/world/movers/<name>`) has a temporal translation that changes and its
-trail under `/world/trails/movers/`.
+trail under `/world/trails/movers/`. A tracked one (read through its `tracker`) also has its
+estimate at `/world/mover_estimates/<name>`: temporal positions that change, each within 1 m
+of the true mover, with temporal radii (its bound γ_p) > 0; an exactly read one has none.
 
 With `--visual-meshes N`: at least N robot shapes are URDF visual meshes (`Mesh3D` entities
 named `<link>_visual_<i>` under `/world/robot`).
@@ -243,6 +245,48 @@ def check_movers(table):
         if trail not in strips:
             fail(f"{entity}: no trail {trail.split(':')[0]}")
         print(f"rrd_check: {entity}: {len(seen)} distinct translations, trail drawn")
+    check_mover_estimates(table, movers)
+
+
+def check_mover_estimates(table, movers):
+    """A tracked mover's estimate (issue #51) is drawn beside it: temporal positions at
+    `/world/mover_estimates/<name>` of a mover that exists, >= 10 distinct, each within 1 m of
+    the mover's true centre at the same step (its start plus its translation), with radii > 0."""
+    names = {n.split(":")[0].rsplit("/", 1)[1]: n for n in movers}
+    est = [n for n in columns(table, ":Points3D:positions") if n.startswith("/world/mover_estimates/")]
+    for name in est:
+        entity = name.split(":")[0]
+        mover = entity.rsplit("/", 1)[1]
+        if mover not in names:
+            fail(f"{entity}: no mover `{mover}` drawn at /world/movers/")
+        seen = distinct_positions(table, name)
+        if len(seen) < 10:
+            fail(f"{entity}: only {len(seen)} distinct positions over time")
+        radii = entity + ":Points3D:radii"
+        if radii not in columns(table, ":Points3D:radii") or is_static(table, radii):
+            fail(f"{entity}: no temporal radii (its bound)")
+        if any(r is not None and not (r and r[0] > 0) for r in table.column(radii).to_pylist()):
+            fail(f"{entity}: a radius (its bound) is not > 0")
+        start = mover_start(table, mover)
+        worst = 0.0
+        for p, d in zip(table.column(name).to_pylist(), table.column(names[mover]).to_pylist()):
+            if p and d and start is not None:
+                true = (start[0] + d[0][0], start[1] + d[0][1])
+                worst = max(worst, math.hypot(p[0][0] - true[0], p[0][1] - true[1]))
+        if worst > 1.0:
+            fail(f"{entity}: {worst:.3f} m from the mover it tracks")
+        print(f"rrd_check: {entity}: {len(seen)} distinct positions, at most {worst:.3f} m from the mover")
+
+
+def mover_start(table, mover):
+    """The mover's start in the plane: the first point of its trail."""
+    trail = "/world/trails/movers/" + mover + ":LineStrips3D:strips"
+    if trail not in columns(table, ":LineStrips3D:strips"):
+        return None
+    for v in table.column(trail).to_pylist():
+        if v and v[0]:
+            return v[0][0]
+    return None
 
 
 def check_plots(store):

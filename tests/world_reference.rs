@@ -59,6 +59,7 @@ b = -1.0
 [[obstacles]]
 name = "box"
 shape = { kind = "cuboid", half_extents = [0.1, 0.1, 0.1] }
+tracker = { position_std = 0.03, rate = 10.0, attack = { bias = [0.1, 0.0] } }
 
 [[sensors]]
 name = "x"
@@ -229,7 +230,7 @@ impl Reference {
     }
 }
 
-const TABLES: [(&str, &str); 15] = [
+const TABLES: [(&str, &str); 17] = [
     ("", "## Top level"),
     ("robot", "## `[robot]`"),
     ("robot.start", "### `[robot.start]`"),
@@ -242,6 +243,11 @@ const TABLES: [(&str, &str); 15] = [
     ("control.clf", "### `[control.clf]`"),
     ("goal", "## `[goal]`"),
     ("obstacles.0", "## `[[obstacles]]`"),
+    ("obstacles.0.tracker", "### Obstacle `tracker`"),
+    (
+        "obstacles.0.tracker.attack",
+        "### Obstacle `tracker.attack`",
+    ),
     ("sensors.0", "## `[[sensors]]`"),
     ("fault_patterns.0", "## `[[fault_patterns]]`"),
     ("environment", "## `[environment]`"),

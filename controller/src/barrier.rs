@@ -51,12 +51,23 @@ pub struct MoverState {
     /// Bound on the norm of its acceleration \[m/s²\] (0 for a piecewise-constant velocity:
     /// the jumps at a path's corners are not covered, see the book's moving-obstacles page).
     pub accel_bound: f64,
+    /// γ_p: bound on the error of `displacement` \[m\] (0 for an exact reading; a tracked
+    /// mover's, see [`crate::mover_track`]).
+    pub position_bound: f64,
+    /// γ_v: bound on the error of `velocity` \[m/s\] (0 for an exact reading).
+    pub velocity_bound: f64,
 }
 
 /// A barrier that moves with an obstacle by translation: h(x, t) = h₀(p − δ(t), v − v_c(t))
 /// with δ the obstacle's displacement and v_c its velocity (so a velocity lift on h₀ is on
 /// the relative velocity). With h₀'s gradient (∇_p, ∇_v) at the shifted state,
 /// ∂h/∂t = −∇_p h₀·v_c − ∇_v h₀·a_c ≥ −∇_p h₀·v_c − ‖∇_v h₀‖·ā, the bound returned.
+///
+/// A reading with error bounds γ_p, γ_v (a tracked mover): h is lowered by
+/// ‖∇_p h₀‖·γ_p + ‖∇_v h₀‖·γ_v (to first order, the most the true h can be below the one at the
+/// estimate) and ∂h/∂t by ‖∇_p h₀‖·γ_v (the true velocity may differ from the estimate by γ_v);
+/// the gradient and Hessian stay those of h₀ at the estimate. Exact readings (both 0) give h₀
+/// and the bound above unchanged, bit for bit; a NaN bound makes h NaN (the row fails closed).
 #[derive(Debug, Clone)]
 pub struct MovingBarrier {
     base: std::sync::Arc<dyn Barrier>,
@@ -102,10 +113,15 @@ impl Barrier for MovingBarrier {
             m.velocity[0],
             m.velocity[1],
         );
-        let e = self.base.eval(&shifted);
+        let mut e = self.base.eval(&shifted);
         let g = e.gradient;
-        let dh_dt =
+        let mut dh_dt =
             -(g[0] * m.velocity[0] + g[1] * m.velocity[1]) - g[2].hypot(g[3]) * m.accel_bound;
+        if !(m.position_bound == 0.0 && m.velocity_bound == 0.0) {
+            let (gp, gv) = (g[0].hypot(g[1]), g[2].hypot(g[3]));
+            e.value -= gp * m.position_bound + gv * m.velocity_bound;
+            dh_dt -= gp * m.velocity_bound;
+        }
         (e, dh_dt)
     }
 }
@@ -352,6 +368,7 @@ mod tests {
             displacement: [1.0, 0.0],
             velocity: [0.3, 0.0],
             accel_bound: 0.0,
+            ..MoverState::default()
         };
         let x = State::new(3.0, 0.0, 0.0, 0.0);
         let (e, dh_dt) = m.eval_moving(&x, &[MoverState::default(), reading]);
@@ -363,6 +380,26 @@ mod tests {
         // A static barrier: eval and 0.
         let d = EllipsoidOutside::disc("s", 0.0, 0.0, 1.0);
         assert_eq!(d.eval_moving(&x, &[reading]), (d.eval(&x), 0.0));
+        // A tracked reading with γ_p = 0.1 m, γ_v = 0.05 m/s: h lowered by ‖∇_p h‖γ_p = 0.4
+        // (∇_v h = 0 for a disc on position), ∂h/∂t by ‖∇_p h‖γ_v = 0.2.
+        let tracked = MoverState {
+            position_bound: 0.1,
+            velocity_bound: 0.05,
+            ..reading
+        };
+        let (t, t_dt) = m.eval_moving(&x, &[MoverState::default(), tracked]);
+        assert!((t.value - (3.0 - 0.4)).abs() < 1e-12, "{}", t.value);
+        assert!((t_dt - (-1.2 - 0.2)).abs() < 1e-12, "{t_dt}");
+        assert_eq!(t.gradient, e.gradient);
+        let broken = MoverState {
+            position_bound: f64::NAN,
+            ..reading
+        };
+        assert!(m
+            .eval_moving(&x, &[MoverState::default(), broken])
+            .0
+            .value
+            .is_nan());
     }
 
     #[test]

@@ -42,6 +42,7 @@ fn obstacles() -> Vec<Obstacle> {
             rpy: [0.0, 0.0, a],
             shape,
             motion: None,
+            tracker: None,
         });
     }
     Obstacle::from_specs(&specs, None).expect("valid obstacles")

@@ -152,6 +152,9 @@ pub struct Frame<'a> {
     /// Each moving obstacle's state at `t` (in [`Scene::movers`] order): its displacement from
     /// its start \[m\] and its velocity \[m/s\], world frame.
     pub movers: &'a [ftcbf_controller::MoverState],
+    /// Each moving obstacle as the controller read it at `t` (same order): a tracked mover's
+    /// estimate with its error bounds; equal to [`Frame::movers`] for an exact reading.
+    pub mover_readings: &'a [ftcbf_controller::MoverState],
     /// Contacts that started this step, with who moved (also in `events`, as text).
     pub contacts: &'a [Contact],
 }

@@ -20,6 +20,7 @@ fn obstacle(name: &str, position: [f64; 3], rpy: [f64; 3], shape: ShapeSpec) -> 
         rpy,
         shape,
         motion: None,
+        tracker: None,
     };
     Obstacle::from_spec(&spec, None).unwrap()
 }

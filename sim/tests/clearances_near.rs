@@ -21,6 +21,7 @@ fn obstacle(name: String, position: [f64; 3], shape: ShapeSpec) -> Obstacle {
             rpy: [0.0; 3],
             shape,
             motion: None,
+            tracker: None,
         },
         None,
     )

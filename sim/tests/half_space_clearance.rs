@@ -93,6 +93,7 @@ fn wall(position: [f64; 3], normal: [f64; 3]) -> Obstacle {
             rpy: [0.0; 3],
             shape: ShapeSpec::HalfSpace { normal },
             motion: None,
+            tracker: None,
         },
         None,
     )

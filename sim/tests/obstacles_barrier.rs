@@ -29,6 +29,7 @@ fn obstacle(position: [f64; 3], rpy: [f64; 3], shape: ShapeSpec) -> Obstacle {
             rpy,
             shape,
             motion: None,
+            tracker: None,
         },
         None,
     )
@@ -527,6 +528,7 @@ fn invalid_specs_are_typed_errors_naming_the_key() {
         rpy: [0.0; 3],
         shape,
         motion: None,
+        tracker: None,
     };
     let e = Obstacle::from_spec(&spec(ShapeSpec::Ball { radius: -0.1 }), None).unwrap_err();
     assert!(

@@ -128,6 +128,7 @@ fn wall_at(x: f64) -> Obstacle {
                 normal: [-1.0, 0.0, 0.0],
             },
             motion: None,
+            tracker: None,
         },
         None,
     )
@@ -205,6 +206,7 @@ fn passing_5_cm_beside_an_obstacle_is_not_a_collision() {
                 half_extents: [0.1, 0.1, 0.1],
             },
             motion: None,
+            tracker: None,
         },
         None,
     )

@@ -9,3 +9,4 @@ pub mod expectations;
 pub mod liveness;
 pub mod moving_check;
 pub mod safe_stop;
+pub mod tracked_check;

@@ -112,8 +112,13 @@ pub fn findings(world: &World, setup: &ControlSetup) -> Vec<MoverFinding> {
                 name: format!("walker `{}`", o.name),
                 holds: None,
                 detail: format!(
-                    "walker `{}`: its reading is exact (no obstacle sensor yet); its acceleration bound {a_bar:.3} m/s² covers the social force's driving term, not its repulsion near another body; it keeps off the robot by the social force only, so it may walk into a robot that stopped — counted apart (collisions.walker_robot_stopped), the walker's fault",
-                    o.name
+                    "walker `{}`: its reading is {}; its acceleration bound {a_bar:.3} m/s² covers the social force's driving term, not its repulsion near another body; it keeps off the robot by the social force only, so it may walk into a robot that stopped — counted apart (collisions.walker_robot_stopped), the walker's fault",
+                    o.name,
+                    if o.spec.tracker.is_some() {
+                        "its tracker's (below)"
+                    } else {
+                        "exact (no obstacle sensor)"
+                    }
                 ),
             });
         } else if matches!(o.spec.motion, Some(MotionSpec::Waypoints { .. })) {

@@ -438,6 +438,20 @@ pub fn quarter_turn_time(world: &World) -> Option<f64> {
     })
 }
 
+/// The per-sample probability ε' a tracked mover's reading may break its error bounds
+/// (issue #51, [`crate::movers::tracked`]): ε/(N·M) with ε the world's `control.epsilon`, N
+/// its control steps over its duration and M its tracked movers (a union bound over them all).
+pub fn tracker_eps(world: &World) -> f64 {
+    let n = world.control_steps(world.file.duration).max(1) as f64;
+    let m = world
+        .obstacles
+        .iter()
+        .filter(|o| o.spec.motion.is_some() && o.spec.tracker.is_some())
+        .count()
+        .max(1) as f64;
+    world.file.control.epsilon / (n * m)
+}
+
 /// The lift k of moving obstacle `spec`'s barrier \[s\] (issue #51): the world's
 /// `obstacle_lift`, raised so that a robot stopped on the mover's boundary (d = margin + k·v_o)
 /// with the mover heading at it square to its heading can turn a quarter turn

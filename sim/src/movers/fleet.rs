@@ -16,6 +16,7 @@
 use ftcbf_controller::{Barrier, MoverState, State};
 use rand::RngCore;
 
+use crate::movers::tracked::TrackedMover;
 use crate::movers::{
     step_crowd, MotionError, Repeat, SocialForce, Surroundings, Trajectory, Walker,
 };
@@ -174,7 +175,12 @@ pub struct MoverSet {
     crowd_accel: Vec<f64>,
     model: SocialForce,
     statics: Statics,
+    /// The controller's readings (a tracked mover's from its filter, the others exact).
     states: Vec<MoverState>,
+    /// Each mover's tracker, if it has one ([`MoverSet::track`]).
+    tracked: Vec<Option<TrackedMover>>,
+    /// The true states when some mover is tracked (else `states` are the truth).
+    truth: Vec<MoverState>,
 }
 
 impl MoverSet {
@@ -196,6 +202,8 @@ impl MoverSet {
                 barriers: Vec::new(),
             },
             states: Vec::new(),
+            tracked: Vec::new(),
+            truth: Vec::new(),
         };
         let bare = BarrierConfig {
             robot_radius: 0.0,
@@ -231,8 +239,33 @@ impl MoverSet {
             set.origins.push(origin);
             set.motions.push(motion);
             set.states.push(MoverState::default());
+            set.tracked.push(None);
         }
         set
+    }
+
+    /// Reads the movers of `obstacles` with a `tracker` through it (issue #51): detections
+    /// seeded from `seed` and the obstacle's name, error bounds at `eps_per_sample`
+    /// ([`crate::model::setup::tracker_eps`]). Movers without one stay exact.
+    pub fn track(&mut self, obstacles: &[Obstacle], eps_per_sample: f64, seed: u64) {
+        for (slot, &i) in self.tracked.iter_mut().zip(&self.obstacles) {
+            let spec = &obstacles[i].spec;
+            *slot = TrackedMover::new(spec, max_speed(spec), eps_per_sample, seed);
+        }
+    }
+
+    /// The trackers (one slot per mover, None for an exact reading).
+    pub fn trackers(&self) -> &[Option<TrackedMover>] {
+        &self.tracked
+    }
+
+    /// The true states at the current control step (the readings when none is tracked).
+    pub fn truth(&self) -> &[MoverState] {
+        if self.truth.is_empty() {
+            &self.states
+        } else {
+            &self.truth
+        }
     }
 
     /// Whether there is anything to move.
@@ -265,6 +298,14 @@ impl MoverSet {
         self.step_start = t;
         let mut states = std::mem::take(&mut self.states);
         self.states_at(t, &mut states);
+        if self.tracked.iter().any(Option::is_some) {
+            self.truth.clone_from(&states);
+            for ((s, tr), truth) in states.iter_mut().zip(&mut self.tracked).zip(&self.truth) {
+                if let Some(tr) = tr {
+                    *s = tr.step(t, truth);
+                }
+            }
+        }
         self.states = states;
     }
 
@@ -290,6 +331,7 @@ impl MoverSet {
                 displacement: [p[0] - o[0], p[1] - o[1]],
                 velocity: v,
                 accel_bound: a,
+                ..MoverState::default()
             });
         }
     }
@@ -620,6 +662,7 @@ mod tests {
                 half_height: 0.2,
             },
             motion: Some(motion),
+            tracker: None,
         }
     }
 

@@ -22,6 +22,7 @@
 //! step, and read by the controller.
 
 pub mod fleet;
+pub mod tracked;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

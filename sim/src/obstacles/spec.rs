@@ -20,6 +20,44 @@ pub struct ObstacleSpec {
     /// How the obstacle moves (issue #51); absent: it stands still.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion: Option<MotionSpec>,
+    /// An obstacle sensor that detects a moving obstacle's centre (issue #51); absent: the
+    /// controller reads the mover's state exactly. See [`crate::movers::tracked`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracker: Option<TrackerSpec>,
+}
+
+/// A moving obstacle's detector and its filter (`obstacles[i].tracker`): detections of the
+/// obstacle's centre, world frame, at `rate` Hz with white Gaussian noise of `position_std` m
+/// per axis, fed to a constant-velocity Kalman filter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerSpec {
+    /// Standard deviation of a detection's noise per axis \[m\].
+    pub position_std: f64,
+    /// Detection rate \[Hz\] (at most the control rate).
+    pub rate: f64,
+    /// Standard deviation of the white acceleration the filter's gain is designed for
+    /// \[m/s²\]; default: the mover's acceleration bound, or its speed bound per second for a
+    /// scripted path (whose acceleration bound is 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_std: Option<f64>,
+    /// A declared attack on the detections (the threat model covers it only when declared).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attack: Option<TrackerAttackSpec>,
+}
+
+/// A bias added to a tracker's detections in a time window (`obstacles[i].tracker.attack`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerAttackSpec {
+    /// Offset added to each detection, world frame \[m\].
+    pub bias: [f64; 2],
+    /// Window start \[s\] (default 0).
+    #[serde(default)]
+    pub start: f64,
+    /// Window end \[s\], exclusive; absent: to the end of the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end: Option<f64>,
 }
 
 /// What `[repeat]` a waypoint path does after its last point (`motion.repeat`).

@@ -57,6 +57,8 @@ pub(crate) const ATTACK: rerun::Color = rgb(255, 150, 150);
 pub(crate) const ROBOT: rerun::Color = rgb(70, 70, 70);
 /// A moving obstacle and its path (issue #51): orange, apart from the grey obstacles that stand.
 pub(crate) const MOVER: rerun::Color = rgb(225, 120, 30);
+/// A tracked mover's estimate (its reading), drawn beside it with its bound γ_p as radius.
+pub(crate) const MOVER_ESTIMATE: rerun::Color = rgb(250, 190, 90);
 /// A contact that is the robot's (a static obstacle, or the robot moving into a mover).
 pub(crate) const COLLISION_ROBOT: rerun::Color = rgb(220, 30, 30);
 /// A contact that is a mover's (it walked into the stopped robot).

@@ -84,6 +84,7 @@ mod tests {
             link_poses: &[],
             events: &[],
             movers: &[],
+            mover_readings: &[],
             contacts: &[],
         }
     }

@@ -138,6 +138,9 @@ pub struct Recorder {
     mover_moves: Vec<Vec<[f32; 3]>>,
     /// Per mover, its start in the plane and its path (a point every [`TRAIL_EVERY`] steps).
     mover_trails: Vec<([f32; 2], Vec<[f32; 3]>)>,
+    /// Per mover, where the controller read it (its tracker's estimate) and its bound γ_p at
+    /// every step, and whether that ever differed from the truth (a tracked mover).
+    mover_readings: Vec<(Vec<[f32; 3]>, Vec<f32>, bool)>,
     /// Contacts so far: (the robot's, position, label); markers under `world/collisions/`.
     contacts: Vec<(bool, [f32; 3], String)>,
     last_policy: String,
@@ -179,6 +182,7 @@ impl Recorder {
             trails: Vec::new(),
             mover_moves: Vec::new(),
             mover_trails: Vec::new(),
+            mover_readings: Vec::new(),
             contacts: Vec::new(),
             last_policy: String::new(),
             last_attacks: Vec::new(),
@@ -388,6 +392,34 @@ impl Recorder {
                 .send_columns(path.as_str(), times(), cols)
                 .map_err(|x| e(&x))?;
         }
+        self.send_mover_readings()
+    }
+
+    /// A tracked mover's reading (issue #51) beside it: a point at the estimated centre, its
+    /// radius the position bound γ_p, at `world/mover_estimates/<name>` (movers read exactly
+    /// have none).
+    fn send_mover_readings(&mut self) -> Result<(), String> {
+        let times = || {
+            [
+                rerun::TimeColumn::new_duration_secs("sim_time", self.time.iter().copied()),
+                rerun::TimeColumn::new_sequence("step", self.steps.iter().copied()),
+            ]
+        };
+        for (name, (pos, radii, tracked)) in self.scene.movers.iter().zip(&self.mover_readings) {
+            if !*tracked {
+                continue;
+            }
+            let cols = rerun::Points3D::update_fields()
+                .with_positions(pos.iter().copied())
+                .with_radii(radii.iter().copied())
+                .with_colors(pos.iter().map(|_| draw::MOVER_ESTIMATE))
+                .columns_of_unit_batches()
+                .map_err(|x| x.to_string())?;
+            let path = format!("world/mover_estimates/{}", seg(name));
+            self.rec
+                .send_columns(path.as_str(), times(), cols)
+                .map_err(|x| x.to_string())?;
+        }
         Ok(())
     }
 
@@ -526,6 +558,7 @@ impl Observer for Recorder {
         self.positions = vec![Vec::new(); scene.filters.len()];
         self.trails = vec![Vec::new(); scene.filters.len() + 1];
         self.mover_moves = vec![Vec::new(); scene.movers.len()];
+        self.mover_readings = vec![(Vec::new(), Vec::new(), false); scene.movers.len()];
         self.mover_trails = scene
             .movers
             .iter()
@@ -567,6 +600,18 @@ impl Observer for Recorder {
         }
         for (moves, m) in self.mover_moves.iter_mut().zip(f.movers) {
             moves.push([m.displacement[0] as f32, m.displacement[1] as f32, 0.0]);
+        }
+        let starts = self.mover_trails.iter().map(|(s, _)| *s);
+        for ((r, m), (s, t)) in self
+            .mover_readings
+            .iter_mut()
+            .zip(f.mover_readings)
+            .zip(starts.zip(f.movers))
+        {
+            let d = m.displacement;
+            r.0.push([s[0] + d[0] as f32, s[1] + d[1] as f32, 0.02]);
+            r.1.push(m.position_bound as f32);
+            r.2 |= m != t;
         }
         if f.step.is_multiple_of(TRAIL_EVERY) {
             if let Some(t) = self.trails.first_mut() {

@@ -268,9 +268,14 @@ impl<'w> Simulation<'w> {
         let windows = attacks.windows();
         let attack_windows = attack_windows(&attacks, &windows, world);
         let attacks_together_outside = attacks.union_outside_fault_patterns(&world.patterns);
-        let movers = MoverSet::new(
+        let mut movers = MoverSet::new(
             &world.obstacles,
             &crate::world::structure::obstacle_barrier_config(world),
+            seed,
+        );
+        movers.track(
+            &world.obstacles,
+            crate::model::setup::tracker_eps(world),
             seed,
         );
         let monitor = Monitor::new(world, &setup, &movers);
@@ -420,6 +425,12 @@ impl<'w> Simulation<'w> {
         self.view.received(samples, map, bank);
     }
 
+    /// The moving obstacles as the controller read them at the last control step (a tracked
+    /// mover's estimate with its error bounds; the truth for an exact reading), in mover order.
+    pub fn mover_readings(&self) -> &[ftcbf_controller::MoverState] {
+        self.movers.states()
+    }
+
     /// The law's step; counts the deciding policy stage and the rejected readings.
     fn decide(&mut self, t: f64, note: bool) -> Input {
         let readings = Readings {
@@ -541,7 +552,8 @@ impl<'w> Simulation<'w> {
             attacks_active: &v.attacks_active,
             link_poses: &v.link_poses,
             events: &v.events,
-            movers: self.movers.states(),
+            movers: self.movers.truth(),
+            mover_readings: self.movers.states(),
             contacts: &v.contacts,
         }
     }

@@ -860,6 +860,7 @@ impl Validator<'_> {
                 unknown: env.unknown.unwrap_or_default(),
             },
             motion: None,
+            tracker: None,
         };
         Obstacle::from_spec(&spec, Some(base))
             .map(Some)
@@ -950,6 +951,15 @@ impl Validator<'_> {
                     ));
                 }
             }
+            crate::movers::tracked::check_tracker(spec, file.control.rate_hz).map_err(
+                |(key, msg)| {
+                    let key = match key.as_str() {
+                        "" => format!("obstacles[{i}].tracker"),
+                        k => format!("obstacles[{i}].tracker.{k}"),
+                    };
+                    self.err(key, format!("obstacle `{}`: {msg}", spec.name))
+                },
+            )?;
             names.push((spec.name.as_str(), format!("obstacles[{i}]")));
             obstacles.push(ob);
         }

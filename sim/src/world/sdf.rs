@@ -771,6 +771,7 @@ pub(super) fn spec_at(name: &str, x: &Isometry3<f64>, shape: ShapeSpec) -> Obsta
         rpy: [r, p, y],
         shape,
         motion: None,
+        tracker: None,
     }
 }
 

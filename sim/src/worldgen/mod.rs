@@ -913,6 +913,7 @@ fn spec_of(o: &text::Obstacle) -> ObstacleSpec {
             Shape::Ball { radius } => ShapeSpec::Ball { radius },
         },
         motion: None,
+        tracker: None,
     }
 }
 
@@ -1183,6 +1184,7 @@ mod tests {
                 half_extents: [0.05, half_y, 0.2],
             },
             motion: None,
+            tracker: None,
         };
         Obstacle::from_spec(&spec, None).unwrap_or_else(|e| panic!("{e}"))
     }
@@ -1242,6 +1244,7 @@ mod tests {
                     half_extents: [0.05, 25.0, 0.2],
                 },
                 motion: None,
+                tracker: None,
             };
             Obstacle::from_spec(&spec, None).unwrap_or_else(|e| panic!("{e}"))
         };

@@ -55,6 +55,7 @@ impl MapScene {
                 unknown: UnknownCells::Obstacle,
             },
             motion: None,
+            tracker: None,
         };
         let obstacle = Obstacle::from_spec(&spec, None).map_err(|e| err(e.to_string()))?;
         let field = obstacle

@@ -187,6 +187,9 @@ pub struct Verdict {
     pub assumptions: Vec<String>,
     /// Some bound is finite-horizon: the guarantee covers the world's duration only.
     pub horizon: Option<f64>,
+    /// What the tracked movers' readings add to the failure probability (their error bounds
+    /// fail with probability ≤ this over the run, issue #51); 0 without a tracker.
+    pub tracked_epsilon: f64,
 }
 
 impl Verdict {
@@ -201,6 +204,13 @@ impl Verdict {
             } else {
                 format!(", assuming {}", self.assumptions.join("; "))
             };
+            if self.tracked_epsilon > 0.0 {
+                return format!(
+                    "Theorem 3 applies{assuming}: Pr(safe) ≥ 1 − ε − ε_tracked = {} for any single fault pattern{over} (ε_tracked = {}: the tracked movers' readings outside their bounds)",
+                    1.0 - (self.epsilon + self.tracked_epsilon),
+                    self.tracked_epsilon
+                );
+            }
             format!(
                 "Theorem 3 applies{assuming}: Pr(safe) ≥ 1 − ε = {} for any single fault pattern{over}",
                 1.0 - self.epsilon
@@ -453,6 +463,15 @@ fn check_setup(world: &World, setup: &ControlSetup) -> CheckReport {
             reasons: found.reasons,
             assumptions: found.assumptions,
             horizon: (applies && found.finite_horizon).then_some(f.duration),
+            tracked_epsilon: if world
+                .obstacles
+                .iter()
+                .any(|o| o.spec.motion.is_some() && o.spec.tracker.is_some())
+            {
+                f.control.epsilon
+            } else {
+                0.0
+            },
         },
         safe_stop,
         liveness,

@@ -78,7 +78,11 @@ pub(super) fn check_joint_rows(cx: Ctx<'_>, liveness: &LivenessReport, found: &m
 /// findings are also assumptions of the verdict.
 pub(super) fn check_movers(cx: Ctx<'_>, found: &mut Findings) {
     let Ctx { world, setup, .. } = cx;
-    for f in crate::analysis::moving_check::findings(world, setup) {
+    let tracked = crate::analysis::tracked_check::findings(world, setup);
+    for f in crate::analysis::moving_check::findings(world, setup)
+        .into_iter()
+        .chain(tracked)
+    {
         let status = match f.holds {
             Some(true) => Status::Holds,
             Some(false) => Status::Fails,
