@@ -11,7 +11,7 @@
 # how often the prediction matched (live ⇔ settled in ≥ 95 % of trials).
 # usage: scripts/movers_sweep.sh [SEED] [COUNT] [TRIALS] [OUT_DIR]   (needs jq)
 set -euo pipefail
-seed=${1:-51}; count=${2:-11}; trials=${3:-20}; out=${4:-movers_out}
+seed=${1:-51}; count=${2:-56}; trials=${3:-20}; out=${4:-movers_out}
 ftcbf=${FTCBF:-target/release/ftcbf}
 mkdir -p "$out/sweep"
 for k in aisle_crossing corridor_walker room_people dqn_loops; do

@@ -821,6 +821,9 @@ impl Controller {
         // turned the stealthy counterexample of `falsify` from 58/200 safe into 200/200.
         problem.step3_keeps_saturated = true;
         problem.fallback = cfg.fallback;
+        problem.moving = (0..barriers_used)
+            .map(|b| cfg.barriers.get(b).is_some_and(|x| x.mover().is_some()))
+            .collect();
         Ok(Self {
             kind: cfg.kind,
             scratch: PolicyScratch::new(units, barriers_used),

@@ -369,6 +369,10 @@ pub enum QpOutcome {
         /// Largest violation `max(ω̄ − Λu)/‖Λ‖` of the kept units' CBF rows at the braking input
         /// (m/s²).
         max_cbf_violation: f64,
+        /// The input is not the plain brake but the one nearest it that meets every kept
+        /// unit's rows of the moving obstacles ([`PolicyProblem::moving`]): the stopped robot
+        /// steps aside for a mover coming at it.
+        evades_movers: bool,
     },
 }
 
@@ -488,6 +492,10 @@ pub struct PolicyProblem {
     pub delta: f64,
     /// V̄ (for the record).
     pub v_bar: f64,
+    /// Per barrier, whether it is a moving obstacle's ([`crate::Barrier::mover`]; all false in
+    /// [`PolicyProblem::new`]). The safe stop keeps every kept unit's rows of these: braking
+    /// holds a static obstacle's row at rest, not a mover's, which comes at the robot.
+    pub moving: Vec<bool>,
 }
 
 impl PolicyProblem {
@@ -528,6 +536,7 @@ impl PolicyProblem {
             flagged: vec![false; units],
             delta: f64::INFINITY,
             v_bar: 0.0,
+            moving: vec![false; barriers],
         }
     }
     /// Number of units.
@@ -1100,7 +1109,11 @@ fn safe_stop(
 ) -> (Input, QpOutcome) {
     collect(p, s);
     s.clf_rows.clear();
-    let (u, velocity) = brake(p, s, qp.input_limit(), SAFE_STOP_TIME_CONSTANT);
+    let (brake_u, velocity) = brake(p, s, qp.input_limit(), SAFE_STOP_TIME_CONSTANT);
+    let evading = evade_movers(p, s, qp.input_limit(), brake_u);
+    let u = evading.unwrap_or(brake_u);
+    collect(p, s);
+    s.clf_rows.clear();
     record.stage = Stage::SafeStop;
     record_decisions(p, s, Stage::SafeStop, false, record);
     (
@@ -1109,8 +1122,42 @@ fn safe_stop(
             reason,
             velocity,
             max_cbf_violation: max_cbf_violation(&s.cbf_rows, &u),
+            evades_movers: evading.is_some_and(|e| e != brake_u),
         },
     )
+}
+
+/// The input nearest `brake_u` that meets every kept unit's rows of the moving obstacles in
+/// the box, when there are such rows and an input meets them all (None otherwise: the plain
+/// brake). Each kept unit's mover row holds for the honest one among them, as in Step 1, and a
+/// mover's row, unlike a static obstacle's, is not met at rest: its ∂h/∂t asks the robot to
+/// keep the distance the mover closes. The static rows are left to the brake (they are what
+/// the kept units disagree on, which is why the robot stops).
+fn evade_movers(
+    p: &PolicyProblem,
+    s: &mut PolicyScratch,
+    limit: Option<Input>,
+    brake_u: Input,
+) -> Option<Input> {
+    if !p.moving.iter().any(|&m| m) {
+        return None;
+    }
+    s.cbf_rows.clear();
+    for i in (0..p.units).filter(|&i| s.alive[i]) {
+        for b in (0..p.barriers).filter(|&b| p.moving[b]) {
+            let k = i * p.barriers + b;
+            if p.cbf_active[k] && !p.cbf_far[k] {
+                s.cbf_rows.push(p.cbf[k].half_space());
+            }
+        }
+    }
+    if s.cbf_rows.is_empty() {
+        return None;
+    }
+    match check_half_spaces(&s.cbf_rows, &[], limit, &mut s.lines) {
+        Feasibility::Feasible { .. } => nearest(&s.lines, limit, brake_u),
+        _ => None,
+    }
 }
 
 /// The first unit still alive whose own CBF rows are infeasible in the input box, if any.

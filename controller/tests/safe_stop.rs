@@ -190,3 +190,55 @@ fn an_invalid_evidence_threshold_is_refused_with_the_key_named() {
     let err = Controller::new(cfg).expect_err("NaN z refused").to_string();
     assert!(err.contains("fallback.evidence_z"), "{err}");
 }
+
+/// The safe stop steps aside for a mover: with a second barrier that moves (its rows ask
+/// u_x ≥ 0.3 of both units, as a mover coming from −x would), the stopped robot's input is the
+/// one nearest the brake that meets both units' mover rows, not the brake; the static rows
+/// still conflict, so it is still a safe stop. Without the barrier marked as moving, the same
+/// problem brakes.
+#[test]
+fn the_safe_stop_steps_aside_for_a_mover_and_brakes_otherwise() {
+    use ftcbf_controller::policy::{resolve, PolicyProblem, PolicyScratch};
+    use ftcbf_controller::qp::QpSolver;
+    use ftcbf_controller::DecisionRecord;
+    let solve = |moving: bool| {
+        let mut p = PolicyProblem::new(2, 2);
+        // Barrier 0 (static): u_y ≥ 1 for unit 0, u_y ≤ −1 for unit 1. Barrier 1: u_x ≥ 0.3.
+        p.cbf[0] = cbf(0.0, 1.0, 1.0);
+        p.cbf[1] = cbf(1.0, 0.0, 0.3);
+        p.cbf[2] = cbf(0.0, -1.0, 1.0);
+        p.cbf[3] = cbf(1.0, 0.0, 0.3);
+        p.cbf_active = vec![true; 4];
+        p.use_clf = false;
+        p.moving = vec![false, moving];
+        p.estimates = vec![
+            State::new(0.0, 0.3, 0.1, -0.2),
+            State::new(0.0, -0.9, 0.4, 0.5),
+        ];
+        p.residue_key = vec![1.0, 2.5];
+        p.fallback = Fallback::brake(DEFAULT_EVIDENCE_ALPHA).expect("α in (0, 0.5)");
+        p.gamma = vec![0.1, 0.1];
+        let limit = Some(Input::new(1.0, 1.0));
+        let mut qp = QpSolver::new(4, 2, nalgebra::Matrix2::identity(), 1e4, limit);
+        let mut s = PolicyScratch::new(2, 2);
+        let mut rec = DecisionRecord::with_capacity(4);
+        resolve(&p, &mut qp, &mut s, &mut rec)
+    };
+    let brake = Input::new(-0.1, 0.2) / SAFE_STOP_TIME_CONSTANT;
+    let (u, o) = solve(true);
+    let QpOutcome::SafeStop { evades_movers, .. } = o else {
+        panic!("expected a safe stop, got {o:?}");
+    };
+    assert!(evades_movers);
+    // The nearest point to the brake with u_x ≥ 0.3: u_x = 0.3, u_y the brake's.
+    assert!(
+        (u[0] - 0.3).abs() < 1e-9 && (u[1] - brake[1]).abs() < 1e-9,
+        "{u:?}"
+    );
+    let (u, o) = solve(false);
+    let QpOutcome::SafeStop { evades_movers, .. } = o else {
+        panic!("expected a safe stop, got {o:?}");
+    };
+    assert!(!evades_movers);
+    assert!((u - brake).norm() < 1e-12, "{u:?}");
+}

@@ -181,7 +181,7 @@ pub fn verdict(
             "static obstacles",
             Status::Fails,
             format!(
-                "{} move ({}): a robot that brakes to a stop and stays can be hit by one, so the safe stop is not a safe state",
+                "{} move ({}): the stopped robot steps aside for them only where one input meets every kept estimator's rows of the movers (their estimates may disagree by up to θ), and brakes where none does; a mover that does not avoid it can hit it then, so the safe stop is not a safe state",
                 movers.len(),
                 crate::environment::name_list(&movers, 3)
             ),

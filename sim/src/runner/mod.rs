@@ -445,7 +445,15 @@ impl<'w> Simulation<'w> {
         self.braking = false;
         if let Some(out) = decision.record {
             count_stage(&mut self.steps, &out.qp);
-            self.braking = matches!(out.qp, QpOutcome::SafeStop { .. });
+            // A safe stop that steps aside for a mover drives its input; the plain one brakes
+            // on the encoders.
+            self.braking = matches!(
+                out.qp,
+                QpOutcome::SafeStop {
+                    evades_movers: false,
+                    ..
+                }
+            );
             if let Some(line) = self.stops.observe(t, &out.qp, &self.pattern_names) {
                 self.view.events.push(line);
             }

@@ -110,6 +110,7 @@ mod tests {
             },
             velocity: BrakeVelocity::Remaining { unit: 0 },
             max_cbf_violation: 0.1,
+            evades_movers: false,
         }
     }
 
