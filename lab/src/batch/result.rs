@@ -391,11 +391,11 @@ pub struct ControllerSummary {
     /// Trials with a contact with an obstacle that stands still (issue #51).
     #[serde(default)]
     pub static_collision_trials: u64,
-    /// Trials with a contact with a moving obstacle while the robot moved.
+    /// Trials with a contact with a moving obstacle the robot moved into (towards its centre).
     #[serde(default)]
     pub mover_hit_while_moving_trials: u64,
-    /// Trials with a contact with a moving obstacle while the robot stood (the mover ran
-    /// into it), and of those with a walker (the walker's fault).
+    /// Trials with a contact with a moving obstacle while the robot stood or moved only
+    /// sideways or away from it (the mover ran into it; see `CollisionCounts`).
     #[serde(default)]
     pub mover_hit_while_stopped_trials: u64,
     /// Of `mover_hit_while_stopped_trials`, those where a walker did.

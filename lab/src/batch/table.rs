@@ -188,7 +188,7 @@ fn safety_table(res: &BatchResult, out: &mut String) {
         let movers = s.mover_hit_while_moving_trials + s.mover_hit_while_stopped_trials;
         if movers > 0 {
             out.push_str(&format!(
-                "{}: trials with a collision — static obstacle {}, mover while the robot moved {}, mover into the stopped robot {} (a walker: {})\n",
+                "{}: trials with a collision — static obstacle {}, a mover the robot moved into {}, a mover into the robot at rest or moving away {} (a walker: {})\n",
                 s.controller,
                 s.static_collision_trials,
                 s.mover_hit_while_moving_trials,
