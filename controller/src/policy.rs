@@ -581,7 +581,17 @@ impl PolicyScratch {
 /// Appends unit `i`'s imposed CBF rows (those in X_t(δ)) to `out`, except the rows out of
 /// reach (every input of the box satisfies them: leaving them out changes no feasible set).
 fn push_cbf_rows(p: &PolicyProblem, i: usize, out: &mut Vec<HalfSpace>) {
-    for b in 0..p.barriers {
+    push_cbf_rows_of(p, i, |_| true, out);
+}
+
+/// Unit `i`'s rows of the barriers `of` keeps that are in X_t(δ) and not out of reach.
+fn push_cbf_rows_of(
+    p: &PolicyProblem,
+    i: usize,
+    of: impl Fn(usize) -> bool,
+    out: &mut Vec<HalfSpace>,
+) {
+    for b in (0..p.barriers).filter(|&b| of(b)) {
         let k = i * p.barriers + b;
         if p.cbf_active[k] && !p.cbf_far[k] {
             out.push(p.cbf[k].half_space());
@@ -1144,12 +1154,7 @@ fn evade_movers(
     }
     s.cbf_rows.clear();
     for i in (0..p.units).filter(|&i| s.alive[i]) {
-        for b in (0..p.barriers).filter(|&b| p.moving[b]) {
-            let k = i * p.barriers + b;
-            if p.cbf_active[k] && !p.cbf_far[k] {
-                s.cbf_rows.push(p.cbf[k].half_space());
-            }
-        }
+        push_cbf_rows_of(p, i, |b| p.moving[b], &mut s.cbf_rows);
     }
     if s.cbf_rows.is_empty() {
         return None;

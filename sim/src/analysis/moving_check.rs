@@ -206,22 +206,10 @@ fn swept_centres(world: &World, o: &Obstacle) -> Vec<[f64; 2]> {
     let start = [o.spec.position[0], o.spec.position[1]];
     match &o.spec.motion {
         Some(MotionSpec::Walker { goals, .. }) => {
-            let mut out = vec![start];
-            let mut from = start;
-            for g in goals {
-                let n = ((g[0] - from[0]).hypot(g[1] - from[1]) / STEP)
-                    .ceil()
-                    .max(1.0) as usize;
-                out.extend((1..=n).map(|j| {
-                    let s = j as f64 / n as f64;
-                    [
-                        from[0] + s * (g[0] - from[0]),
-                        from[1] + s * (g[1] - from[1]),
-                    ]
-                }));
-                from = *g;
-            }
-            out
+            let legs: Vec<[f64; 2]> = std::iter::once(start)
+                .chain(goals.iter().copied())
+                .collect();
+            crate::movers::polyline_points(&legs, false, STEP)
         }
         _ => match crate::movers::fleet::trajectory(&o.spec) {
             Ok(Some(t)) => {

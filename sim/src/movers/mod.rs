@@ -114,6 +114,25 @@ fn positive(key: &'static str, x: f64) -> Result<f64, MotionError> {
     }
 }
 
+/// Points along `points` joined in order (and back to the first when `closed`), the first
+/// point and then every segment cut into equal pieces of at most `step` \[m\]: where a mover's
+/// centre goes along its legs, for the pinning tests of `check` and the generator.
+pub fn polyline_points(points: &[[f64; 2]], closed: bool, step: f64) -> Vec<[f64; 2]> {
+    let Some(&first) = points.first() else {
+        return Vec::new();
+    };
+    let back = closed.then(|| (points[points.len() - 1], first));
+    let mut out = vec![first];
+    for (a, b) in points.windows(2).map(|w| (w[0], w[1])).chain(back) {
+        let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / step).ceil().max(1.0) as usize;
+        out.extend((1..=n).map(|k| {
+            let s = k as f64 / n as f64;
+            [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s]
+        }));
+    }
+    out
+}
+
 fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     [a[0] - b[0], a[1] - b[1]]
 }

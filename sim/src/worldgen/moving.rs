@@ -23,7 +23,7 @@ use rand::Rng;
 use super::layout::pick;
 use super::text::{dec, list, num, Obstacle, Shape};
 use super::Kind;
-use crate::movers::{Repeat, Trajectory};
+use crate::movers::{polyline_points, Repeat, Trajectory};
 use crate::obstacles::{BarrierConfig, ObstacleBarrier};
 
 /// A mover as written: the obstacle and its `motion = { … }` text.
@@ -59,26 +59,6 @@ pub(crate) fn room_for(footprint: f64) -> (f64, f64) {
     (d + STATIC_SIDE + MOVER_SIDE, d + 2.0 * MOVER_SIDE)
 }
 
-/// Where a mover's centre goes: `points` joined in order (and back to the first when
-/// `closed`), every 5 cm.
-fn sweep(points: &[[f64; 2]], closed: bool) -> Vec<[f64; 2]> {
-    let mut out = vec![points[0]];
-    let back = closed.then(|| points[0]);
-    for w in points
-        .windows(2)
-        .map(|w| (w[0], w[1]))
-        .chain(back.map(|b| (points[points.len() - 1], b)))
-    {
-        let (a, b) = w;
-        let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / 0.05).ceil().max(1.0) as usize;
-        out.extend((1..=n).map(|k| {
-            let s = k as f64 / n as f64;
-            [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s]
-        }));
-    }
-    out
-}
-
 /// The geometry settings of the static obstacles as movers see them.
 pub(crate) fn bare_config() -> BarrierConfig {
     BarrierConfig {
@@ -99,12 +79,9 @@ impl Scene<'_> {
     }
 
     fn segment_clear(&self, a: [f64; 2], b: [f64; 2], r: f64) -> bool {
-        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let n = (len / 0.05).ceil().max(1.0) as usize;
-        (0..=n).all(|k| {
-            let s = k as f64 / n as f64;
-            self.clear([a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s], r)
-        })
+        polyline_points(&[a, b], false, 0.05)
+            .into_iter()
+            .all(|p| self.clear(p, r))
     }
 
     /// The point at fraction `f` of the route's length and the unit tangent there.
@@ -244,7 +221,7 @@ fn person<R: Rng>(
     let r = 0.2;
     let speed = pick(rng, 0.06, 0.12, 0.01);
     let [a, b] = [round2(goals[0]), round2(goals[1])];
-    let path = sweep(&[a, b], false);
+    let path = polyline_points(&[a, b], false, 0.05);
     (scene.segment_clear(a, b, r) && scene.off_start(a, r) && apart(placed, &path, r, scene.apart))
         .then(|| ((cylinder(name, a, r, 0.85), walker(&[b, a], speed)), path))
 }
@@ -275,7 +252,7 @@ fn looper<R: Rng>(
             .windows(2)
             .all(|w| scene.segment_clear(w[0], w[1], r))
             && scripted_off_start(scene, pts[0], &pts[1..], 0.1, Repeat::Loop, r);
-        let path = sweep(&pts, true);
+        let path = polyline_points(&pts, true, 0.05);
         if ok && apart(placed, &path, r, scene.apart) {
             return Some((
                 (
