@@ -22,6 +22,7 @@
 //! step, and read by the controller.
 
 pub mod fleet;
+pub mod passage;
 pub mod tracked;
 
 use rand::SeedableRng;

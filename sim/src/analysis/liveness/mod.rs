@@ -518,7 +518,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
     }
 }
 
-/// Liveness with the moving obstacles along the planned path ([`crate::movers::fleet::liveness`]):
+/// Liveness with the moving obstacles along the planned path ([`crate::movers::passage::liveness`]):
 /// the movers that block it for good and those the robot may wait for.
 fn mover_liveness(
     world: &World,
@@ -527,7 +527,7 @@ fn mover_liveness(
 ) -> (Vec<String>, Vec<String>) {
     let cfg = &setup.config;
     let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
-    let inputs = crate::movers::fleet::LiveInputs {
+    let inputs = crate::movers::passage::LiveInputs {
         obstacles: &world.obstacles,
         barriers: &cfg.barriers,
         gamma: cfg
@@ -539,8 +539,10 @@ fn mover_liveness(
         duration: world.file.duration,
         goal: world.file.goal.center,
         v_max: crate::world::structure::speed_bound(world).unwrap_or(f64::INFINITY),
+        goal_radius: model.goal_radius,
+        robot_radius: crate::world::structure::obstacle_barrier_config(world).robot_radius,
     };
-    crate::movers::fleet::liveness(&inputs, &points)
+    crate::movers::passage::liveness(&inputs, &points)
 }
 
 /// The smallest change of one `[control]` key that makes every case live: κ up to

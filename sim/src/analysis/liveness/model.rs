@@ -436,7 +436,7 @@ impl<'a> Model<'a> {
             // Rows out of reach hold for every input of the box: they change neither the best
             // acceleration nor the rows that demand a push (issue #52, crate::active). A moving
             // obstacle's rows are not a place on the path: whether the robot waits for it or is
-            // blocked for good is `crate::movers::fleet::liveness`'s.
+            // blocked for good is `crate::movers::passage::liveness`'s.
             let far = crate::active::out_of_reach(cfg, &x, (&u.m, &u.n), u.gamma, kappa);
             for (bi, b) in cfg.barriers.iter().enumerate() {
                 if far.get(bi) == Some(&true) || b.mover().is_some() {
