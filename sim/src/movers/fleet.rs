@@ -343,10 +343,11 @@ impl MoverSet {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn spec(motion: MotionSpec) -> ObstacleSpec {
+    /// A round obstacle of radius 0.15 m at (1, 2) that moves by `motion`.
+    pub(in crate::movers) fn spec(motion: MotionSpec) -> ObstacleSpec {
         ObstacleSpec {
             name: "m".into(),
             position: [1.0, 2.0, 0.2],

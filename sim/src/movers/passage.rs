@@ -634,7 +634,7 @@ fn search(
 mod tests {
     use super::*;
     use crate::movers::fleet::trajectory;
-    use crate::obstacles::{MotionSpec, RepeatSpec, ShapeSpec};
+    use crate::obstacles::{MotionSpec, RepeatSpec};
     use ftcbf_controller::{EllipsoidOutside, MovingBarrier};
     use std::sync::Arc;
 
@@ -642,22 +642,13 @@ mod tests {
     /// 0.3 m from (a disc barrier, γ = 0), with the robot's path along y = 0 from x = 0 to its
     /// goal at x = 5.
     fn cart() -> (ObstacleSpec, MovingBarrier) {
-        let spec = ObstacleSpec {
-            name: "cart".into(),
-            position: [4.0, 0.0, 0.2],
-            rpy: [0.0; 3],
-            shape: ShapeSpec::Cylinder {
-                radius: 0.1,
-                half_height: 0.2,
-            },
-            motion: Some(MotionSpec::Waypoints {
-                points: vec![[1.0, 0.0]],
-                speed: 0.1,
-                repeat: RepeatSpec::Reverse,
-                start: 0.0,
-            }),
-            tracker: None,
-        };
+        let mut spec = crate::movers::fleet::tests::spec(MotionSpec::Waypoints {
+            points: vec![[1.0, 0.0]],
+            speed: 0.1,
+            repeat: RepeatSpec::Reverse,
+            start: 0.0,
+        });
+        spec.position = [4.0, 0.0, 0.2];
         let base = Arc::new(EllipsoidOutside::disc("cart", 4.0, 0.0, 0.3));
         (spec, MovingBarrier::new(base, 0))
     }
