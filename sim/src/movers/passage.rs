@@ -112,13 +112,7 @@ fn keeps_out(b: &dyn Barrier, gamma: f64, p: [f64; 2], d: [f64; 2], n: usize) ->
 
 /// Whether the robot at rest at `p` is kept out by mover barrier `b` whose mover reads `state`
 /// (one of `n` movers; its value below h̄ at the largest γ).
-pub(crate) fn keeps_out_moving(
-    b: &dyn Barrier,
-    gamma: f64,
-    p: [f64; 2],
-    state: MoverState,
-    n: usize,
-) -> bool {
+fn keeps_out_moving(b: &dyn Barrier, gamma: f64, p: [f64; 2], state: MoverState, n: usize) -> bool {
     let mut states = vec![MoverState::default(); n];
     if let Some(m) = b.mover() {
         if let Some(s) = states.get_mut(m) {
@@ -165,16 +159,13 @@ pub const DETOUR_DIAMETERS: f64 = 1.0;
 /// the mover).
 pub const CROSSING_SPEED_FRACTION: f64 = 0.5;
 
-/// Where mover `spec` (starting at `origin`) is at `tau` \[s\]: its scripted path, or a
-/// walker's straight legs between its goals in turn at its `speed`, each leg ending where the
-/// walker counts its goal reached and turns to the next ([`SocialForce::goal_reached`] short
-/// of it; its social force steers it off the legs near other bodies: the legs are what it
-/// aims for).
-fn mover_at(spec: &ObstacleSpec, traj: Option<&Trajectory>, tau: f64) -> [f64; 2] {
+/// Where walker `spec` (starting at its `position`) is at `tau` \[s\]: on its straight legs
+/// between its goals in turn at its `speed`, each leg ending where the walker counts its goal
+/// reached and turns to the next ([`SocialForce::goal_reached`] short of it; its social force
+/// steers it off the legs near other bodies: the legs are what it aims for). An obstacle
+/// that is not a walker stays at its position.
+fn walker_at(spec: &ObstacleSpec, tau: f64) -> [f64; 2] {
     let origin = [spec.position[0], spec.position[1]];
-    if let Some(t) = traj {
-        return t.state(tau).0;
-    }
     let Some(MotionSpec::Walker { goals, speed }) = &spec.motion else {
         return origin;
     };
@@ -213,8 +204,8 @@ fn mover_at(spec: &ObstacleSpec, traj: Option<&Trajectory>, tau: f64) -> [f64; 2
 }
 
 /// Where mover `spec` is at `tau` \[s\] and its velocity then \[m/s\]: its script's, or a
-/// walker's along its legs ([`mover_at`]; the velocity over the next 0.1 s).
-pub(crate) fn mover_state_at(
+/// walker's along its legs ([`walker_at`]; the velocity over the next 0.1 s).
+fn mover_state_at(
     spec: &ObstacleSpec,
     traj: Option<&Trajectory>,
     tau: f64,
@@ -223,7 +214,7 @@ pub(crate) fn mover_state_at(
         return t.state(tau);
     }
     const H: f64 = 0.1;
-    let (p, q) = (mover_at(spec, None, tau), mover_at(spec, None, tau + H));
+    let (p, q) = (walker_at(spec, tau), walker_at(spec, tau + H));
     (p, [(q[0] - p[0]) / H, (q[1] - p[1]) / H])
 }
 
@@ -280,16 +271,20 @@ pub fn liveness(inputs: &LiveInputs<'_>, path: &[[f64; 2]]) -> (Vec<String>, Vec
     // How far the robot may leave its path: its own diameter ([`DETOUR_DIAMETERS`]).
     let detour = DETOUR_DIAMETERS * 2.0 * inputs.robot_radius;
     let all: Vec<PassMover<'_>> = crossing.iter().map(|(m, _)| m.clone()).collect();
-    if passes(&pass, &all, path, detour) {
-        for (m, name) in &crossing {
-            waits.push(match m.traj {
-                Some(_) => format!("the robot may wait for mover `{name}` to pass (it crosses the path and moves on)"),
-                None => format!("the robot may wait for walker `{name}` to pass (taken along the legs between its goals; its walk is not predicted exactly, and it never stops)"),
-            });
+    // One band for every search (None: nothing to decide, the robot is not held).
+    match Passage::new(&pass, path, detour) {
+        Some(passage) if !passage.passes(&all) => {
+            blocked.extend(never_past(&passage, &crossing, detour));
         }
-        return (blocked, waits);
+        _ => {
+            for (m, name) in &crossing {
+                waits.push(match m.traj {
+                    Some(_) => format!("the robot may wait for mover `{name}` to pass (it crosses the path and moves on)"),
+                    None => format!("the robot may wait for walker `{name}` to pass (taken along the legs between its goals; its walk is not predicted exactly, and it never stops)"),
+                });
+            }
+        }
     }
-    blocked.extend(never_past(&pass, &crossing, path, detour));
     (blocked, waits)
 }
 
@@ -353,23 +348,23 @@ fn comes_onto_path(
     })
 }
 
-/// The lines naming the movers the robot never gets past ([`passes`] failed with all of
-/// `crossing`): each that blocks it alone, or all of them together.
+/// The lines naming the movers the robot never gets past ([`Passage::passes`] failed with all
+/// of `crossing`, in the band within `detour` of the path): each that blocks it alone, or all
+/// of them together.
 fn never_past(
-    pass: &PassInputs<'_>,
+    passage: &Passage<'_, '_>,
     crossing: &[(PassMover<'_>, &str)],
-    path: &[[f64; 2]],
     detour: f64,
 ) -> Vec<String> {
     let mut blocked = Vec::new();
-    let speed = CROSSING_SPEED_FRACTION * pass.v_max;
+    let speed = CROSSING_SPEED_FRACTION * passage.inputs.v_max;
     let how = format!(
         "moving at up to {speed:.2} m/s within {detour:.2} m (its diameter) of the path and waiting wherever the movers leave room, the robot never gets into the goal to stay there through the run's last {} s: it waits for good",
         crate::summary::SETTLE_WINDOW
     );
     let alone: Vec<&str> = crossing
         .iter()
-        .filter(|(m, _)| !passes(pass, std::slice::from_ref(m), path, detour))
+        .filter(|(m, _)| !passage.passes(std::slice::from_ref(m)))
         .map(|(_, name)| *name)
         .collect();
     if alone.is_empty() {
@@ -387,6 +382,7 @@ fn never_past(
     }
     blocked
 }
+
 /// The grid over the path's surroundings: its corner, size, and which cells are open.
 struct Grid {
     origin: [f64; 2],
@@ -484,43 +480,104 @@ fn grid(inputs: &PassInputs<'_>, path: &[[f64; 2]], detour: f64) -> Grid {
     g
 }
 
-/// Whether the robot can get from `path`'s start into the goal and stay there to the end of
-/// the run, with `movers` where they are over time (see the module's text). `detour`: how far
-/// the robot may leave the path \[m\].
-pub fn passes(
-    inputs: &PassInputs<'_>,
-    movers: &[PassMover<'_>],
-    path: &[[f64; 2]],
-    detour: f64,
-) -> bool {
-    let Some(&start) = path.first() else {
-        return true;
-    };
-    let g = grid(inputs, path, detour);
-    let speed = CROSSING_SPEED_FRACTION * inputs.v_max;
-    let duration = inputs.duration.max(0.0);
-    let mut dt = if speed.is_finite() && speed > 0.0 {
-        CELL / speed
-    } else {
-        0.0
-    };
-    dt = dt.max(duration / MAX_STEPS as f64);
-    if dt.is_nan() || dt <= 0.0 {
-        return true;
-    }
-    let k_end = (duration / dt).floor() as usize;
-    let k_settle = ((duration - SETTLE_WINDOW).max(0.0) / dt).ceil() as usize;
-    let (goal, goal_radius) = inputs.goal;
-    let mut in_goal: Vec<bool> = (0..g.open.len())
-        .map(|c| {
-            let q = g.centre(c);
-            (q[0] - goal[0]).hypot(q[1] - goal[1]) <= goal_radius.max(CELL * 0.5)
+/// One band to search (see the module's text): its grid, the goal's cells, the start's cell
+/// and the time steps, built once and searched with any set of movers.
+pub struct Passage<'p, 'a> {
+    inputs: &'p PassInputs<'a>,
+    g: Grid,
+    in_goal: Vec<bool>,
+    start: Option<usize>,
+    dt: f64,
+    k_settle: usize,
+    k_end: usize,
+}
+
+impl<'p, 'a> Passage<'p, 'a> {
+    /// The band within `detour` \[m\] of `path`; None when there is nothing to decide (no
+    /// path, or no time step): the robot is then not held.
+    pub fn new(inputs: &'p PassInputs<'a>, path: &[[f64; 2]], detour: f64) -> Option<Self> {
+        let &start = path.first()?;
+        let g = grid(inputs, path, detour);
+        let speed = CROSSING_SPEED_FRACTION * inputs.v_max;
+        let duration = inputs.duration.max(0.0);
+        let mut dt = if speed.is_finite() && speed > 0.0 {
+            CELL / speed
+        } else {
+            0.0
+        };
+        dt = dt.max(duration / MAX_STEPS as f64);
+        if dt.is_nan() || dt <= 0.0 {
+            return None;
+        }
+        let (goal, goal_radius) = inputs.goal;
+        let mut in_goal: Vec<bool> = (0..g.open.len())
+            .map(|c| {
+                let q = g.centre(c);
+                (q[0] - goal[0]).hypot(q[1] - goal[1]) <= goal_radius.max(CELL * 0.5)
+            })
+            .collect();
+        if let Some(c) = g.cell_of(goal) {
+            in_goal[c] = true;
+        }
+        Some(Self {
+            inputs,
+            start: g.cell_of(start),
+            g,
+            in_goal,
+            dt,
+            k_settle: ((duration - SETTLE_WINDOW).max(0.0) / dt).ceil() as usize,
+            k_end: (duration / dt).floor() as usize,
         })
-        .collect();
-    if let Some(c) = g.cell_of(goal) {
-        in_goal[c] = true;
     }
-    search(inputs, movers, &g, &in_goal, start, dt, k_settle, k_end)
+
+    /// Whether the robot can get from the path's start into the goal and stay there to the
+    /// end of the run, with `movers` where they are over time (see the module's text).
+    pub fn passes(&self, movers: &[PassMover<'_>]) -> bool {
+        let (inputs, g, in_goal) = (self.inputs, &self.g, &self.in_goal);
+        let Some(s) = self.start else {
+            return false;
+        };
+        // The cells a mover may close: its reach standing still, with room for its lift when
+        // it comes at the robot (the search below decides each cell with the barrier itself).
+        let reach: Vec<f64> = movers
+            .iter()
+            .map(|m| {
+                keep_out_reach(m, inputs.gamma, inputs.n_movers)
+                    + 2.0 * crate::movers::fleet::max_speed(m.spec)
+                    + CELL
+            })
+            .collect();
+        let n = g.open.len();
+        let (mut closed, mut set) = (vec![false; n], Vec::new());
+        // The cells the robot can be in at the current step (a list, and marks for the next).
+        let mut at = vec![s];
+        let mut next: Vec<usize> = Vec::new();
+        let mut marked = vec![false; n];
+        let mut nb = Vec::with_capacity(9);
+        for k in 0..self.k_end {
+            let t = (k + 1) as f64 * self.dt;
+            closed_at(inputs, movers, &reach, g, t, &mut closed, &mut set);
+            let settling = k + 1 >= self.k_settle;
+            for &c in &at {
+                g.moves(c, &mut nb);
+                for &d in &nb {
+                    if g.open[d] && !closed[d] && (!settling || in_goal[d]) && !marked[d] {
+                        marked[d] = true;
+                        next.push(d);
+                    }
+                }
+            }
+            if next.is_empty() {
+                return false;
+            }
+            for &c in &next {
+                marked[c] = false;
+            }
+            std::mem::swap(&mut at, &mut next);
+            next.clear();
+        }
+        at.iter().any(|&c| in_goal[c])
+    }
 }
 
 /// The cells some mover closes at time `t` (see the module's text).
@@ -567,73 +624,9 @@ fn closed_at(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn search(
-    inputs: &PassInputs<'_>,
-    movers: &[PassMover<'_>],
-    g: &Grid,
-    in_goal: &[bool],
-    start: [f64; 2],
-    dt: f64,
-    k_settle: usize,
-    k_end: usize,
-) -> bool {
-    let Some(s) = g.cell_of(start) else {
-        return false;
-    };
-    // The cells a mover may close: its reach standing still, with room for its lift when it
-    // comes at the robot (the search below decides each cell with the barrier itself).
-    let reach: Vec<f64> = movers
-        .iter()
-        .map(|m| {
-            keep_out_reach(m, inputs.gamma, inputs.n_movers)
-                + 2.0 * crate::movers::fleet::max_speed(m.spec)
-                + CELL
-        })
-        .collect();
-    let n = g.open.len();
-    let (mut closed, mut set) = (vec![false; n], Vec::new());
-    // The cells the robot can be in at the current step (a list, and marks for the next).
-    let mut at = vec![s];
-    let mut next: Vec<usize> = Vec::new();
-    let mut marked = vec![false; n];
-    let mut nb = Vec::with_capacity(9);
-    for k in 0..k_end {
-        closed_at(
-            inputs,
-            movers,
-            &reach,
-            g,
-            (k + 1) as f64 * dt,
-            &mut closed,
-            &mut set,
-        );
-        let settling = k + 1 >= k_settle;
-        for &c in &at {
-            g.moves(c, &mut nb);
-            for &d in &nb {
-                if g.open[d] && !closed[d] && (!settling || in_goal[d]) && !marked[d] {
-                    marked[d] = true;
-                    next.push(d);
-                }
-            }
-        }
-        if next.is_empty() {
-            return false;
-        }
-        for &c in &next {
-            marked[c] = false;
-        }
-        std::mem::swap(&mut at, &mut next);
-        next.clear();
-    }
-    at.iter().any(|&c| in_goal[c])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::movers::fleet::trajectory;
     use crate::obstacles::{MotionSpec, RepeatSpec};
     use ftcbf_controller::{EllipsoidOutside, MovingBarrier};
     use std::sync::Arc;
@@ -681,10 +674,15 @@ mod tests {
             traj: Some(&traj),
         };
         let i = inputs();
-        assert!(passes(&i, std::slice::from_ref(&m), &path(), 0.4));
-        assert!(!passes(&i, std::slice::from_ref(&m), &path(), 0.2));
+        let passes = |movers: &[PassMover<'_>], detour: f64| {
+            Passage::new(&i, &path(), detour)
+                .expect("a path and a time step")
+                .passes(movers)
+        };
+        assert!(passes(std::slice::from_ref(&m), 0.4));
+        assert!(!passes(std::slice::from_ref(&m), 0.2));
         // Without the cart the band alone is no obstacle.
-        assert!(passes(&i, &[], &path(), 0.2));
+        assert!(passes(&[], 0.2));
     }
 
     /// A cart standing on the goal at the end of the run: the robot cannot be inside the goal
@@ -705,6 +703,8 @@ mod tests {
             spec: &spec,
             traj: Some(&traj),
         };
-        assert!(!passes(&inputs(), &[m], &path(), 1.0));
+        let i = inputs();
+        let passage = Passage::new(&i, &path(), 1.0).expect("a path and a time step");
+        assert!(!passage.passes(&[m]));
     }
 }
