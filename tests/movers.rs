@@ -248,6 +248,25 @@ fn a_mover_that_keeps_coming_back_over_the_path_blocks_it() {
     assert!(!s.goal_settled, "settled through a shuttling cart: {s}");
 }
 
+/// A trolley pacing the far half of a ward corridor (written by hand, not generated): the
+/// robot could stand beside it where h ≥ h̄, but the trolley's lift makes its rows' robustness
+/// term large, and the rows hold the robot at rest farther out, running at it farther still;
+/// with that room `check` finds no way past (the search along h̄ alone had predicted live), and
+/// the run does not settle (none of 200 trials did).
+#[test]
+fn a_trolley_pacing_a_corridor_holds_the_robot_out_by_the_rows_not_by_h_bar() {
+    let ward = world("tests/worlds_movers/ward_trolley.toml");
+    let l = check_world(&ward).expect("checks").liveness;
+    assert!(!l.live(), "{}", l.line());
+    assert!(
+        l.line().contains("`trolley` keeps coming back"),
+        "{}",
+        l.line()
+    );
+    let s = run(&ward, &opts(5103, ControllerKindSpec::FtCbfClf)).expect("runs");
+    assert!(!s.goal_settled, "settled past the trolley: {s}");
+}
+
 /// Every frame carries each mover's state: the cart (0.1 m/s up its aisle from y = −1) is
 /// displaced by (0, 0.1·t) at t ≤ 20 s, and the scene names it.
 #[test]

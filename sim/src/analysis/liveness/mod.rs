@@ -527,15 +527,27 @@ fn mover_liveness(
 ) -> (Vec<String>, Vec<String>) {
     let cfg = &setup.config;
     let points: Vec<[f64; 2]> = samples(&model.path).iter().map(|s| s.0).collect();
+    let units: Vec<crate::movers::passage::UnitGains> = model
+        .units
+        .iter()
+        .map(|u| crate::movers::passage::UnitGains {
+            m: u.m,
+            n: u.n,
+            gamma: u.gamma,
+        })
+        .collect();
     let inputs = crate::movers::passage::LiveInputs {
         obstacles: &world.obstacles,
         barriers: &cfg.barriers,
-        gamma: cfg
-            .ft
-            .gamma
-            .iter()
-            .copied()
-            .fold(cfg.ft.gamma_baseline, f64::max),
+        rest: crate::movers::passage::Rest {
+            gamma: cfg
+                .ft
+                .gamma
+                .iter()
+                .copied()
+                .fold(cfg.ft.gamma_baseline, f64::max),
+            rows: Some((&cfg.model, &units, cfg.cbf_gain)),
+        },
         duration: world.file.duration,
         goal: world.file.goal.center,
         v_max: crate::world::structure::speed_bound(world).unwrap_or(f64::INFINITY),
