@@ -21,7 +21,12 @@
 //!   of it ([`Rest`]: with `check`'s rows, where u = 0 fails a unit's row, its robustness term
 //!   and the mover's ∂h/∂t counted; without them, where h < h̄), with the mover where its
 //!   script (or a walker's legs between its goals) puts it then, moving at its velocity then: a
-//!   mover coming at the robot closes more room (its lift k_m∇d·(v − v_c)) than one going away;
+//!   mover coming at the robot closes more room (its lift k_m∇d·(v − v_c)) than one going away.
+//!   The mover is read as an exact script is: its place and velocity only. A walker's
+//!   acceleration bound (the rows' ∂h/∂t bound takes ‖∇_v h‖ā off) and a tracked mover's error
+//!   bounds γ_p, γ_v are left out: with them the search matched 322 of the 391 generated worlds
+//!   of seeds 51–57 instead of 325 (rooms with two people where every trial settled turned to
+//!   blocked), with about the same share settled where it predicted live (96.6 %, 96.7 %);
 //! - **the steps**: a step into a cell is barred when a mover holds the robot out of it moving
 //!   at the step's velocity (the robot's own velocity in the lift and the drift): the robot
 //!   cannot run at a mover it could stand beside.
