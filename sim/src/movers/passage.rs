@@ -656,25 +656,7 @@ impl<'p, 'a> Passage<'p, 'a> {
                         continue;
                     }
                     // The step itself: the robot's velocity lifts the rows of the movers near.
-                    let (pc, pd) = (g.centre(c), g.centre(d));
-                    let v = [(pd[0] - pc[0]) / self.dt, (pd[1] - pc[1]) / self.dt];
-                    let barred = d != c
-                        && movers
-                            .iter()
-                            .zip(&now)
-                            .zip(&reach_going)
-                            .any(|((m, st), &r)| {
-                                let q = at_now(m, st);
-                                (pd[0] - q[0]).hypot(pd[1] - q[1]) <= r
-                                    && keeps_out_going(
-                                        m.b,
-                                        &inputs.rest,
-                                        pd,
-                                        v,
-                                        *st,
-                                        inputs.n_movers,
-                                    )
-                            });
+                    let barred = d != c && self.bars_step(movers, &now, &reach_going, c, d);
                     if !barred {
                         marked[d] = true;
                         next.push(d);
@@ -691,6 +673,26 @@ impl<'p, 'a> Passage<'p, 'a> {
             next.clear();
         }
         at.iter().any(|&c| in_goal[c])
+    }
+
+    /// Whether some mover (reading `now`, holding the robot out within `reach` of it) bars the
+    /// step from cell `c` to cell `d`: its rows would not hold the robot in `d` moving at the
+    /// step's velocity.
+    fn bars_step(
+        &self,
+        movers: &[PassMover<'_>],
+        now: &[MoverState],
+        reach: &[f64],
+        c: usize,
+        d: usize,
+    ) -> bool {
+        let (pc, pd) = (self.g.centre(c), self.g.centre(d));
+        let v = [(pd[0] - pc[0]) / self.dt, (pd[1] - pc[1]) / self.dt];
+        movers.iter().zip(now).zip(reach).any(|((m, state), &r)| {
+            let q = at_now(m, state);
+            (pd[0] - q[0]).hypot(pd[1] - q[1]) <= r
+                && keeps_out_going(m.b, &self.inputs.rest, pd, v, *state, self.inputs.n_movers)
+        })
     }
 }
 
@@ -798,6 +800,19 @@ mod tests {
         (0..=100).map(|i| [i as f64 * 0.05, 0.0]).collect()
     }
 
+    /// The search's view of the scripted mover `spec` with barrier `b` on `traj`.
+    fn scripted<'a>(
+        b: &'a MovingBarrier,
+        spec: &'a ObstacleSpec,
+        traj: &'a Trajectory,
+    ) -> PassMover<'a> {
+        PassMover {
+            b,
+            spec,
+            traj: Some(traj),
+        }
+    }
+
     /// With room beside its path (0.4 m, more than the cart's 0.3 m keep-out) the robot gets
     /// past the cart coming down the path at it; kept to 0.2 m of the path it cannot: the cart
     /// sweeps the whole stretch and turns back onto the robot that follows it.
@@ -805,11 +820,7 @@ mod tests {
     fn room_beside_the_path_lets_the_robot_past_a_mover_along_it() {
         let (spec, b) = cart();
         let traj = trajectory(&spec).expect("valid").expect("scripted");
-        let m = PassMover {
-            b: &b,
-            spec: &spec,
-            traj: Some(&traj),
-        };
+        let m = scripted(&b, &spec, &traj);
         let i = inputs();
         let passes = |movers: &[PassMover<'_>], detour: f64| {
             Passage::new(&i, &path(), detour)
@@ -826,20 +837,15 @@ mod tests {
     /// through the last 2 s, however much room it has.
     #[test]
     fn a_mover_over_the_goal_at_the_end_blocks_it() {
-        let (mut spec, _) = cart();
+        let (mut spec, b) = cart();
         spec.motion = Some(MotionSpec::Waypoints {
             points: vec![[5.0, 0.0]],
             speed: 0.1,
             repeat: RepeatSpec::Once,
             start: 0.0,
         });
-        let b = MovingBarrier::new(Arc::new(EllipsoidOutside::disc("cart", 4.0, 0.0, 0.3)), 0);
         let traj = trajectory(&spec).expect("valid").expect("scripted");
-        let m = PassMover {
-            b: &b,
-            spec: &spec,
-            traj: Some(&traj),
-        };
+        let m = scripted(&b, &spec, &traj);
         let i = inputs();
         let passage = Passage::new(&i, &path(), 1.0).expect("a path and a time step");
         assert!(!passage.passes(&[m]));
