@@ -66,7 +66,7 @@ pub fn trajectory(spec: &ObstacleSpec) -> Result<Option<Trajectory>, MotionError
 }
 
 /// A walker's body radius: the radius of its round shape.
-fn walker_radius(spec: &ObstacleSpec) -> Option<f64> {
+pub(crate) fn walker_radius(spec: &ObstacleSpec) -> Option<f64> {
     match spec.shape {
         ShapeSpec::Cylinder { radius, .. }
         | ShapeSpec::Capsule { radius, .. }
