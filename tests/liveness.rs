@@ -283,3 +283,31 @@ fn the_tracker_leaves_a_filter_starved_of_its_receiver() {
         .count();
     assert!(settled >= 5, "settled {settled} of 6");
 }
+
+/// An honest receiver at 5 Hz beside one read every tick, the fast one walked off by a stealthy
+/// attacker: between the slow fixes the all-channel filter follows the fast receiver, so the
+/// attacker's bias grows far beyond what a filter updated by every channel every tick would let
+/// it hide (`check` used to play it so: 0.078 m in gen55_027, whose run showed 0.27 m). The
+/// prediction now follows the sensors' own schedule: off goal (`ftcbf batch … --trials 20`:
+/// settled 4 of 20); with the honest receiver at the control rate, live (settled 20 of 20).
+#[test]
+fn a_slow_honest_receiver_lets_a_stealthy_bias_grow_and_check_follows_the_schedule() {
+    let rel = "tests/worlds_liveness/slow_honest_receiver.toml";
+    let l = liveness(rel);
+    assert!(!l.live(), "{}", l.line());
+    let (offset, _) = l.cases[1].misled.expect("off goal under the attack");
+    assert!(offset > l.goal_radius, "{offset}");
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel);
+    let fast: Vec<_> = (0..4)
+        .map(|k| {
+            ftcbf_sim::world::Override::parse(&format!("sensors[{k}].rate_hz=50"))
+                .expect("an override")
+        })
+        .collect();
+    let every_tick = World::load(&p, &fast).unwrap_or_else(|e| panic!("{e}"));
+    let l = check_world(&every_tick)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .liveness;
+    assert!(l.live(), "{}", l.line());
+    assert!(l.cases[1].reach < l.goal_radius, "{}", l.cases[1].reach);
+}
