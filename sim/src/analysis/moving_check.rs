@@ -25,9 +25,9 @@
 //!
 //! **Liveness** with movers is [`crate::movers::passage::liveness`] (in the liveness
 //! prediction): a mover that ends its motion (`repeat = "once"`, or a zero velocity) where the
-//! robot's path passes, or stands over the goal when the run ends, blocks it for good; so do movers that keep coming
-//! back over the path where the robot, beside its path (its diameter, or more for a mover that
-//! holds it out farther), finds no way past them in space and time
+//! robot's path passes, or stands over the goal when the run ends, blocks it for good; so do
+//! movers that keep coming back over the path where the robot, beside its path (its diameter,
+//! or more for a mover that holds it out farther), finds no way past them in space and time
 //! ([`crate::movers::passage`]); a mover that crosses the path and goes on makes the robot wait
 //! for it to pass.
 

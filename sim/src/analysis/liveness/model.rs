@@ -138,8 +138,8 @@ impl<'a> Model<'a> {
     /// when an attacked sensor is not a position or velocity fix or a speed the filters read as
     /// world velocity, or when a spoofed filter has no steady state.
     ///
-    /// Sensors slower than the control rate ([`crate::world::structure::sensor_timing`]'s
-    /// periods, without dropouts) make the gains vary with the channels that are fresh at each
+    /// Sensors slower than the control rate (the periods of the setup's
+    /// [`crate::world::structure::sensor_timing`], without dropouts) make the gains vary with the channels that are fresh at each
     /// tick: the filters then run their Riccati recursion on that schedule from their periodic
     /// steady state ([`ScheduledFilters`]). With steady-state gains of every channel at every
     /// tick, an honest receiver at 5 Hz pulled a stealthy attacker's bias back ten times as often
@@ -157,7 +157,7 @@ impl<'a> Model<'a> {
             return None;
         }
         let cfg = &self.setup.config;
-        let gains = self
+        let mut gains = self
             .spoofed
             .iter()
             .map(|&(ui, _)| {
@@ -172,7 +172,7 @@ impl<'a> Model<'a> {
         let mut e = vec![State::zeros(); gains.len()];
         let mut out = vec![Vec::with_capacity(n); gains.len()];
         let mut d = vec![0.0; q];
-        let variances = self.innovation_variances(&gains);
+        let mut variances = self.innovation_variances(&gains);
         let mut nis: Vec<(Vec<f64>, usize)> = gains
             .iter()
             .map(|g| (Vec::with_capacity(n), g.len()))
@@ -192,8 +192,6 @@ impl<'a> Model<'a> {
         // fresh at each tick (a Riccati recursion on the sensors' own schedule from each
         // filter's periodic steady state), for the detector and for each spoofed unit.
         let mut sched = self.scheduled_filters(&offsets, dt);
-        let mut gains = gains;
-        let mut variances = variances;
         for k in 0..n {
             let t = k as f64 * dt;
             if let Some(sf) = sched.as_mut() {
@@ -239,11 +237,7 @@ impl<'a> Model<'a> {
     fn scheduled_filters(&self, src: &OffsetSource, dt: f64) -> Option<ScheduledFilters> {
         let cfg = &self.setup.config;
         let q = cfg.model.channels();
-        let timing = crate::world::structure::sensor_timing(
-            self.world,
-            &self.setup.sensor_of_channel,
-            self.world.horizon_ticks(),
-        );
+        let timing = &self.setup.params.timing;
         let every: Vec<usize> = timing.channels.iter().map(|c| c.period.max(1)).collect();
         if every.iter().all(|&e| e == 1) {
             return None;
@@ -288,15 +282,7 @@ impl<'a> Model<'a> {
             .iter()
             .zip(gains)
             .map(|(&(ui, _), g)| {
-                let mut p = self.units[ui].prior.unwrap_or_default();
-                g.iter()
-                    .map(|(ch, kg, ikc)| {
-                        let c = model.c[*ch];
-                        let s = (c * p * c.transpose())[0] + model.r[*ch];
-                        p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[*ch];
-                        s
-                    })
-                    .collect()
+                sequential_updates(model, g, &self.units[ui].prior.unwrap_or_default()).0
             })
             .collect()
     }
@@ -316,12 +302,7 @@ impl<'a> Model<'a> {
             .then(|| {
                 let all = unit(self.world, self.setup, vec![true; q], 0.0);
                 let prior = all.prior?;
-                let s: Vec<f64> = (0..q)
-                    .map(|ch| {
-                        let c = cfg.model.c[ch];
-                        ((c * prior * c.transpose())[0] + cfg.model.r[ch]).sqrt()
-                    })
-                    .collect();
+                let s = innovation_stds(&cfg.model, &prior);
                 Some((update_gains(&cfg.model, &all.mask, &prior), s))
             })
             .flatten()
@@ -531,27 +512,14 @@ impl ScheduledFilters {
     ) -> ((UpdateGains, Vec<f64>), (Vec<UpdateGains>, Vec<Vec<f64>>)) {
         let d = &self.d;
         let advance = |phases: &[Vec<bool>], p: &mut StateMatrix| -> (UpdateGains, Vec<f64>) {
-            let mask = &phases[k % phases.len()];
-            let g = update_gains(model, mask, p);
-            let mut post = *p;
-            let mut s = Vec::with_capacity(g.len());
-            for (ch, kg, ikc) in &g {
-                let c = model.c[*ch];
-                s.push((c * post * c.transpose())[0] + model.r[*ch]);
-                post = ikc * post * ikc.transpose() + kg * kg.transpose() * model.r[*ch];
-            }
+            let g = update_gains(model, &phases[k % phases.len()], p);
+            let (s, post) = sequential_updates(model, &g, p);
             *p = d.phi * post * d.phi.transpose() + d.qd;
             (g, s)
         };
-        let q = model.channels();
         let det = match self.detector.as_mut() {
             Some((phases, p)) => {
-                let sd: Vec<f64> = (0..q)
-                    .map(|ch| {
-                        let c = model.c[ch];
-                        ((c * *p * c.transpose())[0] + model.r[ch]).sqrt()
-                    })
-                    .collect();
+                let sd = innovation_stds(model, p);
                 let (g, _) = advance(phases, p);
                 (g, sd)
             }
@@ -565,4 +533,34 @@ impl ScheduledFilters {
         }
         (det, (gs, vs))
     }
+}
+
+/// Each sequential update's innovation variance S = c P cᵀ + r of a filter with `gains` from
+/// `prior`, and its posterior (Joseph form).
+fn sequential_updates(
+    model: &ftcbf_controller::LinearModel,
+    gains: &UpdateGains,
+    prior: &StateMatrix,
+) -> (Vec<f64>, StateMatrix) {
+    let mut p = *prior;
+    let s = gains
+        .iter()
+        .map(|(ch, kg, ikc)| {
+            let c = model.c[*ch];
+            let s = (c * p * c.transpose())[0] + model.r[*ch];
+            p = ikc * p * ikc.transpose() + kg * kg.transpose() * model.r[*ch];
+            s
+        })
+        .collect();
+    (s, p)
+}
+
+/// Per channel, the innovation standard deviation √(c P cᵀ + r) of a filter with `prior`.
+fn innovation_stds(model: &ftcbf_controller::LinearModel, prior: &StateMatrix) -> Vec<f64> {
+    (0..model.channels())
+        .map(|ch| {
+            let c = model.c[ch];
+            ((c * prior * c.transpose())[0] + model.r[ch]).sqrt()
+        })
+        .collect()
 }
