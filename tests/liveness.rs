@@ -311,3 +311,39 @@ fn a_slow_honest_receiver_lets_a_stealthy_bias_grow_and_check_follows_the_schedu
     assert!(l.live(), "{}", l.line());
     assert!(l.cases[1].reach < l.goal_radius, "{}", l.cases[1].reach);
 }
+
+/// A NaN on one receiver's north reading leaves the filter that reads it (and not the other
+/// receiver) with no north fix: it dead-reckons y at the velocity error it had when the fixes
+/// went, and its rows against the south wall push the robot off a goal 0.6 m from that wall.
+/// `check` used to read an attack that only takes readings away as moving no estimate, and
+/// predicted live; `ftcbf batch tests/worlds_liveness/lost_fix_by_wall.toml --trials 200`
+/// settled 152 of 200. It now counts the drift (1.645 × the filter's steady-state
+/// velocity-error std × the time since) and says the goal cannot be held. With the goal in
+/// the middle of the room (`goal.center[1] = -2.2`), nothing is near for those rows to push
+/// against: live, and 200 of 200 settled.
+#[test]
+fn a_lost_fix_lets_a_filter_drift_and_its_rows_push_the_robot_off_a_goal_by_a_wall() {
+    let rel = "tests/worlds_liveness/lost_fix_by_wall.toml";
+    let l = liveness(rel);
+    assert!(!l.live(), "{}", l.line());
+    assert!(l.cases[0].live(), "without attack: {}", l.line());
+    assert!(!l.cases[1].goal_holds, "{}", l.line());
+    assert!(
+        l.line().contains("has no fix of y from t = 12.0 s"),
+        "{}",
+        l.line()
+    );
+    // The drift by the end: 1.645 σ_v (60 − 12) s, with σ_v the steady-state std, 0.0125 m/s.
+    assert!(
+        (0.9..1.1).contains(&l.cases[1].reach),
+        "{}",
+        l.cases[1].reach
+    );
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel);
+    let mid = ftcbf_sim::world::Override::parse("goal.center[1]=-2.2").expect("an override");
+    let room = World::load(&p, &[mid]).unwrap_or_else(|e| panic!("{e}"));
+    let l = check_world(&room)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .liveness;
+    assert!(l.live(), "{}", l.line());
+}

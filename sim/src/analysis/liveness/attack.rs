@@ -9,9 +9,10 @@ use super::*;
 /// factor's excess over the largest coordinate of the path; a frozen or replayed fix as far as
 /// the robot has driven since (at `speed`). Attacks that only remove readings (dropout,
 /// non-finite or absurd values the controller rejects, spikes a filter averages) move no fix:
-/// 0. An offset on a velocity or speed channel moves the position the filters integrate by the
-/// offset times the attacked time, one on a heading by `speed`·sin(offset) times it (θ then
-/// decides whether Step 2 drops it). Outside an attack's window: 0.
+/// 0 (a filter they leave with no fix of an axis drifts: `Drift`, in the model). An offset on
+/// a velocity or speed channel moves the position the filters integrate by the offset times
+/// the attacked time, one on a heading by `speed`·sin(offset) times it (θ then decides whether
+/// Step 2 drops it). Outside an attack's window: 0.
 pub fn declared_reach(world: &World, t: f64, speed: f64, max_coord: f64) -> AttackReach {
     let f = &world.file;
     let mut reach: f64 = 0.0;

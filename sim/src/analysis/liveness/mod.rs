@@ -20,7 +20,13 @@
 //!   steady-state Kalman filter is linear, so the offset does not depend on the state or the
 //!   input), when the robot gets there on the planned timeline; where that cannot be computed,
 //!   by the attack's reach ([`declared_reach`]) in every direction the attacked channels can
-//!   move a position fix. Beyond θ_ia(t), Step 2 drops the spoofed estimate.
+//!   move a position fix. Beyond θ_ia(t), Step 2 drops the spoofed estimate. An attack that
+//!   takes readings away (dropout, non-finite values, absurd ones the controller rejects) moves
+//!   no fix, but a spoofed filter left with no fix of an axis dead-reckons it: its estimate
+//!   runs off at the velocity error it had when the fixes went ([`Drift`], taken at
+//!   [`ONE_SIDED_95`] stds of its steady-state velocity error), in either direction, and its
+//!   rows keep the robot clear of the obstacles from there (the tracker leaves it: its spread
+//!   outgrows its γ).
 //!
 //! At each point it solves the 2-D problem "largest acceleration along the path's direction
 //! that satisfies every row jointly inside the input box" exactly (vertex enumeration, as
@@ -29,6 +35,8 @@
 //! is not, whether the rows there are infeasible (Step 3 then drops units by residue, which a
 //! stealthy attacker can win) or only push back (a stall), and the obstacles whose rows bind.
 //! The goal **holds** when at some point of the goal set u = 0 satisfies every row at rest.
+//! A spoofed estimate the tracker may follow **misleads** it off the goal when its offset, plus
+//! [`ONE_SIDED_95`] stds of that filter's own position error, reaches the goal's edge.
 //!
 //! This is a prediction about the nominal case, not a proof: the robot does not follow the
 //! path exactly, noise moves the estimates by up to γ, and the tracker's stall escape can find
@@ -445,6 +453,52 @@ struct Model<'a> {
     /// filter's normalised innovations squared (Σ a²/S over its channels: an honest reading's
     /// e²/S has mean 1, a spoofed one's 1 + a²/S), and the channels the unit reads.
     response_nis: Option<Vec<(Vec<f64>, usize)>>,
+    /// Where the declared attack takes readings away (dropout, non-finite or absurd values the
+    /// controller rejects): per spoofed unit that loses every fix of an axis, its drift
+    /// ([`Model::drift_at`]).
+    drifts: Vec<Drift>,
+}
+
+/// A spoofed unit left without any fix of an axis (position or velocity) from `start` to
+/// `end`: it dead-reckons that axis, and its estimate carries the velocity error it had when
+/// the last fix went on (the filters predict with the acceleration the drive realised).
+#[derive(Debug, Clone, Copy)]
+struct Drift {
+    /// The unit (an index into `Model::units`).
+    unit: usize,
+    /// When the fixes go and, if they come back, when \[s\].
+    start: f64,
+    end: Option<f64>,
+    /// The axes left without a fix (x, y), and the unit's steady-state velocity-error std on
+    /// each \[m/s\].
+    axes: [bool; 2],
+    sigma_v: [f64; 2],
+}
+
+/// The one-sided 95 % point of a Gaussian, in stds: the prediction is for ≥ 95 % of runs, and
+/// what takes the robot off its goal lies on one side of it. A [`Drift`] is taken at this many
+/// stds of the velocity error the unit has when its fixes go (what holds the robot off is an
+/// obstacle on one side: the drift's share towards it), and a spoofed estimate the tracker may
+/// follow ([`walk::misled`]) misleads it when its offset plus this many stds of its own
+/// position error reach the goal's edge.
+const ONE_SIDED_95: f64 = 1.645;
+
+impl Drift {
+    /// How far the unit has run off along each axis at `t` \[m\] (None: not drifting then).
+    fn at(&self, t: f64) -> Option<[f64; 2]> {
+        if t < self.start || self.end.is_some_and(|e| t >= e) {
+            return None;
+        }
+        let s = t - self.start;
+        let d = [0, 1].map(|a| {
+            if self.axes[a] {
+                ONE_SIDED_95 * self.sigma_v[a] * s
+            } else {
+                0.0
+            }
+        });
+        (d[0] > 0.0 || d[1] > 0.0).then_some(d)
+    }
 }
 
 /// The offsets of every unit's estimate [m], indexed like `Model::units`.
@@ -596,6 +650,9 @@ fn structural_notes(model: &Model, cases: &[LivenessCase], out: &mut Vec<String>
     let misled = cases
         .iter()
         .any(|c| c.stall.is_none() && c.misled.is_some());
+    if let Some(note) = model.drift_note() {
+        out.push(note);
+    }
     if worst_theta > 1.0 {
         out.push(format!(
             "Step 2 can isolate the spoofed filters only beyond θ = {worst_theta:.3} m, so the attack's {reach:.3} m offset is never isolated: the robot cannot tell which estimate is honest ({}). Give the pair filters a channel of their own (wheel odometry or encoders with a heading, or a third receiver) so that θ shrinks",

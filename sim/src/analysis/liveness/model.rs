@@ -120,12 +120,73 @@ impl<'a> Model<'a> {
             world,
             response: None,
             response_nis: None,
+            drifts: Vec::new(),
         };
+        model.drifts = model.drifts();
         if let Some((off, nis)) = model.responses() {
             model.response = Some(off);
             model.response_nis = Some(nis);
         }
         Some(model)
+    }
+
+    /// The spoofed units the declared attack leaves without any fix of an axis ([`Drift`]):
+    /// its dropouts, non-finite values and absurd ones beyond the controller's
+    /// `max_abs_reading` take the attacked channels' readings away (the controller rejects
+    /// them), and a unit with no other channel on the axis (position or
+    /// velocity) dead-reckons it. Its estimate then runs off at the velocity error it had when
+    /// the readings went: in a generated room (gen51_035 of `scripts/movers_sweep.sh 51`, NaN
+    /// on gnss2_y) the unit that reads gnss2 ran 0.75 m off in 42 s, at a steady 0.018 m/s,
+    /// and its rows against a wall pushed the robot out of its goal. A unit without a steady
+    /// state is left out (its velocity error is not bounded by one).
+    fn drifts(&self) -> Vec<Drift> {
+        let f = &self.world.file;
+        let cfg = &self.setup.config;
+        // An absurd value the controller does not reject is a fix far off, which Step 2 isolates.
+        let removes = |a: &AttackSpec| match a.kind {
+            AttackKind::Dropout {} | AttackKind::NonFinite { .. } => true,
+            // The controller's own test: a reading is used when finite and within the limit.
+            AttackKind::Absurd { value } => !value.is_finite() || value.abs() > cfg.max_abs_reading,
+            _ => false,
+        };
+        let taking: Vec<&AttackSpec> = f.attacks.iter().filter(|a| removes(a)).collect();
+        let Some(start) = taking.iter().map(|a| a.start).reduce(f64::min) else {
+            return Vec::new();
+        };
+        let end = taking
+            .iter()
+            .map(|a| a.end)
+            .try_fold(f64::NEG_INFINITY, |e, x| x.map(|x| e.max(x)));
+        let lost = |ch: usize| {
+            let name = &f.sensors[self.setup.sensor_of_channel[ch]].name;
+            taking.iter().any(|a| a.channels.contains(name))
+        };
+        let fixes = |ch: usize, axis: usize| {
+            let c = &cfg.model.c[ch];
+            c[axis] != 0.0 || c[axis + 2] != 0.0
+        };
+        self.spoofed
+            .iter()
+            .filter_map(|&(ui, _)| {
+                let u = &self.units[ui];
+                let prior = u.prior?;
+                let used = |ch: &usize| u.mask.get(*ch) == Some(&true);
+                let axes = [0, 1].map(|axis| {
+                    let before = (0..u.mask.len()).filter(used).any(|ch| fixes(ch, axis));
+                    let after = (0..u.mask.len())
+                        .filter(used)
+                        .any(|ch| !lost(ch) && fixes(ch, axis));
+                    before && !after
+                });
+                (axes[0] || axes[1]).then(|| Drift {
+                    unit: ui,
+                    start,
+                    end,
+                    axes,
+                    sigma_v: [prior[(2, 2)].max(0.0).sqrt(), prior[(3, 3)].max(0.0).sqrt()],
+                })
+            })
+            .collect()
     }
 
     /// Each spoofed unit's estimate offset at every control step, exact by linearity: a
@@ -427,6 +488,108 @@ impl<'a> Model<'a> {
         if !attack {
             return vec![zero];
         }
+        let base = self.spoofing_at(t, zero);
+        // A unit that dead-reckons an axis runs off along it, in either direction.
+        let drifts: Vec<(usize, [f64; 2])> = self
+            .drifts
+            .iter()
+            .filter_map(|d| Some((d.unit, d.at(t)?)))
+            .collect();
+        if drifts.is_empty() {
+            return base;
+        }
+        let axes = [0, 1].map(|a| drifts.iter().any(|(_, o)| o[a] > 0.0));
+        let add = |v: &mut Offsets, dir: [f64; 2]| {
+            for &(ui, o) in &drifts {
+                v[ui][0] += dir[0] * o[0];
+                v[ui][1] += dir[1] * o[1];
+            }
+        };
+        if let [one] = base.as_slice() {
+            return offsets(axes, 1.0)
+                .into_iter()
+                .map(|dir| {
+                    let mut v = one.clone();
+                    add(&mut v, dir);
+                    v
+                })
+                .collect();
+        }
+        // The declared reach already spans the directions: each runs off along its own.
+        base.into_iter()
+            .map(|mut v| {
+                let r = self.spoofed.first().map_or([1.0, 0.0], |&(ui, _)| v[ui]);
+                let n = r[0].hypot(r[1]);
+                let dir = if n > 0.0 {
+                    [r[0] / n, r[1] / n]
+                } else {
+                    [1.0, 0.0]
+                };
+                add(&mut v, dir);
+                v
+            })
+            .collect()
+    }
+
+    /// What the declared attack's lost fixes do ([`Drift`]), in one phrase (None: nothing lost).
+    pub(super) fn drift_note(&self) -> Option<String> {
+        let f = &self.world.file;
+        let end = f.duration;
+        let lines: Vec<String> = self
+            .drifts
+            .iter()
+            .map(|d| {
+                let unit = match self.setup.config.kind {
+                    ControllerKind::FtCbfClf => f.fault_patterns.get(d.unit).map_or_else(
+                        || format!("x̂_{}", d.unit + 1),
+                        |p| format!("x̂_{} (drops {})", d.unit + 1, p.name),
+                    ),
+                    _ => "the baseline's filter".to_string(),
+                };
+                let axes: Vec<&str> = [("x", d.axes[0]), ("y", d.axes[1])]
+                    .iter()
+                    .filter(|a| a.1)
+                    .map(|a| a.0)
+                    .collect();
+                let sigma = (0..2)
+                    .filter(|&a| d.axes[a])
+                    .map(|a| d.sigma_v[a])
+                    .fold(0.0, f64::max);
+                let last = d.end.map_or(end, |e| e.min(end));
+                let far = d.at(last - 1e-9).map_or(0.0, |o| o[0].hypot(o[1]));
+                format!(
+                    "{unit} has no fix of {} from t = {:.1} s: it dead-reckons at the velocity error it had then (std {sigma:.4} m/s; taken at {ONE_SIDED_95} std, one side's 95 %), up to {far:.3} m off by t = {last:.1} s, and its rows keep the robot clear of the obstacles from there",
+                    axes.join(" or "),
+                    d.start,
+                )
+            })
+            .collect();
+        (!lines.is_empty()).then(|| {
+            format!(
+                "{}. A fix of that axis the attack cannot take (wheel odometry in every filter, or a third receiver) bounds it",
+                lines.join("; ")
+            )
+        })
+    }
+
+    /// Unit `ui`'s steady-state position-error std, its larger axis's \[m\] (0 without one).
+    pub(super) fn position_std(&self, ui: usize) -> f64 {
+        self.units
+            .get(ui)
+            .and_then(|u| u.prior)
+            .map_or(0.0, |p| p[(0, 0)].max(p[(1, 1)]).max(0.0).sqrt())
+    }
+
+    /// Whether unit `ui` dead-reckons some axis at `t` ([`Drift`]).
+    pub(super) fn drifting(&self, ui: usize, t: f64) -> bool {
+        self.drifts
+            .iter()
+            .any(|d| d.unit == ui && d.at(t).is_some())
+    }
+
+    /// The spoofed estimates' offsets at `t` under the declared attack, before any drift: the
+    /// exact response where there is one, else every direction of the declared reach.
+    fn spoofing_at(&self, t: f64, zero: Offsets) -> Vec<Offsets> {
         if let Some(resp) = &self.response {
             let mut v = zero;
             for (&(ui, _), r) in self.spoofed.iter().zip(resp) {

@@ -463,12 +463,20 @@ pub(super) fn misled(model: &Model, hold: &[(f64, Vec<Offsets>)]) -> Option<(f64
                     // Its innovations give it away: the tracker does not follow it.
                     continue;
                 }
+                if model.setup.config.kind == ControllerKind::FtCbfClf && model.drifting(ui, t) {
+                    // It dead-reckons an axis: its spread outgrows its γ (starved), and the
+                    // tracker follows a fed unit, the honest one at least.
+                    continue;
+                }
                 let r = o[ui][0].hypot(o[ui][1]);
                 let theta = match model.setup.config.kind {
                     ControllerKind::FtCbfClf => theta_at(model.setup, model.patterns, ui, a, t),
                     _ => f64::INFINITY,
                 };
-                if r <= theta && r > model.goal_radius && misled.is_none_or(|m| r > m.0) {
+                // The robot rests where the estimate it follows is at the goal: that estimate's
+                // own error moves it further, towards the goal's edge or away, one side.
+                let noise = ONE_SIDED_95 * model.position_std(ui);
+                if r <= theta && r + noise > model.goal_radius && misled.is_none_or(|m| r > m.0) {
                     misled = Some((r, theta));
                 }
             }
