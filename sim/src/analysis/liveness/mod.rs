@@ -23,8 +23,8 @@
 //!   move a position fix. Beyond θ_ia(t), Step 2 drops the spoofed estimate. An attack that
 //!   takes readings away (dropout, non-finite values, absurd ones the controller rejects) moves
 //!   no fix, but a spoofed filter left with no fix of an axis dead-reckons it: its estimate
-//!   runs off at the velocity error it had when the fixes went ([`Drift`], taken at
-//!   [`ONE_SIDED_95`] stds of its steady-state velocity error), in either direction, and its
+//!   runs off at the velocity error it had when the fixes went (`Drift`, taken at 1.645
+//!   stds of its steady-state velocity error, `ONE_SIDED_95`), in either direction, and its
 //!   rows keep the robot clear of the obstacles from there (the tracker leaves it: its spread
 //!   outgrows its γ).
 //!
@@ -36,7 +36,7 @@
 //! stealthy attacker can win) or only push back (a stall), and the obstacles whose rows bind.
 //! The goal **holds** when at some point of the goal set u = 0 satisfies every row at rest.
 //! A spoofed estimate the tracker may follow **misleads** it off the goal when its offset, plus
-//! [`ONE_SIDED_95`] stds of that filter's own position error, reaches the goal's edge.
+//! 1.645 stds of that filter's own position error, reaches the goal's edge.
 //!
 //! This is a prediction about the nominal case, not a proof: the robot does not follow the
 //! path exactly, noise moves the estimates by up to γ, and the tracker's stall escape can find
