@@ -107,6 +107,12 @@ pub struct ControllerConfig {
     pub barrier_index: Option<Arc<dyn BarrierIndex>>,
 }
 
+/// Whether the controller uses a reading `value`: finite and |value| ≤ `max_abs_reading`
+/// ([`ControllerConfig::max_abs_reading`]); any other is rejected and flags its filters.
+pub fn accepts_reading(value: f64, max_abs_reading: f64) -> bool {
+    value.is_finite() && value.abs() <= max_abs_reading
+}
+
 /// Readings with |y| above this are rejected by default \[m or m/s\] ([`ControllerConfig::max_abs_reading`]).
 pub const DEFAULT_MAX_ABS_READING: f64 = 1e6;
 
@@ -924,7 +930,7 @@ impl Controller {
         for k in 0..q {
             let is_fresh = fresh.get(k).copied().unwrap_or(false) && k < y.len();
             let v = y.get(k).copied().unwrap_or(f64::NAN);
-            let ok = v.is_finite() && v.abs() <= self.max_abs_reading;
+            let ok = accepts_reading(v, self.max_abs_reading);
             self.valid[k] = is_fresh && ok;
             self.rejected_buf[k] = is_fresh && !ok;
             rej.channels[k] = self.rejected_buf[k];

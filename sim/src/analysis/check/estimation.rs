@@ -189,7 +189,7 @@ pub(super) fn check_filters(cx: Ctx<'_>, found: &mut Findings) -> Vec<FilterChec
 }
 
 /// "x̂_1 (drops gnss1)", "x̂_12 (drops gnss1 ∪ gnss2)".
-pub(super) fn filter_label(d: &[usize], pattern_names: &[&str]) -> String {
+pub(crate) fn filter_label(d: &[usize], pattern_names: &[&str]) -> String {
     match d {
         [i] => format!("x̂_{} (drops {})", i + 1, pattern_names[*i]),
         [i, j] => format!(

@@ -71,7 +71,7 @@ use crate::world::structure::{
 use crate::world::{Dynamics, GoalMetric, SafeSetSpec, World};
 
 mod context;
-mod estimation;
+pub(crate) mod estimation;
 mod report;
 mod safety;
 mod suggest;

@@ -455,7 +455,7 @@ struct Model<'a> {
     response_nis: Option<Vec<(Vec<f64>, usize)>>,
     /// Where the declared attack takes readings away (dropout, non-finite or absurd values the
     /// controller rejects): per spoofed unit that loses every fix of an axis, its drift
-    /// ([`Model::drift_at`]).
+    /// ([`Drift::at`]).
     drifts: Vec<Drift>,
 }
 

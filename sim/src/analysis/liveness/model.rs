@@ -3,6 +3,8 @@
 //! detector's view of it and the spoofed estimates' offsets over time.
 
 use super::*;
+use crate::analysis::check::estimation::filter_label;
+use ftcbf_controller::controller::accepts_reading;
 
 /// The unit of a filter that keeps `mask`, with its gain terms: steady state, or the worst
 /// posterior over the run from P0 when the recursion has none.
@@ -146,7 +148,7 @@ impl<'a> Model<'a> {
         let removes = |a: &AttackSpec| match a.kind {
             AttackKind::Dropout {} | AttackKind::NonFinite { .. } => true,
             // The controller's own test: a reading is used when finite and within the limit.
-            AttackKind::Absurd { value } => !value.is_finite() || value.abs() > cfg.max_abs_reading,
+            AttackKind::Absurd { value } => !accepts_reading(value, cfg.max_abs_reading),
             _ => false,
         };
         let taking: Vec<&AttackSpec> = f.attacks.iter().filter(|a| removes(a)).collect();
@@ -535,15 +537,13 @@ impl<'a> Model<'a> {
     pub(super) fn drift_note(&self) -> Option<String> {
         let f = &self.world.file;
         let end = f.duration;
+        let patterns: Vec<&str> = f.fault_patterns.iter().map(|p| p.name.as_str()).collect();
         let lines: Vec<String> = self
             .drifts
             .iter()
             .map(|d| {
                 let unit = match self.setup.config.kind {
-                    ControllerKind::FtCbfClf => f.fault_patterns.get(d.unit).map_or_else(
-                        || format!("x̂_{}", d.unit + 1),
-                        |p| format!("x̂_{} (drops {})", d.unit + 1, p.name),
-                    ),
+                    ControllerKind::FtCbfClf => filter_label(&[d.unit], &patterns),
                     _ => "the baseline's filter".to_string(),
                 };
                 let axes: Vec<&str> = [("x", d.axes[0]), ("y", d.axes[1])]
