@@ -43,11 +43,13 @@ class World:
     def controller(self) -> str: ...
     @property
     def overrides(self) -> dict[str, float]: ...
-    def check(self) -> dict[str, Any]:
+    def check(self, rollouts: int = 6) -> dict[str, Any]:
         """``ftcbf check`` as data: ``hypotheses`` (name, status, detail), ``filters``,
         ``goal``, ``theorem3`` (applies, epsilon, reasons, assumptions, horizon, line),
-        ``liveness`` (live, line, cases, fix, …), ``condition_4_4`` per barrier, ``context``
-        and ``text`` (the report as printed)."""
+        ``liveness`` (live, line, cases, fix, ``rollouts``, …), ``condition_4_4`` per barrier,
+        ``context`` and ``text`` (the report as printed). In a world with movers the liveness
+        verdict is ``rollouts`` runs of the closed loop (``ftcbf check --rollouts``; 0: the
+        search past the movers alone)."""
 
 class LawConfig:
     """What a Python control law is built from."""

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use ftcbf_sim::analysis::check::{self, CheckReport, CovarianceBound, Status};
+use ftcbf_sim::analysis::liveness::rollout::ROLLOUTS;
 use ftcbf_sim::analysis::liveness::{Blocked, LivenessReport};
-use ftcbf_sim::model::setup::ControlSetup;
-use ftcbf_sim::runner::preflight;
+use ftcbf_sim::runner::{preflight, CompiledWorld};
 use ftcbf_sim::world::{Override, World as SimWorld};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -103,16 +103,19 @@ impl World {
 
     /// `ftcbf check` as data: every hypothesis of Theorem 3 with its numbers, the filters, the
     /// goal-holding margins, the Theorem 3 verdict, the liveness prediction, condition (4.4) per
-    /// barrier at the start estimate, and `text`, the report as the CLI prints it. Raises
-    /// `WorldError` for what `ftcbf check` refuses (exit 2).
-    fn check<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// barrier at the start estimate, and `text`, the report as the CLI prints it. In a world
+    /// with movers the liveness verdict is `rollouts` runs of the closed loop (`ftcbf check
+    /// --rollouts`; 0: the search past the movers alone). Raises `WorldError` for what `ftcbf
+    /// check` refuses (exit 2).
+    #[pyo3(signature = (rollouts = ROLLOUTS))]
+    fn check<'py>(&self, py: Python<'py>, rollouts: usize) -> PyResult<Bound<'py, PyDict>> {
         let world = self.inner.clone();
         let (report, setup) = py
             .detach(move || {
                 preflight(&*world)?;
-                let report = check::check_world(&world)?;
-                let setup = ControlSetup::new(&world, world.file.control.controller)?;
-                Ok((report, setup))
+                let compiled = CompiledWorld::new((*world).clone())?;
+                let report = ftcbf_lab::trials::check_rolled_out(&compiled, rollouts);
+                Ok((report, compiled.setup().clone()))
             })
             .map_err(run_error)?;
         let d = report_dict(py, &report)?;
@@ -250,5 +253,15 @@ fn liveness_dict<'py>(py: Python<'py>, l: &LivenessReport) -> PyResult<Bound<'py
         "structural": &l.structural,
         "skipped": &l.skipped,
         "safe_stop": &l.safe_stop,
+        "rollouts": match &l.rollouts {
+            Some(r) => Some(pydict!(py, {
+                "runs": r.runs,
+                "settled": r.settled,
+                "base_seed": r.base_seed,
+                "first_miss_seed": r.first_miss.map(|m| m.0),
+                "error": &r.error,
+            })),
+            None => None,
+        },
     }))
 }

@@ -256,6 +256,19 @@ def test_check_is_structured(cli):
     assert any(h["status"] == "fails" for h in lin["hypotheses"])
 
 
+def test_check_rolls_out_a_world_with_movers(cli):
+    # the ward's trolley paces the corridor and holds the robot out: no run settles
+    ward = "tests/worlds_movers/ward_trolley.toml"
+    code, stdout, _ = cli("check", ward)
+    assert code == 0
+    r = ftcbf.World.load(ward).check()
+    ro = r["liveness"]["rollouts"]
+    assert (ro["runs"], ro["settled"], ro["error"]) == (6, 0, None)
+    assert r["liveness"]["live"] is False and r["liveness"]["line"] in stdout
+    assert ftcbf.World.load(ward).check(rollouts=0)["liveness"]["rollouts"] is None
+    assert ftcbf.World.load(ROBOT).check()["liveness"]["rollouts"] is None  # no movers
+
+
 def test_frames_carry_the_step():
     w = ftcbf.World.load(ROBOT)
     sim = ftcbf.Simulation(w, seed=2, duration=1.0)

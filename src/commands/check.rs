@@ -22,6 +22,11 @@ pub struct CheckArgs {
     /// that none exists in the searched ranges, and why).
     #[arg(long)]
     pub suggest: bool,
+    /// In a world with moving obstacles, run the closed loop this many times (seeded apart from
+    /// `ftcbf batch`'s trials) and let the runs decide whether the robot settles past the movers;
+    /// 0 leaves it to the search past the movers alone.
+    #[arg(long, value_name = "N", default_value_t = ftcbf_sim::analysis::liveness::rollout::ROLLOUTS)]
+    pub rollouts: usize,
 }
 
 /// `ftcbf check`.
@@ -32,7 +37,13 @@ pub fn command(a: &CheckArgs) -> Result<(), Failure> {
     // Whatever `run` would refuse at its start, `check` refuses too, with the same exit code.
     preflight(&compiled).map_err(|e| run_failure(e, "controller setup"))?;
     println!("world {} ({})", world.name, world.path.display());
-    let report = check::check_compiled(&compiled);
+    if a.rollouts > 0 && world.obstacles.iter().any(|o| o.spec.motion.is_some()) {
+        eprintln!(
+            "check: the world has movers: its liveness verdict runs the closed loop {} times where the rows leave the path live (--rollouts 0 skips them)",
+            a.rollouts
+        );
+    }
+    let report = ftcbf_lab::trials::check_rolled_out(&compiled, a.rollouts);
     println!("{report}");
     if let Some(r) = &world.robot {
         println!("drive: {}", r.wheels.describe());

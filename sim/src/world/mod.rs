@@ -106,7 +106,7 @@ fn fmt_place(p: &Option<(usize, usize)>) -> String {
 
 /// A validated world: the file plus everything derived from it once (robot, obstacles, channel
 /// indices). Cheap to share between parallel trials (`&World` is `Sync`).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct World {
     /// World name (the file's `name`, or its stem).
     pub name: String,

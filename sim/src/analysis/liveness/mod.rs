@@ -67,6 +67,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 mod attack;
 mod model;
+pub mod rollout;
 mod walk;
 
 use model::*;
@@ -75,6 +76,7 @@ use walk::*;
 use attack::{direct_fix, offsets};
 
 pub use attack::{declared_reach, AttackReach};
+pub use rollout::Rollouts;
 
 /// Spacing of the path samples \[m\], on paths up to [`MAX_SAMPLES`] · this long (1 km).
 pub const SAMPLE_STEP: f64 = 0.05;
@@ -247,12 +249,19 @@ pub struct LivenessReport {
     pub movers_blocked: Vec<String>,
     /// Moving obstacles the robot may wait for (they cross the path and move on).
     pub movers_wait: Vec<String>,
+    /// With movers, the closed loop's own runs ([`rollout`]; set by `ftcbf check` and
+    /// `ftcbf batch`): when present, they decide whether the movers let the robot settle.
+    pub rollouts: Option<Rollouts>,
 }
 
 impl LivenessReport {
     /// Every case live (a skipped prediction counts as live: nothing holds the robot).
     pub fn live(&self) -> bool {
-        self.cases.iter().all(LivenessCase::live) && self.movers_blocked.is_empty()
+        let movers = match &self.rollouts {
+            Some(r) if r.error.is_none() => r.all_settled(),
+            _ => self.movers_blocked.is_empty(),
+        };
+        self.cases.iter().all(LivenessCase::live) && movers
     }
 
     /// The verdict line.
@@ -260,23 +269,24 @@ impl LivenessReport {
         if let Some(why) = &self.skipped {
             return format!("liveness not predicted: {why}");
         }
-        if let Some(b) = self.movers_blocked.first() {
-            return format!("the robot will NOT reach its goal: {b}");
+        if let Some(r) = self.rollouts.as_ref().filter(|r| r.error.is_none()) {
+            return self.rolled_out_line(r);
         }
-        let stop = self
-            .safe_stop
+        let rollout_error = self
+            .rollouts
             .as_ref()
-            .map_or(String::new(), |stop| format!("; {stop}"));
+            .map_or(String::new(), |r| format!("; {}", r.text()));
+        if let Some(b) = self.movers_blocked.first() {
+            return format!("the robot will NOT reach its goal: {b}{rollout_error}");
+        }
+        let stop = self.stop_suffix();
         let Some(c) = self.cases.iter().find(|c| !c.live()) else {
-            let mut s = format!(
-                "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
-                self.path_length, (self.kappa * 1e3).round() / 1e3
-            );
+            let mut s = self.live_text();
             for w in &self.movers_wait {
                 s.push_str("; ");
                 s.push_str(w);
             }
-            return s;
+            return s + &rollout_error;
         };
         let mut s = match &c.stall {
             // With the safe stop it brakes there (and says why below) rather than push on.
@@ -312,6 +322,47 @@ impl LivenessReport {
             s.push_str(t);
         }
         s + &stop
+    }
+}
+
+impl LivenessReport {
+    /// "; " and the safe stop's phrase, or nothing.
+    fn stop_suffix(&self) -> String {
+        self.safe_stop
+            .as_ref()
+            .map_or(String::new(), |stop| format!("; {stop}"))
+    }
+
+    /// The live verdict's opening (the path, the goal, κ, the safe stop).
+    fn live_text(&self) -> String {
+        let stop = self.stop_suffix();
+        format!(
+            "live: the rows leave a forward input at every point of the {:.2} m path and hold the robot in its goal (κ = {}){stop}",
+            self.path_length, (self.kappa * 1e3).round() / 1e3
+        )
+    }
+
+    /// The verdict line where the rollouts decide (every case live without the movers): the
+    /// rollouts, then what the search past the movers found.
+    fn rolled_out_line(&self, r: &Rollouts) -> String {
+        let mut s = if r.all_settled() {
+            format!("{} with the movers: {}", self.live_text(), r.text())
+        } else {
+            format!(
+                "the robot may NOT settle in its goal with the movers: {}",
+                r.text()
+            )
+        };
+        match self.movers_blocked.first() {
+            Some(b) => s.push_str(&format!("; the search past the movers finds no way: {b}")),
+            None => {
+                for w in &self.movers_wait {
+                    s.push_str("; ");
+                    s.push_str(w);
+                }
+            }
+        }
+        s
     }
 }
 
@@ -541,6 +592,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
             safe_stop: None,
             movers_blocked: Vec::new(),
             movers_wait: Vec::new(),
+            rollouts: None,
         };
     };
     let path_length = model.length();
@@ -569,6 +621,7 @@ pub fn predict(world: &World, setup: &ControlSetup) -> LivenessReport {
         skipped: None,
         goal_radius: model.goal_radius,
         safe_stop: None,
+        rollouts: None,
     }
 }
 
