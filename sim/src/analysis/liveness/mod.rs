@@ -349,8 +349,9 @@ impl LivenessReport {
             format!("{} with the movers: {}", self.live_text(), r.text())
         } else {
             format!(
-                "the robot may NOT settle in its goal with the movers: {}",
-                r.text()
+                "the robot may NOT settle in its goal with the movers: {}{}",
+                r.text(),
+                self.stop_suffix()
             )
         };
         match self.movers_blocked.first() {
@@ -737,8 +738,15 @@ pub fn explain_run(world: &World, setup: &ControlSetup, s: &RunSummary) -> Optio
     };
     let steps = s.control_steps.max(1);
     let report = predict(world, setup);
+    // `ftcbf check` decides a world with movers by runs of the closed loop; this line gives its
+    // analysis without them (one run is explained, not six more made).
+    let who = if world.obstacles.iter().any(|o| o.spec.motion.is_some()) {
+        "check's analysis (without its runs of the closed loop)"
+    } else {
+        "check"
+    };
     Some(format!(
-        "why: the robot {what}: it ended at ({:.2}, {:.2}), {:.2} m from the goal's centre; {} of {steps} steps infeasible ({:.0} %), Step 3 kept a saturated estimator {} times, the tracker saw {} stall(s). check predicted: {}",
+        "why: the robot {what}: it ended at ({:.2}, {:.2}), {:.2} m from the goal's centre; {} of {steps} steps infeasible ({:.0} %), Step 3 kept a saturated estimator {} times, the tracker saw {} stall(s). {who} predicted: {}",
         s.final_state[0],
         s.final_state[1],
         s.final_goal_distance,
