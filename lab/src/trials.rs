@@ -115,10 +115,10 @@ pub fn check_rolled_out(compiled: &CompiledWorld, runs: usize) -> CheckReport {
 /// what they found in `report` ([`rollout`]), when [`rollout::applies`]; `runs = 0` leaves the
 /// search's verdict.
 pub fn roll_out(compiled: &CompiledWorld, report: &mut LivenessReport, runs: usize) {
-    if runs == 0 || !rollout::applies(compiled, report) {
+    let world = compiled.world();
+    if runs == 0 || !rollout::applies(world, report) {
         return;
     }
-    let world = compiled.world();
     let base_seed = world.file.seed ^ ROLLOUT_SALT;
     let outcomes: Vec<_> = (0..runs as u64)
         .into_par_iter()

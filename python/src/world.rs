@@ -112,8 +112,9 @@ impl World {
         let world = self.inner.clone();
         let (report, setup) = py
             .detach(move || {
-                preflight(&*world)?;
                 let compiled = CompiledWorld::new((*world).clone())?;
+                // Whatever `run` would refuse at its start, `check` refuses too.
+                preflight(&compiled)?;
                 let report = ftcbf_lab::trials::check_rolled_out(&compiled, rollouts);
                 Ok((report, compiled.setup().clone()))
             })

@@ -37,7 +37,7 @@ pub fn command(a: &CheckArgs) -> Result<(), Failure> {
     // Whatever `run` would refuse at its start, `check` refuses too, with the same exit code.
     preflight(&compiled).map_err(|e| run_failure(e, "controller setup"))?;
     println!("world {} ({})", world.name, world.path.display());
-    if a.rollouts > 0 && world.obstacles.iter().any(|o| o.spec.motion.is_some()) {
+    if a.rollouts > 0 && world.has_movers() {
         eprintln!(
             "check: the world has movers: its liveness verdict runs the closed loop {} times where the rows leave the path live (--rollouts 0 skips them)",
             a.rollouts

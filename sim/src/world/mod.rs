@@ -226,6 +226,11 @@ impl World {
         self.path.parent().unwrap_or_else(|| Path::new("."))
     }
 
+    /// Whether some obstacle moves (has a `motion`).
+    pub fn has_movers(&self) -> bool {
+        self.obstacles.iter().any(|o| o.spec.motion.is_some())
+    }
+
     /// The largest κ the rows may use at the world's control rate: κ·dt ≤ 1/2, so that one
     /// control period cannot take ĥ from its value past zero (the condition is imposed on a
     /// sampled system: with κ·dt → 1 the sampled input already acts on the whole margin in one

@@ -740,7 +740,7 @@ pub fn explain_run(world: &World, setup: &ControlSetup, s: &RunSummary) -> Optio
     let report = predict(world, setup);
     // `ftcbf check` decides a world with movers by runs of the closed loop; this line gives its
     // analysis without them (one run is explained, not six more made).
-    let who = if world.obstacles.iter().any(|o| o.spec.motion.is_some()) {
+    let who = if world.has_movers() {
         "check's analysis (without its runs of the closed loop)"
     } else {
         "check"

@@ -11,13 +11,13 @@
 //! found and how the verdict reads it; the runs themselves are `ftcbf_lab::trials::roll_out`'s
 //! (`analysis` does not run the simulator).
 //!
-//! The runs are seeded apart from `ftcbf batch`'s trials: run k has the seed
-//! `trial_seed(S ⊕` [`ROLLOUT_SALT`]`, k)` (`ftcbf batch`'s trial seeds), S the world's seed, so `ftcbf batch WORLD
+//! The runs are seeded apart from `ftcbf batch`'s trials: run k has `ftcbf batch`'s trial seed
+//! `trial_seed(S ⊕` [`ROLLOUT_SALT`]`, k)`, S the world's seed, so `ftcbf batch WORLD
 //! --controller KIND --seed (S ⊕ ROLLOUT_SALT) --trials N` (the world's own controller)
 //! replays them, and a batch of the world measures trials `check` has not seen.
 
 use super::LivenessReport;
-use crate::model::CompiledWorld;
+use crate::world::World;
 
 /// How many runs decide a world with movers. At 6, a world where each run settles with
 /// probability 0.95 is called live 74 % of the time, one at 0.8 26 %, one at 0.6 5 %.
@@ -72,14 +72,10 @@ impl Rollouts {
     }
 }
 
-/// Whether `check` rolls `compiled` out: it has a moving obstacle, its controller imposes rows,
+/// Whether `check` rolls `world` out: it has a moving obstacle, its controller imposes rows,
 /// and the rows leave the path live and the goal held in every case without the movers.
-pub fn applies(compiled: &CompiledWorld, report: &LivenessReport) -> bool {
+pub fn applies(world: &World, report: &LivenessReport) -> bool {
     report.skipped.is_none()
         && report.cases.iter().all(super::LivenessCase::live)
-        && compiled
-            .world()
-            .obstacles
-            .iter()
-            .any(|o| o.spec.motion.is_some())
+        && world.has_movers()
 }
